@@ -1,0 +1,135 @@
+"""Compare one target rendered by two backends, with tolerances from ``formats.py``.
+
+Errors are measured in the format's own units: integer code distance for fixed-point, integer
+and depth-stencil formats, ulps for float formats (after flushing denormals; NaN matches only
+NaN, infinities only themselves).  A pixel over tolerance whose value is matched by some pixel
+of the other image in its 3x3 neighbourhood (and vice versa) is taken as a coverage difference
+on a primitive edge, if it sits next to a discontinuity: admitted, counted, and bounded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .formats import Format, Tolerance, flush_denormals
+
+# Edge pixels admitted before a comparison fails: a fraction of the image, at least a few.
+EDGE_FRACTION = 0.005
+EDGE_MIN = 4
+
+
+@dataclass
+class TargetComparison:
+    name: str
+    format: Format
+    tolerance: Tolerance
+    max_error: float          # in tolerance.units (codes / ulp / differing values)
+    rmse: float               # in the same units
+    over: int                 # pixels over tolerance and not admitted as edges
+    edge_admitted: int
+    edge_bound: int
+    error_map: np.ndarray     # (H, W) float: per-pixel error in units (for the error PNG)
+
+    @property
+    def passed(self) -> bool:
+        return self.over == 0 and self.edge_admitted <= self.edge_bound
+
+    def row(self) -> tuple[str, ...]:
+        units = {"code": "codes", "ulp": "ulp", "exact": "exact"}[self.tolerance.units]
+        return (self.name, self.format.name, f"{_num(self.max_error)} {units}",
+                f"{self.rmse:.3g}", f"≤{self.tolerance.limit}", str(self.over),
+                f"{self.edge_admitted}/{self.edge_bound}", "ok" if self.passed else "FAIL")
+
+
+def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
+                   blended_passes: int = 0, tolerance: Tolerance | None = None,
+                   stencil: bool = False) -> TargetComparison:
+    """Compare codes ``a`` and ``b`` (same shape) of target ``name`` in format ``fmt``."""
+    assert a.shape == b.shape, (name, a.shape, b.shape)
+    tol = tolerance or (Tolerance("exact", 0) if stencil else fmt.tolerance(blended_passes))
+    err = channel_error(a, b, tol)
+    per_pixel = err.max(axis=-1) if err.ndim == 3 else err
+    bad = per_pixel > tol.limit
+    on_edge = _discontinuity(a, tol) | _discontinuity(b, tol)
+    admitted = bad & on_edge & _neighbourhood_match(a, b, tol) & _neighbourhood_match(b, a, tol)
+    finite = per_pixel[np.isfinite(per_pixel)]
+    rmse = float(np.sqrt(np.mean(finite.astype(np.float64) ** 2))) if finite.size else 0.0
+    bound = max(EDGE_MIN, int(EDGE_FRACTION * per_pixel.size))
+    return TargetComparison(name, fmt, tol, float(per_pixel.max()) if per_pixel.size else 0.0,
+                            rmse, int((bad & ~admitted).sum()), int(admitted.sum()), bound,
+                            per_pixel.astype(np.float64))
+
+
+def channel_error(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:
+    """Per-channel error in the tolerance's units (inf where NaN meets a number)."""
+    if tol.units == "ulp":
+        return ulp_distance(a, b, tol.abs_floor)
+    if tol.units == "exact":
+        return (a != b).astype(np.float64)
+    return np.abs(a.astype(np.int64) - b.astype(np.int64)).astype(np.float64)
+
+
+def ulp_distance(a: np.ndarray, b: np.ndarray, abs_floor: float = 0.0) -> np.ndarray:
+    a, b = flush_denormals(a), flush_denormals(b)
+    int_t = {2: np.int16, 4: np.int32}[a.dtype.itemsize]
+    ia = _ordered(np.ascontiguousarray(a).view(int_t))
+    ib = _ordered(np.ascontiguousarray(b).view(int_t))
+    d = np.abs(ia - ib).astype(np.float64)
+    nan_a, nan_b = np.isnan(a), np.isnan(b)
+    d[nan_a & nan_b] = 0.0
+    d[nan_a ^ nan_b] = np.inf
+    with np.errstate(invalid="ignore"):
+        close = np.abs(a.astype(np.float64) - b.astype(np.float64)) <= abs_floor
+    d[close & ~(nan_a | nan_b)] = 0.0
+    return d
+
+
+def _ordered(i: np.ndarray) -> np.ndarray:
+    """Map IEEE bit patterns (viewed as signed ints) to integers that order like the floats;
+    -0 and +0 both map to 0."""
+    magnitude_mask = np.int64((1 << (8 * i.dtype.itemsize - 1)) - 1)
+    wide = i.astype(np.int64)
+    return np.where(wide < 0, -(wide & magnitude_mask), wide)
+
+
+def _discontinuity(a: np.ndarray, tol: Tolerance) -> np.ndarray:
+    """Pixels next to a jump in value much larger than the tolerance: where primitive edges
+    are.  In smooth regions (gradients) no pixel qualifies, so a value that is off there
+    cannot hide behind a similar neighbour."""
+    jump = _neighbourhood_extreme(a, a, tol)
+    return jump > 4 * (tol.limit + 1)
+
+
+def _neighbourhood_extreme(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:
+    h, w = a.shape[:2]
+    pad = [(1, 1), (1, 1)] + [(0, 0)] * (b.ndim - 2)
+    bp = np.pad(b, pad, mode="edge")
+    worst = np.zeros((h, w))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            e = channel_error(a, bp[1 + dy:1 + dy + h, 1 + dx:1 + dx + w], tol)
+            worst = np.maximum(worst, e.max(axis=-1) if e.ndim == 3 else e)
+    return worst
+
+
+def _neighbourhood_match(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:
+    """For each pixel: does a's value match b's value at some pixel of the 3x3 neighbourhood?"""
+    h, w = a.shape[:2]
+    pad = [(1, 1), (1, 1)] + [(0, 0)] * (b.ndim - 2)
+    bp = np.pad(b, pad, mode="edge")
+    match = np.zeros((h, w), bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            shifted = bp[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+            e = channel_error(a, shifted, tol)
+            e = e.max(axis=-1) if e.ndim == 3 else e
+            match |= e <= tol.limit
+    return match
+
+
+def _num(x: float) -> str:
+    if not np.isfinite(x):
+        return "inf"
+    return f"{x:.0f}" if float(x).is_integer() else f"{x:.3g}"

@@ -1,0 +1,119 @@
+"""Compilation as a readable sequence of named phases (Granite's ``RenderGraph::bake()``).
+
+    parse → lower → validate → specialise → fold → prune → emit
+
+Each phase after ``lower`` is a ``run(ir) -> ir`` from ``pipegen.passes``; with
+``verify_each=True`` (the tests' setting) the IR verifier runs after every phase.  Nothing here
+imports moderngl or pyopencl: ``pipegen compile`` works on any machine; ``Compiled.pipeline``
+imports a runtime only when asked to render.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+from . import ir, lower, syntax, verify
+from .diagnostics import PipegenError
+from .passes import opt_fold_constants, opt_unused_functions, specialise_params
+
+Phase = tuple[str, Callable[[ir.Technique], ir.Technique]]
+
+PHASES: tuple[Phase, ...] = (
+    ("specialise", specialise_params.run),
+    ("fold", opt_fold_constants.run),
+    ("prune", opt_unused_functions.run),
+)
+
+
+@dataclass
+class Compiled:
+    """A compiled technique: the optimised IR plus everything emitted from it (lazily)."""
+
+    technique: ir.Technique
+    params: dict
+    phases_run: list[str] = field(default_factory=list)
+    _plans: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def name(self) -> str:
+        return self.technique.name
+
+    def plan(self, backend: str) -> dict:
+        if backend not in self._plans:
+            if backend == "gl":
+                from .backends.glsl import emit_gl
+                self._plans[backend] = emit_gl(self.technique)
+            elif backend == "cl":
+                from .backends.opencl import emit_cl
+                self._plans[backend] = emit_cl(self.technique)
+            else:
+                raise ValueError(f"unknown backend {backend!r} (expected 'gl' or 'cl')")
+        return self._plans[backend]
+
+    def pipeline(self, backend: str = "gl", size: Optional[tuple[int, int]] = None):
+        """A runnable pipeline: ``.render(scene) -> {target: numpy array}``."""
+        if backend == "gl":
+            from .runtime.gl_pipeline import GLPipeline
+            return GLPipeline(self.plan("gl"), size)
+        if backend == "cl":
+            from .runtime.cl_pipeline import CLPipeline
+            return CLPipeline(self.plan("cl"), size)
+        raise ValueError(f"unknown backend {backend!r} (expected 'gl' or 'cl')")
+
+    def report(self, output_size: tuple[int, int] = (1280, 720)) -> str:
+        from .report import render_report
+        return render_report(self, output_size)
+
+    def write(self, out_dir: str | os.PathLike, backends: tuple[str, ...] = ("gl", "cl")) -> Path:
+        """Write shaders, pipeline modules and the report to ``out_dir`` atomically: everything
+        is generated into a sibling temporary folder first, so a failure leaves nothing behind
+        (and an existing folder untouched)."""
+        from .emit_files import write_outputs
+        out = Path(out_dir)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+        try:
+            write_outputs(self, tmp, backends)
+            if out.exists():
+                shutil.rmtree(out)
+            tmp.rename(out)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return out
+
+
+def compile_source(text: str, filename: str = "<string>", params: Optional[dict] = None,
+                   verify_each: bool = False) -> Compiled:
+    module = syntax.parse(text, filename)
+    tech = lower.lower(module, filename, params=params)
+    return _run_phases(tech, params or {}, verify_each)
+
+
+def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
+                 verify_each: bool = False) -> Compiled:
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise PipegenError(None, f"no such file: {p}",
+                           hint="pass the path of a .pipe file, e.g. pipelines/forward.pipe")
+    except (IsADirectoryError, UnicodeDecodeError) as e:
+        raise PipegenError(None, f"cannot read {p}: {e}")
+    return compile_source(text, str(p), params, verify_each)
+
+
+def _run_phases(tech: ir.Technique, params: dict, verify_each: bool) -> Compiled:
+    run = ["lower", "validate"]
+    verify.verify(tech)
+    for name, phase in PHASES:
+        tech = phase(tech)
+        run.append(name)
+        if verify_each:
+            verify.verify(tech)
+    return Compiled(tech, dict(params), run)
