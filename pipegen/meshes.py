@@ -1,0 +1,376 @@
+"""Triangle meshes: the procedural primitives, an OBJ loader, normal groups and light volumes.
+
+Every mesh here is a *non-indexed* triangle list (three consecutive vertices per triangle),
+counter-clockwise when seen from outside, in float64.  Procedural primitives fit in the unit
+cube centred at the origin (the scene's per-object transform sizes and places them):
+
+- ``plane``:    1 x 1 in the xz plane at y = 0, facing +y;
+- ``box``:      1 x 1 x 1, flat face normals;
+- ``sphere``:   radius 0.5, a uv sphere with smooth normals;
+- ``cylinder``: radius 0.5, height 1 along y, smooth sides and flat caps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A non-indexed triangle list: ``positions``/``normals`` (3T, 3), ``groups`` (T,)."""
+
+    positions: np.ndarray
+    normals: np.ndarray
+    groups: np.ndarray
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.groups)
+
+
+# -- helpers ---------------------------------------------------------------------------------
+
+
+def _normalize(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def face_normals(positions: np.ndarray) -> np.ndarray:
+    """Unit geometric normals (T, 3) of a non-indexed triangle list (ccw = front)."""
+    tri = positions.reshape(-1, 3, 3)
+    return _normalize(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+
+
+def _expand(vertices, normals, faces, orient: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Indexed -> non-indexed.  With ``orient``, each triangle is flipped where needed so that
+    its winding agrees with its vertex normals: the generators below then only have to get the
+    normals right, and ccw-from-outside follows for every primitive."""
+    vertices = np.asarray(vertices, dtype=np.float64)
+    normals = np.asarray(normals, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if orient:
+        p = vertices[faces]
+        geo = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        flip = np.einsum("ij,ij->i", geo, normals[faces].sum(axis=1)) < 0
+        faces = faces.copy()
+        faces[flip] = faces[flip][:, [0, 2, 1]]
+    idx = faces.reshape(-1)
+    return vertices[idx], normals[idx]
+
+
+def _finish(positions: np.ndarray, normals: np.ndarray) -> Mesh:
+    keep = _non_degenerate(positions)
+    positions = positions.reshape(-1, 3, 3)[keep].reshape(-1, 3)
+    normals = normals.reshape(-1, 3, 3)[keep].reshape(-1, 3)
+    return Mesh(positions, normals, normal_groups(positions, normals))
+
+
+def _non_degenerate(positions: np.ndarray) -> np.ndarray:
+    tri = positions.reshape(-1, 3, 3)
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    scale = np.abs(tri).max(initial=1.0)
+    return area2 > 1e-12 * scale * scale
+
+
+# -- procedural primitives ---------------------------------------------------------------------
+
+
+def plane(divisions: int = 1) -> Mesh:
+    """1 x 1 square in the xz plane at y = 0, facing +y, split into ``divisions``² quads."""
+    n = divisions
+    t = np.linspace(-0.5, 0.5, n + 1)
+    x, z = np.meshgrid(t, t, indexing="ij")
+    verts = np.stack([x.ravel(), np.zeros(x.size), z.ravel()], axis=1)
+    normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
+    faces = []
+    for i in range(n):
+        for j in range(n):
+            a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
+            faces += [(a, b, c), (a, c, d)]
+    return _finish(*_expand(verts, normals, faces))
+
+
+def box() -> Mesh:
+    """Unit cube centred at the origin with one flat normal per face."""
+    verts, normals, faces = [], [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            n = np.zeros(3)
+            n[axis] = sign
+            u, v = np.zeros(3), np.zeros(3)
+            u[(axis + 1) % 3] = 0.5
+            v[(axis + 2) % 3] = 0.5
+            c = n * 0.5
+            base = len(verts)
+            verts += [c - u - v, c + u - v, c + u + v, c - u + v]
+            normals += [n] * 4
+            faces += [(base, base + 1, base + 2), (base, base + 2, base + 3)]
+    return _finish(*_expand(verts, normals, faces))
+
+
+def sphere(segments: int = 24, rings: int = 12) -> Mesh:
+    """UV sphere of radius 0.5 with smooth normals; fans (not slivers) at the poles."""
+    verts, faces = [], []
+    for r in range(rings + 1):
+        theta = math.pi * r / rings
+        for s in range(segments + 1):
+            phi = 2.0 * math.pi * s / segments
+            verts.append((math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi)))
+    verts = np.array(verts)
+    for r in range(rings):
+        for s in range(segments):
+            a = r * (segments + 1) + s
+            b, c, d = a + segments + 1, a + segments + 2, a + 1
+            if r != 0:
+                faces.append((a, b, d))
+            if r != rings - 1:
+                faces.append((d, b, c))
+    normals = _normalize(verts)
+    return _finish(*_expand(verts * 0.5, normals, faces))
+
+
+def cylinder(segments: int = 24) -> Mesh:
+    """Cylinder of radius 0.5 along y from -0.5 to 0.5: smooth side, flat caps."""
+    verts, normals, faces = [], [], []
+    ang = [2.0 * math.pi * s / segments for s in range(segments + 1)]
+    ring = [(0.5 * math.cos(a), 0.5 * math.sin(a)) for a in ang]
+    for (x, z), a in zip(ring, ang):  # side: two rings sharing radial normals
+        radial = (math.cos(a), 0.0, math.sin(a))
+        verts += [(x, -0.5, z), (x, 0.5, z)]
+        normals += [radial, radial]
+    for s in range(segments):
+        a, b, c, d = 2 * s, 2 * s + 1, 2 * s + 3, 2 * s + 2
+        faces += [(a, b, c), (a, c, d)]
+    for y in (-0.5, 0.5):  # caps: a centre vertex and their own ring with the flat normal
+        n = (0.0, 1.0 if y > 0 else -1.0, 0.0)
+        centre = len(verts)
+        verts.append((0.0, y, 0.0))
+        verts += [(x, y, z) for x, z in ring[:-1]]
+        normals += [n] * (segments + 1)
+        for s in range(segments):
+            faces.append((centre, centre + 1 + s, centre + 1 + (s + 1) % segments))
+    return _finish(*_expand(verts, normals, faces))
+
+
+PRIMITIVES = {"plane": plane, "box": box, "sphere": sphere, "cylinder": cylinder}
+
+
+# -- OBJ ---------------------------------------------------------------------------------------
+
+
+class ObjError(ValueError):
+    """A malformed OBJ file; ``line`` is 1-based (0 when not tied to a line)."""
+
+    def __init__(self, message: str, line: int = 0):
+        super().__init__(message)
+        self.line = line
+
+
+def load_obj(path: str | Path, crease_deg: float = 45.0) -> Mesh:
+    """Read ``v``, ``vn`` and ``f`` records (other records are ignored); polygons are split
+    into fans.  Faces without normals get smoothed ones: the area-weighted average of the
+    face normals around the vertex that lie within ``crease_deg`` of the face's own (so a cube
+    stays faceted and a tessellated sphere becomes smooth)."""
+    verts: list[tuple[float, float, float]] = []
+    vnormals: list[tuple[float, float, float]] = []
+    tri_v: list[tuple[int, int, int]] = []
+    tri_n: list[tuple[int, int, int] | None] = []
+
+    def index(token: str, count: int, lineno: int) -> int:
+        i = int(token)
+        i = i - 1 if i > 0 else count + i
+        if not 0 <= i < count:
+            raise ObjError(f"index {token} out of range (have {count})", lineno)
+        return i
+
+    text = Path(path).read_text()
+    for lineno, line in enumerate(text.splitlines(), 1):
+        parts = line.split("#", 1)[0].split()
+        if not parts:
+            continue
+        try:
+            if parts[0] == "v":
+                verts.append(tuple(float(x) for x in parts[1:4]))
+                if len(parts) < 4:
+                    raise ObjError("a 'v' record needs three coordinates", lineno)
+            elif parts[0] == "vn":
+                if len(parts) < 4:
+                    raise ObjError("a 'vn' record needs three components", lineno)
+                vnormals.append(tuple(float(x) for x in parts[1:4]))
+            elif parts[0] == "f":
+                if len(parts) < 4:
+                    raise ObjError("a face needs at least three vertices", lineno)
+                corners = [c.split("/") for c in parts[1:]]
+                vi = [index(c[0], len(verts), lineno) for c in corners]
+                has_n = all(len(c) >= 3 and c[2] for c in corners)
+                ni = [index(c[2], len(vnormals), lineno) for c in corners] if has_n else None
+                for k in range(1, len(vi) - 1):
+                    tri_v.append((vi[0], vi[k], vi[k + 1]))
+                    tri_n.append((ni[0], ni[k], ni[k + 1]) if ni else None)
+        except ValueError as e:
+            if isinstance(e, ObjError):
+                raise
+            raise ObjError(f"cannot read '{line.strip()}': {e}", lineno) from None
+    if not tri_v:
+        raise ObjError("no faces")
+
+    V = np.array(verts, dtype=np.float64)
+    F = np.array(tri_v, dtype=np.int64)
+    positions = V[F].reshape(-1, 3)
+    fn_raw = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])  # length = 2 * area
+    normals = _smooth_normals(F, fn_raw, crease_deg)
+    N = np.array(vnormals, dtype=np.float64) if vnormals else np.zeros((0, 3))
+    for t, ni in enumerate(tri_n):
+        if ni is not None:
+            normals[3 * t : 3 * t + 3] = _normalize(N[list(ni)])
+    return _finish(positions, normals)
+
+
+def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> np.ndarray:
+    """Per-corner normals averaged over the faces at the corner's vertex within the crease."""
+    unit = _normalize(fn_raw)
+    cos_crease = math.cos(math.radians(crease_deg))
+    corners = faces.reshape(-1)
+    out = np.repeat(unit, 3, axis=0)
+    order = np.argsort(corners, kind="stable")
+    bounds = np.flatnonzero(np.diff(corners[order])) + 1
+    for group in np.split(order, bounds):
+        tris = group // 3
+        close = unit[tris] @ unit[tris].T >= cos_crease  # (k, k): which faces smooth together
+        out[group] = _normalize(close.astype(np.float64) @ fn_raw[tris])
+    return out
+
+
+# -- normal groups -----------------------------------------------------------------------------
+
+
+def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5) -> np.ndarray:
+    """Group id (0..255) per triangle: connected components of the mesh's dual graph where
+    two triangles are adjacent when they share an edge *and* agree on the vertex normals at
+    both of its ends, so every normal discontinuity (a crease) separates groups.
+
+    Components are numbered in order of their first triangle; past 256 the numbers wrap
+    (``% 256``), which keeps the id in 8 bits at the cost of reusing ids far apart in the mesh.
+    """
+    tri_count = len(positions) // 3
+    if tri_count == 0:
+        return np.zeros(0, dtype=np.int64)
+    # Weld positions so shared edges are found although the list is non-indexed.
+    scale = max(float(np.abs(positions).max()), 1e-30)
+    keys = np.round(positions / (scale * tol)).astype(np.int64)
+    _, pid = np.unique(keys, axis=0, return_inverse=True)
+    pid = pid.reshape(-1)
+
+    corner = np.arange(3 * tri_count).reshape(-1, 3)
+    a = corner.reshape(-1)                       # edge k of triangle t: corner k -> corner k+1
+    b = corner[:, [1, 2, 0]].reshape(-1)
+    swap = pid[a] > pid[b]                       # orient each edge by position id
+    lo, hi = np.where(swap, b, a), np.where(swap, a, b)
+    edge_key = pid[lo] * (pid.max() + 1) + pid[hi]
+    order = np.argsort(edge_key, kind="stable")
+    same = edge_key[order][1:] == edge_key[order][:-1]
+    e0, e1 = order[:-1][same], order[1:][same]   # pairs of triangle-edges on the same edge
+
+    def agree(c0, c1):
+        return np.einsum("ij,ij->i", _normalize(normals[c0]), _normalize(normals[c1])) > 1 - tol
+
+    smooth = agree(lo[e0], lo[e1]) & agree(hi[e0], hi[e1])
+    parent = np.arange(tri_count)
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for t0, t1 in zip(e0[smooth] // 3, e1[smooth] // 3):
+        r0, r1 = find(int(t0)), find(int(t1))
+        if r0 != r1:
+            parent[max(r0, r1)] = min(r0, r1)
+    roots = np.array([find(t) for t in range(tri_count)])
+    _, first, inverse = np.unique(roots, return_index=True, return_inverse=True)
+    rank = np.argsort(np.argsort(first))         # number components by first triangle
+    return (rank[inverse] % 256).astype(np.int64)
+
+
+# -- light volumes -----------------------------------------------------------------------------
+
+
+def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit icosphere (vertices on the unit sphere): (vertices, faces), faces ccw outside."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    v = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t),
+         (0, 1, -t), (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]
+    f = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4),
+         (11, 10, 2), (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8),
+         (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7), (9, 8, 1)]
+    verts = [np.array(p, dtype=np.float64) / np.linalg.norm(p) for p in v]
+    faces = list(f)
+    for _ in range(subdivisions):
+        midpoint: dict[tuple[int, int], int] = {}
+
+        def mid(i: int, j: int) -> int:
+            key = (min(i, j), max(i, j))
+            if key not in midpoint:
+                m = verts[i] + verts[j]
+                verts.append(m / np.linalg.norm(m))
+                midpoint[key] = len(verts) - 1
+            return midpoint[key]
+
+        new = []
+        for a, b, c in faces:
+            ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+            new += [(a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca)]
+        faces = new
+    return np.array(verts), np.array(faces, dtype=np.int64)
+
+
+SPHERE_SUBDIVISIONS = 2
+CONE_SEGMENTS = 16
+
+
+def light_volume(volume: str) -> np.ndarray:
+    """Unit light volume as a non-indexed float32 triangle list (V, 3), ccw seen from outside.
+
+    - ``"sphere"``: an icosphere (subdivision 2, 320 faces) scaled by 1/inradius, so that every
+      face lies *outside* the unit sphere: the mesh circumscribes it, and scaled by a light's
+      radius it covers the light's whole sphere of influence.  Its vertices lie at distance
+      ``1/inradius`` (about 1.02) from the centre.
+    - ``"cone"``: a spot-light cone in its local frame: apex at the origin, axis along -z,
+      length 1 (a flat base at z = -1), circumscribing the circular cone of half-angle 45°
+      (base circle of radius 1).  The vertex stage scales x and y by ``tan(outer) * radius``
+      and z by ``radius``, then rotates -z onto the light direction: the result contains the
+      spot's region of influence (the sphere of radius ``radius`` intersected with the cone of
+      half-angle ``outer``, for ``outer`` < 90°).
+    - ``"quad"``: two triangles covering [-1, 1]² at z = 0, ccw seen from +z (screen quads are
+      placed in clip space by the vertex stage).
+    """
+    if volume == "sphere":
+        verts, faces = icosphere(SPHERE_SUBDIVISIONS)
+        p = verts[faces]
+        plane_dist = np.einsum("ij,ij->i", face_normals(p.reshape(-1, 3)), p[:, 0])
+        # The 1e-6 margin keeps the faces outside after rounding to float32.
+        positions = (verts * ((1.0 + 1e-6) / plane_dist.min()))[faces].reshape(-1, 3)
+    elif volume == "cone":
+        n = CONE_SEGMENTS
+        r = 1.0 / math.cos(math.pi / n)  # polygon circumscribing the unit circle
+        rim = [np.array([r * math.cos(2 * math.pi * k / n), r * math.sin(2 * math.pi * k / n), -1.0])
+               for k in range(n)]
+        apex, centre = np.zeros(3), np.array([0.0, 0.0, -1.0])
+        tris = []
+        for k in range(n):
+            a, b = rim[k], rim[(k + 1) % n]
+            tris += [apex, a, b]       # side (ccw seen from outside)
+            tris += [centre, b, a]     # base, facing -z
+        positions = np.array(tris)
+    elif volume == "quad":
+        positions = np.array([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, -1, 0), (1, 1, 0), (-1, 1, 0)],
+                             dtype=np.float64)
+    else:
+        raise ValueError(f"unknown light volume '{volume}' (sphere, cone, quad)")
+    return positions.astype(np.float32)

@@ -1,0 +1,144 @@
+"""The lighting equation of the shipped techniques, evaluated in float64: the ground truth.
+
+For a surface point P with interpolated normal n seen from the camera at C::
+
+    att(d, r) = clamp(1 - d²/r², 0, 1)²                 zero at and beyond r
+    L = light.position - P;  d = |L|;  l = L / max(d, 1e-6)
+    n = normalize(n), v = normalize(C - P), h = normalize(l + v)   (guarded: x / sqrt(max(x·x, 1e-12)))
+    ndl = max(n·l, 0);  ndh = max(n·h, 0)
+    spec = ndl > 0 ? pow(max(ndh, 1e-6), shininess) : 0
+    contribution = color * att * (albedo * ndl + specular * spec)
+    spot:        × smoothstep(cos_outer, cos_inner, dot(-l, direction))
+    directional: l = -direction, att = 1
+    colour = ambient * albedo + Σ contributions;  sky pixels = the clear colour (0, 0, 0)
+
+Light parameters are read as the light table stores them (rounded to float32), so the
+reference and the backends light the same scene.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import formats
+from ..meshes import light_volume
+from ..scene import Light, Scene
+from .raster import GBuffer, rasterize
+
+EPS_DIST = 1e-6
+EPS_NORM2 = 1e-12
+EPS_POW = 1e-6
+
+
+def _f32(x) -> np.ndarray:
+    return np.asarray(x, dtype=np.float32).astype(np.float64)
+
+
+def safe_normalize(v: np.ndarray) -> np.ndarray:
+    """v / |v| with the shaders' guard: a zero vector stays zero instead of becoming NaN."""
+    return v * (1.0 / np.sqrt(np.maximum(np.einsum("...i,...i->...", v, v), EPS_NORM2)))[..., None]
+
+
+def attenuation(d2: np.ndarray, radius: float) -> np.ndarray:
+    """clamp(1 - d²/r², 0, 1)²: 1 at the centre, exactly 0 at and beyond the radius."""
+    return np.clip(1.0 - d2 / (radius * radius), 0.0, 1.0) ** 2
+
+
+def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def light_contribution(light: Light, P: np.ndarray, normal: np.ndarray, camera_pos: np.ndarray,
+                       albedo: np.ndarray, specular: np.ndarray, shininess: np.ndarray) -> np.ndarray:
+    """One light's contribution (n, 3) at n surface points (flat arrays, float64)."""
+    color = _f32(light.color)
+    if light.type == "directional":
+        l = np.broadcast_to(-_f32(light.direction), P.shape)
+        att = np.ones(len(P))
+    else:
+        L = _f32(light.position) - P
+        d2 = np.einsum("ij,ij->i", L, L)
+        l = L / np.maximum(np.sqrt(d2), EPS_DIST)[:, None]
+        att = attenuation(d2, float(_f32(light.radius)))
+        if light.type == "spot":
+            cos_a = np.einsum("ij,j->i", -l, _f32(light.direction))
+            att = att * smoothstep(float(_f32(light.cos_outer)), float(_f32(light.cos_inner)), cos_a)
+    n = safe_normalize(normal)
+    v = safe_normalize(camera_pos - P)
+    h = safe_normalize(l + v)
+    ndl = np.maximum(np.einsum("ij,ij->i", n, l), 0.0)
+    ndh = np.maximum(np.einsum("ij,ij->i", n, h), 0.0)
+    spec = np.where(ndl > 0, np.power(np.maximum(ndh, EPS_POW), shininess), 0.0)
+    return color * att[:, None] * (albedo * ndl[:, None] + (specular * spec)[:, None])
+
+
+def shade(gbuffer: GBuffer, scene: Scene) -> np.ndarray:
+    """float64 (H, W, 3) colour before clamping: ambient plus every light, sky = clear colour."""
+    out = np.zeros((gbuffer.height, gbuffer.width, 3))
+    out[:] = scene.clear_color
+    cov = gbuffer.coverage
+    P, N = gbuffer.position[cov], gbuffer.normal[cov]
+    albedo, spec, shin = gbuffer.albedo[cov], gbuffer.specular[cov], gbuffer.shininess[cov]
+    cam = np.asarray(scene.camera.position, dtype=np.float64)
+    colour = _f32(scene.ambient) * albedo
+    for light in scene.lights:
+        if light.type == "directional":
+            sel = slice(None)
+        else:
+            # Only points strictly inside the radius receive light (att is exactly 0 elsewhere).
+            L = _f32(light.position) - P
+            r = float(_f32(light.radius))
+            sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
+        colour[sel] += light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
+    out[cov] = colour
+    return out
+
+
+def reference_image(scene: Scene, material: tuple[str, ...] = ("opaque",)) -> tuple[np.ndarray, GBuffer]:
+    """(colour float64 (H, W, 3) before clamping, G-buffer) of the scene's opaque objects."""
+    gb = rasterize(scene, material)
+    return shade(gb, scene), gb
+
+
+def to_rgba8(colour: np.ndarray) -> np.ndarray:
+    """The rgba8 codes a technique writes: clamp, round half to even, alpha 1."""
+    rgba = np.concatenate([colour, np.ones(colour.shape[:-1] + (1,))], axis=-1)
+    return formats.get("rgba8").quantize(rgba)
+
+
+def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False) -> np.ndarray:
+    """int (H, W): how many lights may touch each pixel's surface point (0 on sky).
+
+    Default: the point and spot lights whose sphere (radius) strictly contains the point, plus
+    every directional light.  ``conservative=True`` counts what a light-volume pass with
+    ``cull front`` and ``depth gequal`` marks instead: lights whose *circumscribing* volume
+    mesh has a back face at or behind the surface along the pixel's view ray (this also counts
+    volumes hidden behind the surface), so it bounds what an index packing must hold.
+    """
+    cov = gbuffer.coverage
+    P = gbuffer.position[cov]
+    count = np.zeros(len(P), dtype=np.int64)
+    cam = np.asarray(scene.camera.position, dtype=np.float64)
+    ray = P - cam
+    t_surface = np.linalg.norm(ray, axis=1)
+    u = ray / np.maximum(t_surface, 1e-300)[:, None]
+    grow = float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
+    for light in scene.lights:
+        if light.type == "directional":
+            count += 1
+            continue
+        centre, r = _f32(light.position), float(_f32(light.radius))
+        if not conservative:
+            L = centre - P
+            count += np.einsum("ij,ij->i", L, L) < r * r
+            continue
+        R = r * grow
+        oc = centre - cam
+        b = u @ oc
+        disc = b * b - (oc @ oc - R * R)
+        t_far = b + np.sqrt(np.maximum(disc, 0.0))
+        count += (disc > 0) & (t_far >= t_surface)
+    out = np.zeros(cov.shape, dtype=np.int64)
+    out[cov] = count
+    return out

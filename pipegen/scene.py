@@ -1,0 +1,739 @@
+"""Scenes: objects, lights and a camera, read from TOML (see ``examples/scenes/``).
+
+A scene file::
+
+    width = 320                      # output size in pixels
+    height = 180
+    ambient = [0.05, 0.05, 0.06]     # optional, default [0, 0, 0]
+
+    [camera]
+    position = [0, 7, 11]
+    target = [0, 0.5, 0]
+    up = [0, 1, 0]                   # optional
+    fov_y_deg = 45
+    near = 0.1                       # optional
+    far = 100                        # optional
+
+    [[objects]]
+    mesh = "box"                     # plane | box | sphere | cylinder, or: obj = "model.obj"
+    name = "crate"                   # optional
+    id = 3                           # optional, 1..255, default: position in the file (1-based)
+    translate = [0, 0.5, 0]          # optional transform: scale, then rotate, then translate
+    rotate_deg = [0, 30, 0]          # degrees about x, then y, then z
+    scale = [1, 1, 1]                # or one number
+    segments = 24                    # sphere/cylinder tessellation; rings (sphere);
+                                     # divisions (plane)
+    material = { albedo = [0.8, 0.2, 0.2], specular = 0.3, shininess = 32, alpha = 1.0,
+                 translucent = false }
+
+    [[lights]]
+    type = "point"                   # point | spot | directional (default point)
+    position = [0, 1, 0]             # point, spot
+    radius = 3.0                     # point, spot
+    color = [1.0, 0.8, 0.6]
+    direction = [0, -1, 0]           # spot, directional (the direction the light travels)
+    inner_deg = 20                   # spot: full intensity inside, zero outside outer_deg
+    outer_deg = 30
+
+Procedural meshes fit in the unit cube (see ``pipegen.meshes``).  Errors are ``PipegenError``
+with the file position of the offending key where it can be found.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+
+from . import meshes
+from .diagnostics import PipegenError, Span
+
+LIGHT_TYPES = {"point": 0, "spot": 1, "directional": 2}
+
+# Light-table fields: name -> (GLSL types accepted in a schema, number of components).
+LIGHT_FIELDS = {
+    "position": (("vec3",), 3),
+    "radius": (("float",), 1),
+    "color": (("vec3",), 3),
+    "direction": (("vec3",), 3),
+    "type": (("uint", "int", "float"), 1),
+    "cos_inner": (("float",), 1),
+    "cos_outer": (("float",), 1),
+}
+
+
+# -- data --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Material:
+    albedo: tuple[float, float, float]
+    specular: float = 0.25
+    shininess: float = 32.0
+    alpha: float = 1.0
+    translucent: bool = False
+
+    @property
+    def kind(self) -> str:
+        """The material flag that ``draw scene.opaque`` / ``scene.translucent`` select by."""
+        return "translucent" if self.translucent else "opaque"
+
+
+@dataclass(frozen=True, eq=False)
+class SceneObject:
+    """One object: its mesh already transformed to world space (float64)."""
+
+    name: str
+    id: int
+    mesh: str                      # primitive name or the OBJ path
+    material: Material
+    matrix: np.ndarray             # 4x4 object -> world
+    positions: np.ndarray          # (3T, 3) world space, ccw front faces seen from outside
+    normals: np.ndarray            # (3T, 3) world space, unit length
+    groups: np.ndarray             # (T,) normal group per triangle, 0..255
+
+    @property
+    def triangle_count(self) -> int:
+        return len(self.groups)
+
+
+@dataclass(frozen=True)
+class Light:
+    type: str                                  # point | spot | directional
+    color: tuple[float, float, float]
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 0.0
+    direction: tuple[float, float, float] = (0.0, 0.0, -1.0)   # unit, the way light travels
+    inner_deg: float = 0.0
+    outer_deg: float = 0.0
+
+    @property
+    def type_code(self) -> int:
+        return LIGHT_TYPES[self.type]
+
+    @property
+    def cos_inner(self) -> float:
+        """Spot: cos(inner).  Other types get -1 (with cos_outer = -2), so that a generic
+        ``smoothstep(cos_outer, cos_inner, dot(-l, dir))`` is 1 for every direction."""
+        return math.cos(math.radians(self.inner_deg)) if self.type == "spot" else -1.0
+
+    @property
+    def cos_outer(self) -> float:
+        return math.cos(math.radians(self.outer_deg)) if self.type == "spot" else -2.0
+
+
+@dataclass(frozen=True)
+class Camera:
+    position: tuple[float, float, float]
+    target: tuple[float, float, float]
+    up: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    fov_y_deg: float = 45.0
+    near: float = 0.1
+    far: float = 100.0
+
+    def view_matrix(self) -> np.ndarray:
+        """World -> view (look-at; the camera looks down its -z), float64, column vectors."""
+        eye = np.asarray(self.position, dtype=np.float64)
+        f = np.asarray(self.target, dtype=np.float64) - eye
+        f /= np.linalg.norm(f)
+        s = np.cross(f, np.asarray(self.up, dtype=np.float64))
+        s /= np.linalg.norm(s)
+        u = np.cross(s, f)
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+        m[:3, 3] = -m[:3, :3] @ eye
+        return m
+
+    def projection(self, aspect: float) -> np.ndarray:
+        """View -> GL clip space (z in [-w, w]), like ``gluPerspective``; float64."""
+        t = 1.0 / math.tan(math.radians(self.fov_y_deg) / 2.0)
+        n, f = self.near, self.far
+        p = np.zeros((4, 4))
+        p[0, 0] = t / aspect
+        p[1, 1] = t
+        p[2, 2] = (f + n) / (n - f)
+        p[2, 3] = 2.0 * f * n / (n - f)
+        p[3, 2] = -1.0
+        return p
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """A non-indexed triangle list in world space, float32, ready for a vertex buffer."""
+
+    positions: np.ndarray   # (V, 3)
+    normals: np.ndarray     # (V, 3)
+    albedo: np.ndarray      # (V, 3)
+    material: np.ndarray    # (V, 3): specular, shininess, alpha
+    ids: np.ndarray         # (V, 2): object id, normal group
+
+    @property
+    def vertex_count(self) -> int:
+        return len(self.positions)
+
+    def interleaved(self) -> np.ndarray:
+        """(V, 14) float32 in attribute order position, normal, albedo, material, ids."""
+        return np.concatenate([self.positions, self.normals, self.albedo, self.material, self.ids],
+                              axis=1).astype(np.float32)
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    width: int
+    height: int
+    ambient: np.ndarray                    # (3,) float64
+    objects: tuple[SceneObject, ...]
+    lights: tuple[Light, ...]
+    camera: Camera
+    name: str = "scene"
+    clear_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def with_size(self, width: int, height: int) -> "Scene":
+        if width < 1 or height < 1:
+            raise PipegenError(None, f"output size must be positive, got {width}x{height}")
+        return dataclasses.replace(self, width=int(width), height=int(height))
+
+    @property
+    def aspect(self) -> float:
+        return self.width / self.height
+
+    @property
+    def light_types(self) -> set[str]:
+        return {l.type for l in self.lights}
+
+    @property
+    def has_translucent(self) -> bool:
+        return any(o.material.translucent for o in self.objects)
+
+    def select(self, material: tuple[str, ...] = ()) -> list[SceneObject]:
+        """Objects passing a material filter: () is all, else the flags to keep."""
+        for m in material:
+            if m not in ("opaque", "translucent"):
+                raise PipegenError(None, f"unknown material filter '{m}' (opaque, translucent)")
+        return [o for o in self.objects if not material or o.material.kind in material]
+
+    def geometry(self, material: tuple[str, ...] = ()) -> Geometry:
+        objs = self.select(tuple(material))
+        if not objs:
+            z = np.zeros((0, 3), np.float32)
+            return Geometry(z, z, z, z, np.zeros((0, 2), np.float32))
+        pos = np.concatenate([o.positions for o in objs])
+        nrm = np.concatenate([o.normals for o in objs])
+        counts = [len(o.positions) for o in objs]
+        albedo = np.repeat([o.material.albedo for o in objs], counts, axis=0)
+        mat = np.repeat([(o.material.specular, o.material.shininess, o.material.alpha) for o in objs],
+                        counts, axis=0)
+        ids = np.concatenate([np.stack([np.full(len(o.groups) * 3, o.id), np.repeat(o.groups, 3)], axis=1)
+                              for o in objs])
+        f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
+        return Geometry(f32(pos), f32(nrm), f32(albedo), f32(mat), f32(ids))
+
+    def light_table(self, fields: list[tuple[str, str]], capacity: int) -> np.ndarray:
+        """float32 (capacity, F, 4): field k of light i in ``[i, k]``, components first, the
+        rest zero; rows past the scene's lights are zero.
+
+        Fields that do not apply to a light type still hold safe values: point lights have
+        direction (0, 0, -1) and cos_inner/cos_outer = -1/-2 (a spot factor of 1 everywhere);
+        directional lights have position 0 and their (ignored) radius, default 0.
+        """
+        if len(self.lights) > capacity:
+            raise PipegenError(None, f"the scene has {len(self.lights)} lights but the light table "
+                               f"holds {capacity}", hint="raise the capacity in `lights[N]`")
+        for name, type_str in fields:
+            if name not in LIGHT_FIELDS:
+                raise PipegenError(None, f"unknown light field '{name}'",
+                                   hint="fields: " + ", ".join(LIGHT_FIELDS))
+            if type_str not in LIGHT_FIELDS[name][0]:
+                raise PipegenError(None, f"light field '{name}' has type "
+                                   f"{LIGHT_FIELDS[name][0][0]}, not {type_str}")
+        table = np.zeros((capacity, len(fields), 4), dtype=np.float32)
+        for i, light in enumerate(self.lights):
+            for k, (name, _) in enumerate(fields):
+                v = np.atleast_1d(np.asarray(light_field(light, name), dtype=np.float64))
+                table[i, k, : len(v)] = v
+        return table
+
+
+def light_field(light: Light, name: str):
+    """The value a light-table field holds for ``light`` (float64)."""
+    if name == "type":
+        return float(light.type_code)
+    if name == "cos_inner":
+        return light.cos_inner
+    if name == "cos_outer":
+        return light.cos_outer
+    return getattr(light, name)
+
+
+# -- loading -----------------------------------------------------------------------------------
+
+
+class _Locator:
+    """Finds where a key path (``("objects", 3, "material", "albedo")``) sits in TOML text.
+
+    tomllib keeps no positions, so this scans the text: table headers, then ``key =`` lines
+    inside the table's region, then ``key =`` inside an inline table on that line.  Best effort:
+    it returns the closest ancestor it can place, or None.
+    """
+
+    _header = re.compile(r"^\s*(\[\[?)\s*([A-Za-z0-9_.\-]+)\s*\]\]?")
+
+    def __init__(self, file: str, text: str):
+        self.file, self.text = file, text
+        self.lines = text.splitlines()
+        self.headers = []   # (line index, name, is_array)
+        for i, line in enumerate(self.lines):
+            m = self._header.match(line)
+            if m:
+                self.headers.append((i, m.group(2), m.group(1) == "[["))
+
+    def span(self, line: int, col: int = 0, length: int = 0) -> Span:
+        return Span(self.file, line + 1, col + 1, line + 1, col + 1 + length, self.text)
+
+    def _region(self, table: Optional[str], index: Optional[int]) -> Optional[tuple[int, int]]:
+        """Line range [start, end) of a table's body (its sub-tables included)."""
+        if table is None:
+            end = self.headers[0][0] if self.headers else len(self.lines)
+            return (0, end)
+        hits = [h for h in self.headers if h[1] == table]
+        if index is not None:
+            hits = [h for h in hits if h[2]]
+            if index >= len(hits):
+                return None
+            start = hits[index][0]
+        elif hits:
+            start = hits[0][0]
+        else:
+            return None
+        end = len(self.lines)
+        for i, name, _ in self.headers:
+            if i > start and not name.startswith(table + "."):
+                end = i
+                break
+        return (start, end)
+
+    def find(self, path: tuple) -> Optional[Span]:
+        table, index, keys = None, None, list(path)
+        if keys and keys[0] in ("camera", "objects", "lights"):
+            table = keys.pop(0)
+            if keys and isinstance(keys[0], int):
+                index = keys.pop(0)
+        region = self._region(table, index)
+        if region is None:
+            return None
+        start, end = region
+        best = self.span(start, 0, len(self.lines[start].rstrip())) if table else None
+        lo, col = start, 0
+        for depth, key in enumerate(keys):
+            if not isinstance(key, str):
+                break
+            pat = re.compile(r"(?:^|[\s{,])(" + re.escape(key) + r")\s*=")
+            found = None
+            for i in range(lo, end):
+                m = pat.search(self.lines[i], col if i == lo and depth else 0)
+                if m:
+                    found = (i, m.start(1), len(key))
+                    break
+            if found is None:  # maybe a sub-table header: [objects.material]
+                sub = [h for h in self.headers if start <= h[0] < end and h[1].endswith("." + key)]
+                if table is None and depth == 0:   # a top-level table: [name] or [[name]]
+                    sub = [h for h in self.headers if h[1] == key]
+                if not sub:
+                    break
+                found = (sub[0][0], 0, len(self.lines[sub[0][0]].rstrip()))
+                lo, col = sub[0][0] + 1, 0
+            else:
+                lo, col = found[0], found[1] + len(key)
+            best = self.span(*found)
+        return best
+
+
+def _describe(path: tuple) -> str:
+    out = ""
+    for p in path:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else p)
+    return out or "the scene"
+
+
+class _Reader:
+    """Typed access to one TOML table with errors that name the key and point at it."""
+
+    def __init__(self, table: Any, path: tuple, loc: _Locator):
+        self.loc, self.path = loc, path
+        if not isinstance(table, dict):
+            self.fail((), f"'{_describe(path)}' must be a table")
+        self.table = table
+
+    def fail(self, key: tuple | str, message: str, hint: str = "") -> None:
+        key = (key,) if isinstance(key, str) else key
+        raise PipegenError(self.loc.find(self.path + key), message, hint)
+
+    def check_keys(self, allowed: set[str]) -> None:
+        for k in self.table:
+            if k not in allowed:
+                self.fail(k, f"unknown key '{k}' in {_describe(self.path)}",
+                          hint="allowed: " + ", ".join(sorted(allowed)))
+
+    def has(self, key: str) -> bool:
+        return key in self.table
+
+    def _get(self, key: str, default: Any) -> Any:
+        if key in self.table:
+            return self.table[key]
+        if default is _REQUIRED:
+            self.fail((), f"missing key '{key}' in {_describe(self.path)}")
+        return default
+
+    def number(self, key: str, default: Any = None, *, positive: bool = False,
+               minimum: Optional[float] = None, maximum: Optional[float] = None) -> float:
+        v = self._get(key, _REQUIRED if default is None else default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be a finite number, got {v!r}")
+        if positive and v <= 0:
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be > 0, got {v}")
+        if minimum is not None and v < minimum or maximum is not None and v > maximum:
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be in [{minimum}, {maximum}], got {v}")
+        return float(v)
+
+    def integer(self, key: str, default: Any = None, *, minimum: int = 0, maximum: int = 1 << 30) -> int:
+        v = self._get(key, _REQUIRED if default is None else default)
+        if isinstance(v, bool) or not isinstance(v, int) or not minimum <= v <= maximum:
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be an integer in "
+                      f"[{minimum}, {maximum}], got {v!r}")
+        return int(v)
+
+    def vec3(self, key: str, default: Any = None, *, nonzero: bool = False) -> tuple[float, float, float]:
+        v = self._get(key, _REQUIRED if default is None else default)
+        if (not isinstance(v, list) or len(v) != 3
+                or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)
+                       for x in v)):
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be a list of three numbers, got {v!r}")
+        if nonzero and not any(v):
+            self.fail(key, f"'{_describe(self.path + (key,))}' must not be the zero vector")
+        return (float(v[0]), float(v[1]), float(v[2]))
+
+    def string(self, key: str, default: Any = None, choices: Optional[tuple[str, ...]] = None) -> str:
+        v = self._get(key, _REQUIRED if default is None else default)
+        if not isinstance(v, str):
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be a string, got {v!r}")
+        if choices and v not in choices:
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be one of {', '.join(choices)}, got '{v}'")
+        return v
+
+    def boolean(self, key: str, default: bool) -> bool:
+        v = self._get(key, default)
+        if not isinstance(v, bool):
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be true or false, got {v!r}")
+        return v
+
+    def sub(self, key: str, default: Any = None) -> "_Reader":
+        return _Reader(self._get(key, _REQUIRED if default is None else default), self.path + (key,), self.loc)
+
+
+_REQUIRED = object()
+
+
+def load_scene(path: str | Path) -> Scene:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise PipegenError(None, f"cannot read scene file '{path}': {e.strerror}") from None
+    return parse_scene(text, str(path), base_dir=path.parent, name=path.stem)
+
+
+def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", name: str = "scene") -> Scene:
+    loc = _Locator(file, text)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        msg = str(e)
+        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
+        span = Span(file, int(m.group(1)), int(m.group(2)), text=text) if m else None
+        raise PipegenError(span, "invalid TOML: " + re.sub(r"\s*\(at line.*\)$", "", msg)) from None
+
+    top = _Reader(data, (), loc)
+    top.check_keys({"width", "height", "ambient", "camera", "objects", "lights", "name"})
+    width = top.integer("width", minimum=1, maximum=16384)
+    height = top.integer("height", minimum=1, maximum=16384)
+    ambient = np.array(top.vec3("ambient", [0.0, 0.0, 0.0]))
+    camera = _camera(top.sub("camera"))
+
+    objects_raw = data.get("objects", [])
+    if not isinstance(objects_raw, list) or not objects_raw:
+        top.fail("objects", "a scene needs at least one [[objects]] entry")
+    objects = [_object(_Reader(o, ("objects", i), loc), i, Path(base_dir)) for i, o in enumerate(objects_raw)]
+    seen: dict[int, int] = {}
+    for i, o in enumerate(objects):
+        if o.id in seen:
+            raise PipegenError(loc.find(("objects", i, "id")) or loc.find(("objects", i)),
+                               f"object id {o.id} is used by objects[{seen[o.id]}] and objects[{i}]",
+                               hint="ids must be unique (1..255)")
+        seen[o.id] = i
+
+    lights_raw = data.get("lights", [])
+    if not isinstance(lights_raw, list):
+        top.fail("lights", "'lights' must be an array of tables ([[lights]])")
+    lights = [_light(_Reader(l, ("lights", i), loc)) for i, l in enumerate(lights_raw)]
+    return Scene(width, height, ambient, tuple(objects), tuple(lights), camera,
+                 name=top.string("name", name))
+
+
+def _camera(r: _Reader) -> Camera:
+    r.check_keys({"position", "target", "up", "fov_y_deg", "near", "far"})
+    cam = Camera(
+        position=r.vec3("position"),
+        target=r.vec3("target"),
+        up=r.vec3("up", [0.0, 1.0, 0.0], nonzero=True),
+        fov_y_deg=r.number("fov_y_deg"),
+        near=r.number("near", 0.1, positive=True),
+        far=r.number("far", 100.0, positive=True),
+    )
+    if not 0.0 < cam.fov_y_deg < 180.0:
+        r.fail("fov_y_deg", f"camera.fov_y_deg must be in (0, 180), got {cam.fov_y_deg}")
+    if cam.far <= cam.near:
+        r.fail("far", f"camera.far ({cam.far}) must be greater than camera.near ({cam.near})")
+    f = np.subtract(cam.target, cam.position)
+    if np.linalg.norm(f) == 0:
+        r.fail("target", "camera.target must differ from camera.position")
+    if np.linalg.norm(np.cross(f, cam.up)) < 1e-9 * np.linalg.norm(f) * np.linalg.norm(cam.up):
+        r.fail("up", "camera.up must not be parallel to the viewing direction")
+    return cam
+
+
+def rotation_matrix(rotate_deg) -> np.ndarray:
+    """Rotation about x, then y, then z (degrees): R = Rz @ Ry @ Rx."""
+    ax, ay, az = (math.radians(a) for a in rotate_deg)
+    cx, sx, cy, sy, cz, sz = math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay), math.cos(az), math.sin(az)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def transform_matrix(translate=(0, 0, 0), rotate_deg=(0, 0, 0), scale=(1, 1, 1)) -> np.ndarray:
+    """Object -> world: scale, then rotate, then translate."""
+    m = np.eye(4)
+    m[:3, :3] = rotation_matrix(rotate_deg) @ np.diag(np.asarray(scale, dtype=np.float64))
+    m[:3, 3] = translate
+    return m
+
+
+def make_object(name: str, obj_id: int, mesh_name: str, mesh: meshes.Mesh, material: Material,
+                matrix: np.ndarray) -> SceneObject:
+    """Place a local mesh in the world.  Normals use the inverse transpose; a mirroring
+    transform (negative determinant) reverses the winding so front faces stay ccw."""
+    lin = matrix[:3, :3]
+    pos = mesh.positions @ lin.T + matrix[:3, 3]
+    nrm = mesh.normals @ np.linalg.inv(lin)   # == (inv(lin).T @ n.T).T
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    if np.linalg.det(lin) < 0:
+        order = np.arange(len(pos)).reshape(-1, 3)[:, [0, 2, 1]].reshape(-1)
+        pos, nrm = pos[order], nrm[order]
+    return SceneObject(name, obj_id, mesh_name, material, matrix, pos, nrm, mesh.groups.copy())
+
+
+def _object(r: _Reader, index: int, base_dir: Path) -> SceneObject:
+    r.check_keys({"name", "id", "mesh", "obj", "translate", "rotate_deg", "scale", "material",
+                  "segments", "rings", "divisions"})
+    if r.has("mesh") == r.has("obj"):
+        r.fail((), f"objects[{index}] needs exactly one of 'mesh' (plane, box, sphere, cylinder) "
+                   "or 'obj' (a path)")
+    if r.has("mesh"):
+        kind = r.string("mesh", choices=tuple(meshes.PRIMITIVES))
+        params = {"sphere": ("segments", "rings"), "cylinder": ("segments",), "plane": ("divisions",),
+                  "box": ()}[kind]
+        for p in ("segments", "rings", "divisions"):
+            if r.has(p) and p not in params:
+                r.fail(p, f"'{p}' does not apply to a {kind}")
+        kwargs = {p: r.integer(p, minimum=3 if p != "divisions" else 1, maximum=512)
+                  for p in params if r.has(p)}
+        mesh, mesh_name = meshes.PRIMITIVES[kind](**kwargs), kind
+    else:
+        rel = r.string("obj")
+        obj_path = (base_dir / rel) if not Path(rel).is_absolute() else Path(rel)
+        try:
+            mesh = meshes.load_obj(obj_path)
+        except OSError as e:
+            r.fail("obj", f"cannot read OBJ file '{obj_path}': {e.strerror}")
+        except meshes.ObjError as e:
+            where = f"{obj_path}:{e.line}: " if e.line else f"{obj_path}: "
+            r.fail("obj", f"bad OBJ file: {where}{e}")
+        mesh_name = str(obj_path)
+
+    scale_raw = r.table.get("scale", 1.0)
+    if isinstance(scale_raw, list):
+        scale = r.vec3("scale")
+    else:
+        s = r.number("scale", 1.0)
+        scale = (s, s, s)
+    if any(s == 0 for s in scale):
+        r.fail("scale", f"objects[{index}].scale must not have a zero component")
+    matrix = transform_matrix(r.vec3("translate", [0, 0, 0]), r.vec3("rotate_deg", [0, 0, 0]), scale)
+
+    m = r.sub("material")
+    m.check_keys({"albedo", "specular", "shininess", "alpha", "translucent"})
+    material = Material(
+        albedo=m.vec3("albedo"),
+        specular=m.number("specular", 0.25, minimum=0.0),
+        shininess=m.number("shininess", 32.0, positive=True),
+        alpha=m.number("alpha", 1.0, minimum=0.0, maximum=1.0),
+        translucent=m.boolean("translucent", False),
+    )
+    obj_id = r.integer("id", index + 1, minimum=1, maximum=255)
+    name = r.string("name", f"{mesh_name if r.has('mesh') else 'obj'}{index}")
+    return make_object(name, obj_id, mesh_name, mesh, material, matrix)
+
+
+def _light(r: _Reader) -> Light:
+    kind = r.string("type", "point", choices=tuple(LIGHT_TYPES))
+    keys = {"point": {"position", "radius", "color"},
+            "spot": {"position", "radius", "color", "direction", "inner_deg", "outer_deg"},
+            "directional": {"direction", "color", "radius"}}[kind]
+    r.check_keys(keys | {"type"})
+    color = r.vec3("color")
+    if kind == "directional":
+        return Light("directional", color, direction=_unit(r.vec3("direction", nonzero=True)),
+                     radius=r.number("radius", 0.0, minimum=0.0))
+    position, radius = r.vec3("position"), r.number("radius", positive=True)
+    if kind == "point":
+        return Light("point", color, position=position, radius=radius)
+    inner = r.number("inner_deg", minimum=0.0, maximum=89.9)
+    outer = r.number("outer_deg", minimum=0.0, maximum=89.9)
+    if not inner < outer:
+        r.fail("outer_deg", f"a spot light needs inner_deg < outer_deg, got {inner} and {outer}")
+    return Light("spot", color, position=position, radius=radius,
+                 direction=_unit(r.vec3("direction", nonzero=True)), inner_deg=inner, outer_deg=outer)
+
+
+def _unit(v) -> tuple[float, float, float]:
+    a = np.asarray(v, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
+# -- the built-in scene ------------------------------------------------------------------------
+
+
+def default_scene() -> Scene:
+    """A small lit scene that needs no file: a floor, boxes, spheres and cylinders under eight
+    coloured point lights (at most four light spheres over any pixel), 320x180."""
+    return parse_scene(DEFAULT_SCENE_TOML, "<default scene>", name="default")
+
+
+DEFAULT_SCENE_TOML = """
+name = "default"
+width = 320
+height = 180
+ambient = [0.08, 0.08, 0.09]
+
+[camera]
+position = [0.0, 6.5, 10.5]
+target = [0.0, 0.6, 0.0]
+fov_y_deg = 45
+near = 0.5
+far = 60
+
+# The floor reaches under the camera but not behind it, so nothing needs near-plane clipping.
+[[objects]]
+name = "floor"
+mesh = "plane"
+translate = [0, 0, -20]
+scale = [100, 1, 60]
+material = { albedo = [0.75, 0.75, 0.72], specular = 0.15, shininess = 24 }
+
+[[objects]]
+name = "white sphere"
+mesh = "sphere"
+segments = 32
+rings = 16
+translate = [0.0, 0.9, 0.0]
+scale = 1.8
+material = { albedo = [0.9, 0.9, 0.9], specular = 0.6, shininess = 64 }
+
+[[objects]]
+name = "red box"
+mesh = "box"
+translate = [-3.6, 0.6, 0.7]
+rotate_deg = [0, 25, 0]
+scale = 1.2
+material = { albedo = [0.85, 0.25, 0.2], specular = 0.3, shininess = 32 }
+
+[[objects]]
+name = "tall box"
+mesh = "box"
+translate = [3.6, 1.0, 0.5]
+rotate_deg = [0, -20, 0]
+scale = [1.0, 2.0, 1.0]
+material = { albedo = [0.3, 0.45, 0.85], specular = 0.4, shininess = 48 }
+
+[[objects]]
+name = "gold cylinder"
+mesh = "cylinder"
+segments = 32
+translate = [-1.8, 0.9, -3.1]
+scale = [1.0, 1.8, 1.0]
+material = { albedo = [0.9, 0.7, 0.3], specular = 0.5, shininess = 32 }
+
+[[objects]]
+name = "green sphere"
+mesh = "sphere"
+translate = [-1.6, 0.45, 1.0]
+scale = 0.9
+material = { albedo = [0.3, 0.8, 0.35], specular = 0.5, shininess = 40 }
+
+[[objects]]
+name = "purple cylinder"
+mesh = "cylinder"
+translate = [2.0, 0.35, 1.0]
+scale = [1.1, 0.7, 1.1]
+material = { albedo = [0.7, 0.35, 0.8], specular = 0.3, shininess = 24 }
+
+# Eight lights on a 4 x 2 grid 3.6 apart, all at the same height, radius 3.5 < 3.6: a point is
+# within 3.5 of at most the four corners of its grid cell.
+[[lights]]
+position = [-5.4, 1.5, -1.8]
+radius = 3.5
+color = [1.4, 0.45, 0.3]
+
+[[lights]]
+position = [-1.8, 1.5, -1.8]
+radius = 3.5
+color = [1.4, 1.1, 0.45]
+
+[[lights]]
+position = [1.8, 1.5, -1.8]
+radius = 3.5
+color = [0.45, 1.4, 0.55]
+
+[[lights]]
+position = [5.4, 1.5, -1.8]
+radius = 3.5
+color = [0.4, 1.0, 1.4]
+
+[[lights]]
+position = [-5.4, 1.5, 1.8]
+radius = 3.5
+color = [1.1, 0.45, 1.4]
+
+[[lights]]
+position = [-1.8, 1.5, 1.8]
+radius = 3.5
+color = [0.5, 0.7, 1.4]
+
+[[lights]]
+position = [1.8, 1.5, 1.8]
+radius = 3.5
+color = [1.4, 0.75, 0.3]
+
+[[lights]]
+position = [5.4, 1.5, 1.8]
+radius = 3.5
+color = [1.4, 0.5, 0.9]
+"""
