@@ -1,0 +1,277 @@
+"""The GLSL 330 core backend: a ``CStyleLanguage`` dialect (data plus a few hooks) and
+``emit_gl(tech) -> PLAN dict`` with one vertex and one fragment shader per pass.
+
+Conventions shared with the GL runtime are in docs/internals.md ("GLSL conventions").  Choices
+made here that the runtime (and the OpenCL backend, which must agree) rely on:
+
+- ``load(T)`` reads the texel at ``ivec2(gl_FragCoord.xy)``; explicit coordinates, and the
+  pixel of a target whose size differs from the pass's render size, are clamped to the target
+  (clamp to edge, like ``sample``).  Depth targets read ``.x``, the depth value in [0, 1].
+- ``sample(T, uv)`` is ``texture(t_T, uv)``: the pass's ``"sampled"`` list names the targets the
+  runtime must bind with linear filtering (all reads clamp to edge).  Multisampled targets are
+  read through a resolved single-sample texture.
+- Colour outputs are zero-initialised at the top of ``main()``: paths that do not write a
+  target write zero, on both backends.
+- ``round`` is round-half-to-even (``roundEven``), the defined rounding both backends have.
+- Scene vertices: ``gl_Position = u_proj * (u_view * vec4(a_position, 1.0))``.  Only the
+  varyings (and so attributes) the fragment shader uses are emitted; ``"attributes"`` in the
+  pass dict lists the active ones (locations: position 0, normal 1, albedo 2, material 3, ids 4).
+- Light volumes: ``a_position`` (location 0) is the unit mesh of ``meshes.light_volume``,
+  ``a_light`` (location 1, per instance) the light's table index, passed on as ``flat uint
+  v_light``.  Sphere: centre + a_position * radius.  Cone: z scaled by radius, x/y by
+  radius * tan(acos(cos_outer)), local -z rotated onto the direction (a rotation, so winding is
+  kept).  Quad: the clip-space rectangle of the projected bounding box of the light's sphere,
+  at the depth of its nearest point; full screen at the near plane when the box reaches
+  in front of the near plane.
+- Full-screen draws: one triangle from ``gl_VertexID`` (3 vertices, no attributes) at the far
+  plane (window depth 1.0), so ``depth greater`` selects covered pixels and ``equal`` the sky.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+from .. import ir, irwalk
+from ..diagnostics import PipegenError
+from ..ir import DrawKind, Scalar, Type, Volume
+from . import plan as planlib
+from . import templating
+from .cstyle import FLT_MIN, CStyleLanguage
+
+# GLSL keywords, reserved words and the builtin functions this backend emits: user identifiers
+# with these names get a trailing "_" (a local named `texture` would hide texture()).
+GLSL_RESERVED = frozenset("""
+    attribute const uniform varying layout centroid flat smooth noperspective patch sample
+    break continue do for while switch case default if else subroutine in out inout float
+    double int void bool true false invariant discard return mat2 mat3 mat4 dmat2 dmat3 dmat4
+    mat2x2 mat2x3 mat2x4 mat3x2 mat3x3 mat3x4 mat4x2 mat4x3 mat4x4 vec2 vec3 vec4 ivec2 ivec3
+    ivec4 bvec2 bvec3 bvec4 dvec2 dvec3 dvec4 uint uvec2 uvec3 uvec4 lowp mediump highp
+    precision sampler1D sampler2D sampler3D samplerCube sampler2DMS usampler2D isampler2D
+    struct common partition active asm class union enum typedef template this resource goto
+    inline noinline public static extern external interface long short half fixed unsigned
+    superp input output hvec2 hvec3 hvec4 fvec2 fvec3 fvec4 filter sizeof cast namespace using
+    main texture texelFetch textureSize uintBitsToFloat floatBitsToUint inversesqrt sqrt pow
+    max min dot cross normalize length distance clamp mix step smoothstep exp exp2 log log2
+    abs sign floor ceil round roundEven fract mod sin cos tan atan equal notEqual lessThan
+    lessThanEqual greaterThan greaterThanEqual not any all
+""".split())
+
+# stage input -> (GLSL expression, scene varying it needs)
+INPUTS: dict[str, tuple[str, Optional[str]]] = {
+    "frag_coord": ("gl_FragCoord", None), "camera_pos": ("u_camera_pos", None),
+    "view": ("u_view", None), "proj": ("u_proj", None), "inv_view": ("u_inv_view", None),
+    "inv_proj": ("u_inv_proj", None), "output_size": ("u_output_size", None),
+    "num_lights": ("u_num_lights", None), "ambient": ("u_ambient", None),
+    "world_pos": ("v_world_pos", "v_world_pos"), "view_pos": ("v_view_pos", "v_view_pos"),
+    "normal": ("v_normal", "v_normal"), "view_normal": ("v_view_normal", "v_view_normal"),
+    "albedo": ("v_albedo", "v_albedo"), "specular": ("v_material.x", "v_material"),
+    "shininess": ("v_material.y", "v_material"), "alpha": ("v_material.z", "v_material"),
+    "object_id": ("v_ids.x", "v_ids"), "normal_group": ("v_ids.y", "v_ids"),
+}
+
+# scene varying -> (type, flat, value in the vertex stage, attribute it reads)
+SCENE_VARYINGS = {
+    "v_world_pos": ("vec3", False, "a_position", "a_position"),
+    "v_view_pos": ("vec3", False, "view_pos.xyz", "a_position"),
+    "v_normal": ("vec3", False, "a_normal", "a_normal"),
+    "v_view_normal": ("vec3", False, "mat3(u_view) * a_normal", "a_normal"),
+    "v_albedo": ("vec3", False, "a_albedo", "a_albedo"),
+    "v_material": ("vec3", False, "a_material", "a_material"),
+    "v_ids": ("uvec2", True, "uvec2(a_ids + 0.5)", "a_ids"),
+}
+SCENE_ATTRIBUTES = [("a_position", "vec3"), ("a_normal", "vec3"), ("a_albedo", "vec3"),
+                    ("a_material", "vec3"), ("a_ids", "vec2")]
+
+UNIFORMS = [("mat4", "u_view"), ("mat4", "u_proj"), ("mat4", "u_inv_view"),
+            ("mat4", "u_inv_proj"), ("vec3", "u_camera_pos"), ("vec3", "u_ambient"),
+            ("vec2", "u_output_size"), ("uint", "u_num_lights"), ("sampler2D", "u_lights")]
+
+VOLUME_FIELDS = {Volume.SPHERE: ("position", "radius"), Volume.QUAD: ("position", "radius"),
+                 Volume.CONE: ("position", "radius", "direction", "cos_outer")}
+
+
+class GLSLLanguage(CStyleLanguage):
+    """GLSL 330 core.  The IR's type spellings are GLSL's, so ``type_names`` stays empty."""
+
+    builtin_map = {"round": "roundEven"}
+    vector_ops = {"<": "lessThan", "<=": "lessThanEqual", ">": "greaterThan",
+                  ">=": "greaterThanEqual", "==": "equal", "!=": "notEqual", "!": "not"}
+    inf_literal = "uintBitsToFloat(0x7F800000u)"
+    nan_literal = "uintBitsToFloat(0x7FC00000u)"
+    reserved = GLSL_RESERVED
+
+    def __init__(self, tech: Optional[ir.Technique] = None, pass_: Optional[ir.Pass] = None):
+        super().__init__()
+        self.tech, self.pass_ = tech, pass_
+        self.light_fields = tuple(f.name for f in tech.lights.fields) if tech else ()
+        lights = pass_ is not None and pass_.draw.kind is DrawKind.LIGHTS
+        self.current_light = "v_light" if lights else "u_light"
+        self.unclamped: set[str] = set()   # targets whose load(T) needs no clamp
+        if tech and pass_:
+            size = _render_size(tech, pass_)
+            self.unclamped = {r for r in pass_.reads if tech.target(r).size == size}
+
+    def render_input(self, name: str, t: Type) -> str:
+        if name == "light_index":
+            return self.current_light
+        assert name in INPUTS, f"unknown stage input '{name}'"
+        return INPUTS[name][0]
+
+    def render_param(self, name: str, t: Type) -> str:
+        default = next(p.default for p in self.tech.params if p.name == name)
+        return self.literal(default, t)
+
+    def render_current_light(self) -> str:
+        return self.current_light
+
+    def render_light_field(self, index: str, slot: int, t: Type) -> str:
+        texel = f"texelFetch(u_lights, ivec2({slot}, {index}), 0){_select(t)}"
+        if t.scalar is Scalar.FLOAT:
+            return texel
+        return self.render_construct(t, [texel], [Type(Scalar.FLOAT, t.size)])
+
+    def render_load(self, target: str, coord: Optional[str], t: Type) -> str:
+        if coord is None:
+            coord = "ivec2(gl_FragCoord.xy)"
+            if target in self.unclamped:
+                return f"texelFetch(t_{target}, {coord}, 0){_select(t)}"
+        coord = f"clamp({coord}, ivec2(0), textureSize(t_{target}, 0) - 1)"
+        return f"texelFetch(t_{target}, {coord}, 0){_select(t)}"
+
+    def render_sample(self, target: str, uv: str, t: Type) -> str:
+        return f"texture(t_{target}, {uv}){_select(t)}"
+
+    def render_target_size(self, target: str) -> str:
+        return f"textureSize(t_{target}, 0)"
+
+    def render_output(self, target: str, value: str) -> str:
+        return f"o_{target} = {value};"
+
+
+def _select(t: Type) -> str:
+    """Swizzle taking a ``t`` out of a texel (vec4)."""
+    return "" if t.size == 4 else "." + "xyzw"[:t.size]
+
+
+def _render_size(tech: ir.Technique, p: ir.Pass) -> Optional[ir.Size]:
+    attached = list(p.writes) + ([p.depth_target] if p.depth_target else [])
+    return tech.target(attached[0]).size if attached else None
+
+
+# ---- emission -----------------------------------------------------------------------------------
+
+
+def emit_gl(tech: ir.Technique) -> dict:
+    """The PLAN dict of docs/internals.md with GLSL ``vertex``/``fragment`` per pass."""
+    plan = planlib.technique_plan(tech, "gl")
+    for p, pd in zip(tech.passes, plan["passes"]):
+        pd.update(emit_pass(tech, p))
+    return plan
+
+
+def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
+    lang = GLSLLanguage(tech, p)
+    functions = planlib.pass_functions(tech, p.body)
+    inputs = planlib.stage_inputs(p.body, functions)
+    kind = p.draw.kind
+    scene_varyings = sorted({INPUTS[n][1] for n in inputs if n in INPUTS and INPUTS[n][1]},
+                            key=list(SCENE_VARYINGS).index)
+    if scene_varyings and kind is not DrawKind.SCENE:
+        names = sorted(n for n in inputs if n in INPUTS and INPUTS[n][1])
+        raise PipegenError(p.span, f"pass '{p.name}' reads {', '.join(names)}, which only "
+                           "passes that draw scene geometry have",
+                           hint="reconstruct positions from a depth target in other passes")
+    uses_light = bool(inputs & {"light", "light_index"})
+    if uses_light and kind is not DrawKind.LIGHTS and not p.repeat_per_light:
+        raise PipegenError(p.span, f"pass '{p.name}' reads the drawn light, but it neither draws "
+                           "lights nor repeats per light",
+                           hint="use 'draw lights as ...' or 'repeat per light'")
+
+    written = {s.target for s in irwalk.walk_stmts(p.body) if isinstance(s, ir.Output)}
+    assert written <= set(p.writes), f"pass {p.name} writes {written - set(p.writes)} undeclared"
+    code = [lang.function(f) for f in functions]
+    body = lang.stmts(p.body, 1)
+    code = ([lang.helper_source()] if lang.helpers else []) + code
+
+    if kind is DrawKind.SCENE:
+        varyings = [_varying(n, *SCENE_VARYINGS[n][:3]) for n in scene_varyings]
+        used = {"a_position"} | {SCENE_VARYINGS[n][3] for n in scene_varyings}
+        attributes = [{"name": a, "type": t, "location": k}
+                      for k, (a, t) in enumerate(SCENE_ATTRIBUTES) if a in used]
+    elif kind is DrawKind.LIGHTS:
+        varyings = [_varying("v_light", "uint", True, "uint(i)")] if uses_light else []
+        attributes = [{"name": "a_position", "type": "vec3", "location": 0},
+                      {"name": "a_light", "type": "float", "location": 1}]
+    else:
+        varyings, attributes = [], []
+
+    common = {"technique": tech.name, "pass_name": p.name, "draw": describe_draw(p.draw),
+              "source": tech.source, "uniforms": _uniforms(p)}
+    fragment = templating.render(
+        "gl_fragment.glsl.j2", **common, stage="fragment", varyings=varyings,
+        samplers=[{"name": r, "type": "usampler2D" if tech.target(r).format.is_integer
+                   else "sampler2D"} for r in p.reads],
+        outputs=[_output(tech.target(w)) for w in p.writes], functions=code, body=body)
+    sampled = planlib.sampled_targets(p.body, functions)
+    return {"vertex": emit_vertex(tech, p, common, varyings, attributes), "fragment": fragment,
+            "sampled": [r for r in p.reads if r in sampled],
+            "attributes": [a["name"] for a in attributes]}
+
+
+def emit_vertex(tech: ir.Technique, p: ir.Pass, common: dict, varyings: list,
+                attributes: list) -> str:
+    kind = p.draw.kind
+    if kind is DrawKind.LIGHTS:
+        volume = p.draw.volume or Volume.SPHERE
+        slots = {f.name: k for k, f in enumerate(tech.lights.fields)}
+        missing = [f for f in VOLUME_FIELDS[volume] if f not in slots]
+        if missing:
+            raise PipegenError(p.span or tech.lights.span,
+                               f"pass '{p.name}' draws {volume.value} light volumes, which need "
+                               f"the light field(s) {', '.join(missing)}",
+                               hint="add them to the lights { ... } schema")
+        return templating.render("gl_vertex_lights.glsl.j2", **common, stage="vertex",
+                                 varyings=varyings, attributes=attributes, volume=volume.value,
+                                 slots=slots, flt_min=GLSLLanguage().render_float(FLT_MIN))
+    name = "gl_vertex_scene.glsl.j2" if kind is DrawKind.SCENE else "gl_vertex_fullscreen.glsl.j2"
+    return templating.render(name, **common, stage="vertex", varyings=varyings,
+                             attributes=attributes)
+
+
+def describe_draw(d: ir.Draw) -> str:
+    if d.kind is DrawKind.SCENE:
+        return "scene" + "".join("." + m for m in d.material)
+    if d.kind is DrawKind.LIGHTS:
+        text = f"lights as {(d.volume or Volume.SPHERE).value}"
+        if d.light_types:
+            text += " " + " ".join(d.light_types)
+        if d.light_set:
+            text += f" in {d.light_set[0]}[{d.light_set[1]}]"
+        return text + (" scissor" if d.scissor else "")
+    return "fullscreen"
+
+
+def _varying(name: str, type_: str, flat: bool, value: str) -> dict:
+    return {"name": name, "type": type_, "flat": flat, "value": value}
+
+
+def _output(t: ir.Target) -> dict:
+    integer = t.format.is_integer
+    return {"name": t.name, "type": "uvec4" if integer else "vec4",
+            "zero": "uvec4(0u)" if integer else "vec4(0.0)"}
+
+
+def _uniforms(p: ir.Pass) -> list[dict]:
+    extra = [("uint", "u_light")] if p.repeat_per_light else []
+    return [{"type": t, "name": n} for t, n in UNIFORMS + extra]
+
+
+# ---- the generated Python module ------------------------------------------------------------------
+
+
+def gl_module_source(plan: dict) -> str:
+    """Source of the generated ``pipeline_gl.py`` holding ``plan``."""
+    def safe(s: str) -> str:
+        return s.replace("\\", "/").replace('"""', "'''")
+    return templating.render("pipeline_gl.py.j2", plan=plan, title=safe(plan["title"]),
+                             source=safe(plan.get("source") or "<string>"))

@@ -1,0 +1,84 @@
+"""jinja2 for whole files (glad's generator is the model): the templates ship inside the wheel as
+the ``pipegen.templates`` package (the top-level ``templates/`` folder), are read through
+``importlib.resources``, and render with ``StrictUndefined``, ``trim_blocks`` and
+``lstrip_blocks``.  Filters are plain Python functions registered with ``@template_filter``.
+
+Python renders expressions (``cstyle.py``); templates only lay out files.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.resources
+from typing import Callable
+
+import jinja2
+
+FILTERS: dict[str, Callable] = {}
+
+
+def template_filter(fn: Callable) -> Callable:
+    """Register ``fn`` as a template filter under its own name."""
+    FILTERS[fn.__name__] = fn
+    environment.cache_clear()
+    return fn
+
+
+def _load(name: str):
+    if "/" in name or "\\" in name or name.startswith("."):
+        return None
+    res = importlib.resources.files("pipegen.templates").joinpath(name)
+    return res.read_text(encoding="utf-8") if res.is_file() else None
+
+
+@functools.cache
+def environment() -> jinja2.Environment:
+    env = jinja2.Environment(loader=jinja2.FunctionLoader(_load), undefined=jinja2.StrictUndefined,
+                             trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+                             autoescape=False)
+    env.filters.update(FILTERS)
+    return env
+
+
+def render(template: str, **context) -> str:
+    return environment().get_template(template).render(**context)
+
+
+# ---- filters -------------------------------------------------------------------------------------
+
+
+def _multiline_ok(s: str) -> bool:
+    return ("\n" in s and "\\" not in s and '"""' not in s and not s.endswith('"')
+            and all(c.isprintable() or c == "\n" for c in s))
+
+
+@template_filter
+def pyrepr(obj, indent: int = 0, width: int = 100) -> str:
+    """A readable Python literal for plain data (dicts, lists, tuples, str, numbers, bool, None):
+    short containers on one line, long ones one item per line, multi-line strings (shader
+    source) as triple-quoted blocks.  ``ast.literal_eval(pyrepr(x)) == x``."""
+    pad, inner = " " * indent, " " * (indent + 4)
+    if isinstance(obj, str):
+        return '"""\\\n' + obj + '"""' if _multiline_ok(obj) else repr(obj)
+    if isinstance(obj, (dict, list, tuple)):
+        flat = repr(obj)
+        if len(flat) + indent <= width and not any(
+                isinstance(v, str) and _multiline_ok(v) for v in _leaves(obj)):
+            return flat
+        if isinstance(obj, dict):
+            items = [f"{inner}{k!r}: {pyrepr(v, indent + 4, width)}," for k, v in obj.items()]
+            return "{\n" + "\n".join(items) + f"\n{pad}}}"
+        open_, close = ("[", "]") if isinstance(obj, list) else ("(", ")")
+        items = [f"{inner}{pyrepr(v, indent + 4, width)}," for v in obj]
+        return open_ + "\n" + "\n".join(items) + f"\n{pad}{close}"
+    return repr(obj)
+
+
+def _leaves(obj):
+    if isinstance(obj, dict):
+        obj = obj.values()
+    for v in obj:
+        if isinstance(v, (dict, list, tuple)):
+            yield from _leaves(v)
+        else:
+            yield v
