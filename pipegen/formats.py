@@ -111,33 +111,34 @@ class Format:
 
     # -- conversions (the numpy oracle's view of the format) ------------------------------
     def quantize(self, x: np.ndarray) -> np.ndarray:
-        """Shader output value(s) -> stored codes, following the GL conversion rules.
+        """Shader output value(s) -> stored codes, following the conversions measured on
+        llvmpipe (which the CL backend reproduces):
 
-        unorm: clamp to [0,1], round half to even (llvmpipe's measured behaviour and what the
-        CL backend emits with ``_rte``).  float16: round to nearest even, overflow clamps to the
-        largest finite half (what llvmpipe does; the CL backend clamps before its store).
-        NaN stored to unorm becomes 0.
+        - unorm: clamp to [0,1], multiply by 2^b-1 in float32, round half to even; NaN -> 0;
+        - float16: finite values clamp to ±65504 and round toward zero (70000 -> 65504);
+          ±inf and NaN are kept, half denormals too;
+        - float32 / d32f: stored as float32 with denormals flushed (CL builds with
+          -cl-denorms-are-zero; llvmpipe flushes);
+        - d24: ``rint(float32(z) * 16777215.0f)`` in float32.
         """
         x = np.asarray(x, dtype=np.float64)
         if self.kind in (Kind.UNORM, Kind.DEPTH_STENCIL):
-            scale = np.array([(1 << b) - 1 for b in self.bits], dtype=np.float64)
+            scale = np.array([(1 << b) - 1 for b in self.bits], dtype=np.float32)
             if self.kind is Kind.DEPTH_STENCIL or self.channels == 1:
                 scale = scale[0]
-            y = np.clip(np.nan_to_num(x, nan=0.0), 0.0, 1.0) * scale
-            return np.rint(y).astype(self.dtype)
+            clamped = np.clip(np.nan_to_num(x, nan=0.0), 0.0, 1.0).astype(np.float32)
+            return np.rint(clamped * scale).astype(self.dtype)
         if self.kind is Kind.SNORM:
-            scale = float((1 << (max(self.bits) - 1)) - 1)
-            y = np.clip(np.nan_to_num(x, nan=0.0), -1.0, 1.0) * scale
-            return np.rint(y).astype(self.dtype)
-        if self.kind is Kind.FLOAT:
-            if self.dtype == np.float16:
-                finite = np.isfinite(x)
-                x = np.where(finite, np.clip(x, -65504.0, 65504.0), x)
-            with np.errstate(over="ignore", invalid="ignore"):
-                y = x.astype(self.dtype)
+            scale = np.float32((1 << (max(self.bits) - 1)) - 1)
+            clamped = np.clip(np.nan_to_num(x, nan=0.0), -1.0, 1.0).astype(np.float32)
+            return np.rint(clamped * scale).astype(self.dtype)
+        if self.kind is Kind.FLOAT and self.dtype == np.float16:
+            return half_toward_zero(x)
+        if self.kind in (Kind.FLOAT, Kind.DEPTH):
+            y = x.astype(np.float32)
+            if self.kind is Kind.DEPTH:
+                y = np.clip(y, 0.0, 1.0)
             return flush_denormals(y)
-        if self.kind is Kind.DEPTH:
-            return flush_denormals(np.clip(x, 0.0, 1.0).astype(np.float32))
         if self.kind is Kind.UINT:
             return np.asarray(x).astype(np.uint64).astype(self.dtype)
         raise AssertionError(self.kind)
@@ -173,6 +174,19 @@ class Format:
         if self.kind is Kind.DEPTH:
             return Tolerance("ulp", 4)
         return Tolerance("exact", 0)
+
+
+def half_toward_zero(x: np.ndarray) -> np.ndarray:
+    """float -> float16 rounding toward zero, finite values clamped to ±65504 (llvmpipe's
+    rgba16f store)."""
+    f = np.asarray(x, dtype=np.float32)
+    finite = np.isfinite(f)
+    f = np.where(finite, np.clip(f, -65504.0, 65504.0), f)
+    with np.errstate(over="ignore", invalid="ignore"):
+        h = f.astype(np.float16)
+        overshoot = finite & (np.abs(h.astype(np.float32)) > np.abs(f))
+    toward_zero = np.nextafter(h, np.zeros_like(h))
+    return np.where(overshoot, toward_zero, h)
 
 
 def flush_denormals(x: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ import pytest
 
 BASE = """\
 technique t "error fixture"
-lights[8] { position: vec3, radius: float, color: vec3 }
+lights[8] {{ position: vec3, radius: float, color: vec3 }}
 target color : rgba8 clear (0, 0, 0, 1)
 target ds : d24s8 clear depth 1.0 stencil 0
 target dz : d32f clear depth 1.0

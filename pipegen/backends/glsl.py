@@ -53,7 +53,9 @@ GLSL_RESERVED = frozenset("""
     main texture texelFetch textureSize uintBitsToFloat floatBitsToUint inversesqrt sqrt pow
     max min dot cross normalize length distance clamp mix step smoothstep exp exp2 log log2
     abs sign floor ceil round roundEven fract mod sin cos tan atan equal notEqual lessThan
-    lessThanEqual greaterThan greaterThanEqual not any all
+    lessThanEqual greaterThan greaterThanEqual not any all packed buffer shared coherent
+    volatile restrict readonly writeonly precise sample image1D image2D image3D imageCube
+    samplerBuffer sampler2DRect sampler2DShadow isampler3D usampler3D atomic_uint
 """.split())
 
 # stage input -> (GLSL expression, scene varying it needs)

@@ -1,0 +1,73 @@
+"""The process-wide headless OpenGL context (moderngl on EGL) and the PyOpenGL bindings on it.
+
+moderngl has no API for stencil state, the blend constant, per-target blend equations or
+depth-stencil attachments, so the GL runtime drives those with PyOpenGL on the *same* context.
+PyOpenGL picks its platform when it is first imported, so ``PYOPENGL_PLATFORM=egl`` must be set
+before anything imports ``OpenGL``: this module sets it (unless the user chose one) and is the
+only place the runtime imports ``OpenGL.GL`` from.
+
+One context per process: EGL contexts are expensive to create on llvmpipe and PyOpenGL resolves
+its function pointers against whatever context is current, so a second context would invite
+mismatches.  ``get_context()`` creates it on first use; it stays current on the creating thread
+(render from that thread).
+
+``gl_limits()`` reports what the machine offers; ``describe()`` is a one-line summary (renderer,
+version, sub-pixel bits) for reports.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+import moderngl  # noqa: E402
+from OpenGL import GL  # noqa: E402,F401  (re-exported: the runtime's single GL import point)
+
+__all__ = ["GL", "get_context", "gl_limits", "describe", "check_error"]
+
+_lock = threading.Lock()
+_ctx: moderngl.Context | None = None
+
+
+def get_context() -> moderngl.Context:
+    """The shared standalone EGL context (created on first use, made current on each call)."""
+    global _ctx
+    with _lock:
+        if _ctx is None:
+            if os.environ.get("PYOPENGL_PLATFORM") != "egl":
+                raise RuntimeError(
+                    "pipegen's GL runtime needs PYOPENGL_PLATFORM=egl (set before OpenGL is "
+                    f"imported); found {os.environ.get('PYOPENGL_PLATFORM')!r}")
+            _ctx = moderngl.create_standalone_context(require=330, backend="egl")
+            # Byte-exact transfers for every width (r8 rows of odd length, ...).
+            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+            GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        return _ctx
+
+
+def gl_limits() -> dict[str, int]:
+    ctx = get_context()
+    return {
+        "max_draw_buffers": int(ctx.info["GL_MAX_DRAW_BUFFERS"]),
+        "max_color_attachments": int(ctx.info["GL_MAX_COLOR_ATTACHMENTS"]),
+        "max_samples": int(ctx.info["GL_MAX_SAMPLES"]),
+        "max_texture_size": int(ctx.info["GL_MAX_TEXTURE_SIZE"]),
+        "subpixel_bits": int(ctx.info["GL_SUBPIXEL_BITS"]),
+        "max_texture_units": int(ctx.info["GL_MAX_TEXTURE_IMAGE_UNITS"]),
+    }
+
+
+def describe() -> str:
+    ctx = get_context()
+    info = ctx.info
+    return (f"{info['GL_RENDERER']} / {info['GL_VERSION']} "
+            f"(subpixel bits {info['GL_SUBPIXEL_BITS']})")
+
+
+def check_error(where: str = "") -> None:
+    """Raise if GL recorded an error (PyOpenGL checks its own calls; moderngl's are not)."""
+    err = GL.glGetError()
+    if err != GL.GL_NO_ERROR:
+        raise RuntimeError(f"OpenGL error 0x{int(err):04x} {where}".rstrip())

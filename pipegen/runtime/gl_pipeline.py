@@ -1,0 +1,550 @@
+"""Run a compiled PLAN (docs/internals.md) with moderngl + PyOpenGL on the shared EGL context.
+
+``GLPipeline(plan, size=None).render(scene) -> {target: codes}`` builds, once per output size,
+one texture per target (multisampled targets get a single-sample *resolve* texture that later
+passes read and that is returned), one framebuffer per pass, and compiles every pass's program
+once.  Per render it uploads the scene (one interleaved VBO per material filter, the light table
+texture; cached while the same ``Scene`` object is rendered again), clears every target to its
+clear value, then runs the passes in order:
+
+* ``clears`` of the pass (exact codes through ``glClearTexImage``, so scissor/masks don't apply);
+* all fixed-function state, set explicitly (``gl_state.apply_state``);
+* reads bound as textures: unit 0 is ``u_lights``, ``reads[k]`` is unit ``k + 1``; a sampler
+  object per unit, nearest, or linear for the pass's ``"sampled"`` targets (integer and depth
+  formats always nearest), clamp to edge;
+* the draw: scene geometry of the material filter; light volumes instanced over the light list
+  with a per-instance ``a_light`` (all lights, the pass's ``light_types``, or the CPU-sorted
+  set ``light_sets[pack][k]`` from ``packing.sort_lights_into_slots``); ``scissor`` light draws
+  go one light at a time under ``reference.fixed_function.light_scissor_rect``; full-screen
+  draws are one 3-vertex triangle.
+
+Consecutive passes with the same ``repeat_group`` run as a group once per light (``u_light`` set;
+a light draw inside the group draws only that light, and a pass whose light filter excludes the
+light is skipped for it, clears included).
+
+Results are in GL row order (row 0 = window y 0, the bottom row), as codes (``gl_formats``); a
+d24s8 target ``ds`` yields ``"ds"`` (uint32 24-bit depth codes) and ``"ds.stencil"`` (uint8).
+``render(..., capture_passes=True)`` returns ``(targets, captures)`` with one entry
+``{"pass", "light", "targets"}`` after every executed pass (per light inside repeat groups).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional, Sequence
+
+import numpy as np
+
+from .. import formats as F
+from ..reference.fixed_function import light_scissor_rect
+from . import gl_formats as GF
+from . import gl_state as GS
+from .gl_context import GL, get_context
+
+import moderngl
+
+__all__ = ["GLPipeline", "target_size"]
+
+SCENE_ATTRIBUTES = [("a_position", 3), ("a_normal", 3), ("a_albedo", 3), ("a_material", 3),
+                    ("a_ids", 2)]
+
+
+def target_size(t: dict, out_w: int, out_h: int) -> tuple[int, int]:
+    """A PLAN target's size for an output of ``out_w`` x ``out_h`` (``ir.Size.resolve``)."""
+    if t.get("width"):
+        return int(t["width"]), int(t["height"])
+    s = float(t.get("scale", 1.0))
+    return max(1, int(out_w * s + 0.5)), max(1, int(out_h * s + 0.5))
+
+
+class _Target:
+    def __init__(self, spec: dict, size: tuple[int, int]):
+        self.name = spec["name"]
+        self.spec = spec
+        self.format = spec["format"]
+        self.fmt = F.get(self.format)
+        self.size = size
+        self.samples = max(1, int(spec.get("samples") or 1))
+        self.tex = GF.create_texture(self.format, *size, samples=self.samples)
+        self.resolved = self.tex
+        self.dirty = False           # multisampled contents newer than ``resolved``
+        self.fbo_ms = self.fbo_resolved = self.fbo_clear = None
+        if self.samples > 1:
+            self.resolved = GF.create_texture(self.format, *size)
+            self.fbo_ms = _framebuffer([(self._attachment(0), self.tex)])
+            self.fbo_resolved = _framebuffer([(self._attachment(0), self.resolved)])
+
+    def _attachment(self, k: int) -> int:
+        g = GF.gl_format(self.format)
+        return g.attachment + k if self.fmt.is_color else g.attachment
+
+    def clear(self, color=None, depth=None, stencil=None, partial: bool = False) -> None:
+        """Clear to the given values (None -> 0).  With ``partial``, a d24s8 clear that names
+        only depth or only stencil keeps the other aspect (a framebuffer clear, since
+        ``glClearTexImage`` writes whole texels)."""
+        if partial and self.fmt.kind is F.Kind.DEPTH_STENCIL and (depth is None) != (
+                stencil is None):
+            if self.fbo_clear is None:
+                self.fbo_clear = _framebuffer([(self._attachment(0), self.tex)])
+                GL.glNamedFramebufferDrawBuffers(self.fbo_clear, 1, [GL.GL_NONE])
+            # framebuffer clears obey the scissor test and the depth / stencil write masks
+            GL.glDisable(GL.GL_SCISSOR_TEST)
+            if stencil is not None:
+                GL.glStencilMaskSeparate(GL.GL_FRONT_AND_BACK, 0xFF)
+                GL.glClearNamedFramebufferiv(self.fbo_clear, GL.GL_STENCIL, 0,
+                                             np.array([int(stencil)], np.int32))
+            else:
+                GL.glDepthMask(GL.GL_TRUE)
+                GL.glClearNamedFramebufferfv(self.fbo_clear, GL.GL_DEPTH, 0,
+                                             np.array([float(depth)], np.float32))
+            self.dirty = self.samples > 1
+            return
+        GF.clear_texture(self.tex, self.format, color, depth, stencil)
+        if self.samples > 1:
+            GF.clear_texture(self.resolved, self.format, color, depth, stencil)
+            self.dirty = False
+
+    def resolve(self) -> None:
+        if not self.dirty:
+            return
+        if self.fmt.is_color:
+            mask = GL.GL_COLOR_BUFFER_BIT
+            GL.glNamedFramebufferReadBuffer(self.fbo_ms, GL.GL_COLOR_ATTACHMENT0)
+            GL.glNamedFramebufferDrawBuffers(self.fbo_resolved, 1, [GL.GL_COLOR_ATTACHMENT0])
+        else:
+            mask = GL.GL_DEPTH_BUFFER_BIT | (GL.GL_STENCIL_BUFFER_BIT if self.fmt.has_stencil
+                                              else 0)
+        # blits obey the scissor test and (on some drivers) colour masks: neutral state first
+        GS.apply_state(GS.default_state(), ["_"] if self.fmt.is_color else [])
+        w, h = self.size
+        GL.glBlitNamedFramebuffer(self.fbo_ms, self.fbo_resolved, 0, 0, w, h, 0, 0, w, h, mask,
+                                  GL.GL_NEAREST)
+        self.dirty = False
+
+    def read(self) -> dict[str, np.ndarray]:
+        self.resolve()
+        w, h = self.size
+        data = GF.read_texture(self.resolved, self.format, w, h)
+        if self.fmt.kind is F.Kind.DEPTH_STENCIL:
+            depth, stencil = GF.split_depth_stencil(data)
+            return {self.name: depth, self.name + ".stencil": stencil}
+        return {self.name: data}
+
+    def release(self) -> None:
+        GF.delete_texture(self.tex)
+        if self.fbo_clear is not None:
+            GL.glDeleteFramebuffers(1, np.array([self.fbo_clear], np.uint32))
+        if self.samples > 1:
+            GF.delete_texture(self.resolved)
+            GL.glDeleteFramebuffers(2, np.array([self.fbo_ms, self.fbo_resolved], np.uint32))
+
+
+def _framebuffer(attachments: Sequence[tuple[int, int]]) -> int:
+    ids = np.zeros(1, np.uint32)
+    GL.glCreateFramebuffers(1, ids)
+    fbo = int(ids[0])
+    for point, tex in attachments:
+        GL.glNamedFramebufferTexture(fbo, point, tex, 0)
+    return fbo
+
+
+_STATUS = {
+    0x8CD6: "INCOMPLETE_ATTACHMENT", 0x8CD7: "INCOMPLETE_MISSING_ATTACHMENT",
+    0x8CDB: "INCOMPLETE_DRAW_BUFFER", 0x8CDC: "INCOMPLETE_READ_BUFFER", 0x8CDD: "UNSUPPORTED",
+    0x8D56: "INCOMPLETE_MULTISAMPLE", 0x8DA8: "INCOMPLETE_LAYER_TARGETS",
+}
+
+
+class _Pass:
+    def __init__(self, ctx: moderngl.Context, spec: dict, index: int):
+        self.spec = spec
+        self.index = index
+        self.name = spec["name"]
+        self.draw = dict(spec.get("draw") or {"kind": "fullscreen"})
+        self.kind = self.draw.get("kind", "fullscreen")
+        self.writes = list(spec.get("writes") or [])
+        self.reads = list(spec.get("reads") or [])
+        self.sampled = set(spec.get("sampled") or [])
+        self.depth_target = spec.get("depth_target")
+        self.state = spec.get("state") or GS.default_state()
+        self.group = spec.get("repeat_group")
+        try:
+            fragment = spec.get("fragment") or None
+            self.program = ctx.program(vertex_shader=spec["vertex"], fragment_shader=fragment)
+        except Exception as e:
+            raise RuntimeError(f"pass '{self.name}': GLSL compile/link failed:\n{e}") from None
+        self.fbo: Optional[int] = None
+        self.viewport = (0, 0)
+        self.vaos: dict[Any, moderngl.VertexArray] = {}
+        self.instance_buffer: Optional[moderngl.Buffer] = None
+
+    def has(self, name: str) -> bool:
+        return self.program.get(name, None) is not None
+
+    def set_uniform(self, name: str, value) -> None:
+        u = self.program.get(name, None)
+        if u is None:
+            return
+        if isinstance(value, np.ndarray):
+            u.write(np.ascontiguousarray(value, dtype=np.float32).tobytes())
+        else:
+            u.value = value
+
+    def light_filter(self) -> bool:
+        return bool(self.draw.get("light_types") or self.draw.get("light_set"))
+
+    def release(self) -> None:
+        for vao in self.vaos.values():
+            vao.release()
+        if self.instance_buffer is not None:
+            self.instance_buffer.release()
+        self.program.release()
+        if self.fbo is not None:
+            GL.glDeleteFramebuffers(1, np.array([self.fbo], np.uint32))
+
+
+class GLPipeline:
+    """A PLAN ready to render with OpenGL (see the module docstring)."""
+
+    def __init__(self, plan: dict, size: Optional[tuple[int, int]] = None):
+        self.plan = plan
+        self.ctx = get_context()
+        self.size = None if size is None else (int(size[0]), int(size[1]))
+        self.passes = [_Pass(self.ctx, p, k) for k, p in enumerate(plan["passes"])]
+        self.targets: dict[str, _Target] = {}
+        self._built_size: Optional[tuple[int, int]] = None
+        lights = plan.get("lights") or {"capacity": 1, "fields": []}
+        self.capacity = max(1, int(lights.get("capacity") or 1))
+        self.fields = [tuple(f) for f in lights.get("fields") or []]
+        self.light_tex = GF.create_texture("rgba32f", max(1, len(self.fields)), self.capacity)
+        self._samplers = {mode: self._sampler(mode) for mode in ("nearest", "linear")}
+        self._meshes: dict[str, moderngl.Buffer] = {}
+        self._scene = None
+        self._scene_vbos: dict[tuple, tuple[moderngl.Buffer, int]] = {}
+        self._light_sets: dict[str, list[list[int]]] = {}
+        self.dropped_lights: dict[str, list[int]] = {}   # per channel_slots pack, last scene
+        self._released = False
+        if self.size is not None:
+            self._build(self.size)
+
+    # -- resources -------------------------------------------------------------------------
+    @staticmethod
+    def _sampler(mode: str) -> int:
+        ids = np.zeros(1, np.uint32)
+        GL.glCreateSamplers(1, ids)
+        s = int(ids[0])
+        f = GL.GL_LINEAR if mode == "linear" else GL.GL_NEAREST
+        GL.glSamplerParameteri(s, GL.GL_TEXTURE_MIN_FILTER, f)
+        GL.glSamplerParameteri(s, GL.GL_TEXTURE_MAG_FILTER, f)
+        GL.glSamplerParameteri(s, GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE)
+        GL.glSamplerParameteri(s, GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)
+        GL.glSamplerParameteri(s, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_NONE)
+        return s
+
+    def _build(self, size: tuple[int, int]) -> None:
+        """Targets and per-pass framebuffers for output ``size``."""
+        for t in self.targets.values():
+            t.release()
+        self.targets = {}
+        for spec in self.plan["targets"]:
+            self.targets[spec["name"]] = _Target(spec, target_size(spec, *size))
+        for p in self.passes:
+            if p.fbo is not None:
+                GL.glDeleteFramebuffers(1, np.array([p.fbo], np.uint32))
+            attached = [self.targets[w] for w in p.writes]
+            att = [(GF.gl_format(t.format).attachment + k, t.tex) for k, t in enumerate(attached)]
+            if p.depth_target:
+                d = self.targets[p.depth_target]
+                att.append((GF.gl_format(d.format).attachment, d.tex))
+                attached.append(d)
+            sizes = {t.size for t in attached}
+            if len(sizes) > 1:
+                raise RuntimeError(f"pass '{p.name}' attaches targets of different sizes: "
+                                   + ", ".join(f"{t.name} {t.size[0]}x{t.size[1]}"
+                                               for t in attached))
+            samples = {t.samples for t in attached}
+            if len(samples) > 1:
+                raise RuntimeError(f"pass '{p.name}' attaches targets with different sample "
+                                   f"counts: " + ", ".join(f"{t.name} x{t.samples}"
+                                                          for t in attached))
+            p.fbo = _framebuffer(att)
+            bufs = [GL.GL_COLOR_ATTACHMENT0 + k for k in range(len(p.writes))] or [GL.GL_NONE]
+            GL.glNamedFramebufferDrawBuffers(p.fbo, len(bufs), bufs)
+            GL.glNamedFramebufferReadBuffer(p.fbo, GL.GL_NONE)
+            p.viewport = attached[0].size if attached else size
+            if attached:
+                status = GL.glCheckNamedFramebufferStatus(p.fbo, GL.GL_DRAW_FRAMEBUFFER)
+                if status != GL.GL_FRAMEBUFFER_COMPLETE:
+                    raise RuntimeError(f"pass '{p.name}': framebuffer incomplete "
+                                       f"({_STATUS.get(int(status), hex(int(status)))})")
+        self._built_size = size
+
+    def release(self) -> None:
+        """Free every GL object (the pipeline is unusable afterwards)."""
+        if self._released:
+            return
+        self._released = True
+        for t in self.targets.values():
+            t.release()
+        for p in self.passes:
+            p.release()
+        for buf, _ in self._scene_vbos.values():
+            buf.release()
+        for buf in self._meshes.values():
+            buf.release()
+        GF.delete_texture(self.light_tex)
+        GL.glDeleteSamplers(2, np.array(list(self._samplers.values()), np.uint32))
+
+    def __del__(self):  # pragma: no cover - best effort at interpreter exit
+        try:
+            self.release()
+        except Exception:
+            pass
+
+    # -- scene data -------------------------------------------------------------------------
+    def _use_scene(self, scene) -> None:
+        if self._scene is scene:
+            return
+        for p in self.passes:
+            for key in [k for k in p.vaos if k[0] == "scene"]:
+                p.vaos.pop(key).release()
+        for buf, _ in self._scene_vbos.values():
+            buf.release()
+        self._scene_vbos = {}
+        self._light_sets = {}
+        self.dropped_lights = {}
+        lights = list(scene.lights)
+        if len(lights) > self.capacity:
+            raise ValueError(f"the scene has {len(lights)} lights but the technique's light "
+                             f"table holds {self.capacity}")
+        table = np.asarray(scene.light_table([list(f) for f in self.fields], self.capacity),
+                           dtype=np.float32)
+        if self.fields:
+            GF.write_texture(self.light_tex, "rgba32f", table.reshape(self.capacity,
+                                                                        len(self.fields), 4))
+        self._scene = scene
+
+    def _scene_vbo(self, material: tuple[str, ...]) -> tuple[moderngl.Buffer, int]:
+        if material not in self._scene_vbos:
+            g = self._scene.geometry(material)
+            if hasattr(g, "interleaved"):
+                data = g.interleaved()
+            else:
+                data = np.concatenate([g.positions, g.normals, g.albedo, g.material, g.ids],
+                                      axis=1)
+            data = np.ascontiguousarray(data, dtype=np.float32)
+            buf = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * 56)
+            self._scene_vbos[material] = (buf, len(data))
+        return self._scene_vbos[material]
+
+    def _mesh(self, volume: str) -> moderngl.Buffer:
+        if volume not in self._meshes:
+            from ..meshes import light_volume
+            self._meshes[volume] = self.ctx.buffer(
+                np.ascontiguousarray(light_volume(volume), dtype=np.float32).tobytes())
+        return self._meshes[volume]
+
+    def _light_list(self, p: _Pass) -> list[int]:
+        lights = list(self._scene.lights)
+        idx = list(range(len(lights)))
+        types = p.draw.get("light_types") or []
+        if types:
+            idx = [i for i in idx if _light_type(lights[i]) in types]
+        light_set = p.draw.get("light_set")
+        if light_set:
+            pack, k = light_set[0], int(light_set[1])
+            if pack not in self._light_sets:
+                from ..packing import sort_lights_into_slots
+                slots = int((self.plan.get("light_sets") or {}).get(pack, 4))
+                centers = [tuple(getattr(l, "position", (0.0, 0.0, 0.0))) for l in lights]
+                radii = [float(getattr(l, "radius", 0.0)) for l in lights]
+                sets, dropped = sort_lights_into_slots(centers, radii, slots)
+                self._light_sets[pack] = [list(map(int, s)) for s in sets]
+                self.dropped_lights[pack] = [int(i) for i in dropped]
+            chosen = set(self._light_sets[pack][k]) if k < len(self._light_sets[pack]) else set()
+            idx = [i for i in idx if i in chosen]
+        return idx
+
+    def light_sets(self, scene) -> dict[str, list[list[int]]]:
+        """The CPU-sorted light sets this pipeline draws for ``scene`` (for reports/tests)."""
+        self._use_scene(scene)
+        for p in self.passes:
+            if p.draw.get("light_set"):
+                self._light_list(p)
+        return dict(self._light_sets)
+
+    def _vao(self, p: _Pass) -> Optional[moderngl.VertexArray]:
+        if p.kind == "scene":
+            material = tuple(p.draw.get("material") or ())
+            key = ("scene", material)
+            if key not in p.vaos:
+                buf, n = self._scene_vbo(material)
+                fmt, names = [], []
+                for name, comps in SCENE_ATTRIBUTES:
+                    if p.has(name):
+                        fmt.append(f"{comps}f")
+                        names.append(name)
+                    else:
+                        fmt.append(f"{4 * comps}x")
+                p.vaos[key] = self.ctx.vertex_array(p.program, [(buf, " ".join(fmt), *names)])
+            return p.vaos[key]
+        if p.kind == "lights":
+            volume = p.draw.get("volume") or "sphere"
+            key = ("lights", volume)
+            if key not in p.vaos:
+                if p.instance_buffer is None:
+                    p.instance_buffer = self.ctx.buffer(reserve=4 * self.capacity)
+                content = [(self._mesh(volume), "3f", "a_position")]
+                if p.has("a_light"):
+                    content.append((p.instance_buffer, "1f/i", "a_light"))
+                p.vaos[key] = self.ctx.vertex_array(p.program, content)
+            return p.vaos[key]
+        key = ("fullscreen",)
+        if key not in p.vaos:
+            p.vaos[key] = self.ctx.vertex_array(p.program, [])
+        return p.vaos[key]
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
+        """Render ``scene``; ``{target: codes}`` (and the per-pass captures, see module doc)."""
+        if self._released:
+            raise RuntimeError("GLPipeline used after release()")
+        self._check_params(params)
+        size = self.size or (int(scene.width), int(scene.height))
+        if self._built_size != size:
+            self._build(size)
+        self._use_scene(scene)
+        self._frame_uniforms(scene, size)
+        for t in self.targets.values():
+            s = t.spec
+            t.clear(s.get("clear_color"), s.get("clear_depth"), s.get("clear_stencil"))
+        captures: list[dict] = []
+        k = 0
+        n = len(self.passes)
+        while k < n:
+            p = self.passes[k]
+            if p.group is None:
+                self._run_pass(p, None)
+                if capture_passes:
+                    captures.append({"pass": p.name, "light": None, "targets": self._read_all()})
+                k += 1
+                continue
+            group = [p]
+            while k + len(group) < n and self.passes[k + len(group)].group == p.group:
+                group.append(self.passes[k + len(group)])
+            lists = {q.name: set(self._light_list(q)) for q in group if q.light_filter()}
+            for light in range(len(scene.lights)):
+                for q in group:
+                    if q.name in lists and light not in lists[q.name]:
+                        continue
+                    self._run_pass(q, light)
+                    if capture_passes:
+                        captures.append({"pass": q.name, "light": light,
+                                         "targets": self._read_all()})
+            k += len(group)
+        result = self._read_all()
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        return (result, captures) if capture_passes else result
+
+    def _check_params(self, params: Optional[dict]) -> None:
+        if not params:
+            return
+        compiled = self.plan.get("params") or {}
+        for name, value in params.items():
+            if name not in compiled:
+                raise ValueError(f"unknown parameter '{name}' (the technique has: "
+                                 f"{', '.join(compiled) or 'none'})")
+            uniform = [p for p in self.passes if p.has("p_" + name)]
+            for p in uniform:
+                p.set_uniform("p_" + name, value)
+            if not uniform and value != compiled[name]:
+                raise ValueError(f"parameter '{name}' was compiled in as {compiled[name]!r}; "
+                                 f"recompile with {name}={value!r} to change it")
+
+    def _frame_uniforms(self, scene, size) -> None:
+        cam = scene.camera
+        view = np.asarray(cam.view_matrix(), np.float64)
+        proj = np.asarray(cam.projection(size[0] / size[1]), np.float64)
+        # GLSL mat4 uniforms are column-major: the transpose's row-major bytes
+        mats = {"u_view": view, "u_proj": proj, "u_inv_view": np.linalg.inv(view),
+                "u_inv_proj": np.linalg.inv(proj)}
+        eye = np.asarray(getattr(cam, "position"), np.float32)
+        self._view, self._proj = view, proj
+        for p in self.passes:
+            for name, m in mats.items():
+                p.set_uniform(name, np.ascontiguousarray(m.T))
+            p.set_uniform("u_camera_pos", tuple(float(x) for x in eye))
+            p.set_uniform("u_ambient", tuple(float(x) for x in np.asarray(scene.ambient)[:3]))
+            p.set_uniform("u_output_size", (float(size[0]), float(size[1])))
+            p.set_uniform("u_num_lights", int(len(scene.lights)))
+            p.set_uniform("u_lights", 0)
+            for k, r in enumerate(p.reads):
+                p.set_uniform("t_" + r, k + 1)
+
+    def _run_pass(self, p: _Pass, light: Optional[int]) -> None:
+        for c in p.spec.get("clears") or []:
+            t = self.targets[c["target"]]
+            t.clear(c.get("clear_color"), c.get("clear_depth"), c.get("clear_stencil"),
+                    partial=True)
+        if light is not None:
+            p.set_uniform("u_light", int(light))
+        # reads: unit 0 is the light table
+        GL.glBindTextureUnit(0, self.light_tex)
+        GL.glBindSampler(0, self._samplers["nearest"])
+        for k, r in enumerate(p.reads):
+            t = self.targets[r]
+            t.resolve()
+            linear = r in p.sampled and t.fmt.kind in (F.Kind.UNORM, F.Kind.SNORM, F.Kind.FLOAT)
+            GL.glBindTextureUnit(k + 1, t.resolved)
+            GL.glBindSampler(k + 1, self._samplers["linear" if linear else "nearest"])
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, p.fbo)
+        w, h = p.viewport
+        GL.glViewport(0, 0, w, h)
+        depth_format = self.targets[p.depth_target].format if p.depth_target else None
+        GS.apply_state(p.state, p.writes, depth_format=depth_format)
+        vao = self._vao(p)
+        if p.kind == "scene":
+            _, count = self._scene_vbo(tuple(p.draw.get("material") or ()))
+            if count:
+                vao.render(moderngl.TRIANGLES, vertices=count)
+        elif p.kind == "lights":
+            indices = [light] if light is not None else self._light_list(p)
+            if light is not None and p.light_filter() and light not in self._light_list(p):
+                indices = []
+            if indices:
+                if p.draw.get("scissor"):
+                    lights = list(self._scene.lights)
+                    for i in indices:
+                        rect = light_scissor_rect(lights[i].position, lights[i].radius,
+                                                  self._view, self._proj, w, h)
+                        if rect[2] == 0 or rect[3] == 0:
+                            continue
+                        GS.set_scissor(rect)
+                        self._draw_lights(p, vao, [i])
+                    GS.set_scissor(None)
+                else:
+                    self._draw_lights(p, vao, indices)
+        else:
+            vao.render(moderngl.TRIANGLES, vertices=3)
+        for name in p.writes + ([p.depth_target] if p.depth_target else []):
+            t = self.targets[name]
+            if t.samples > 1:
+                t.dirty = True
+
+    def _draw_lights(self, p: _Pass, vao, indices: Sequence[int]) -> None:
+        if p.instance_buffer is not None:
+            p.instance_buffer.write(np.asarray(indices, np.float32).tobytes())
+        vao.render(moderngl.TRIANGLES, instances=len(indices))
+
+    def _read_all(self) -> dict[str, np.ndarray]:
+        out: dict[str, np.ndarray] = {}
+        for t in self.targets.values():
+            out.update(t.read())
+        return out
+
+
+def _light_type(light) -> str:
+    t = getattr(light, "type", "point")
+    if isinstance(t, (int, np.integer)):
+        return {0: "point", 1: "spot", 2: "directional"}.get(int(t), str(t))
+    return str(t)
+
