@@ -619,9 +619,10 @@ def _exact_bits(fmt: Format) -> int:
     if fmt.kind is Kind.SNORM:
         return b - 1
     if fmt.kind is Kind.FLOAT:
-        # v / (2^n - 1) and back: half keeps 11 bits; float32 23 (at 24 bits the product
-        # x * (2^24 - 1) rounds to whole numbers and misses).
-        return 11 if b == 16 else 23
+        # v / (2^n - 1) and back: half has 11 significant bits, but llvmpipe's half store
+        # rounds toward zero (up to 1 ulp off), which leaves 10 exact; float32 23 (at 24 bits
+        # the product x * (2^24 - 1) rounds to whole numbers and misses).
+        return 10 if b == 16 else 23
     return 0
 
 

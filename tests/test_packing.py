@@ -144,7 +144,7 @@ class TestBuild:
         ("channel_slots", {"slots": 3}, "rg8", "cannot fit"),
         ("split16", {}, "r8", "cannot fit"),
         ("bitfield", {"fields": [("object", 8), ("group", 9)]}, "r16", "wider than"),
-        ("bitfield", {"fields": [("id", 12)]}, "r16f", "wider than"),   # half: 11 exact bits
+        ("bitfield", {"fields": [("id", 11)]}, "r16f", "wider than"),   # half: 10 exact bits
         ("bitfield", {"fields": [("id", 24)]}, "r32f", "wider than"),   # float32 math: 23
         ("bitfield", {"fields": [("a", 20), ("b", 13)]}, None, "wider than a uint"),
         ("bitfield", {"fields": [("a", 8), ("a", 8)]}, None, "twice"),
@@ -533,7 +533,7 @@ class TestBitfield:
         assert "uint ids_pack(uint a, uint b, uint c)" in spec.functions_source
         assert "uint ids_b_of(uint v)" in spec.functions_source
 
-    @pytest.mark.parametrize("target, bits", [("r16f", 11), ("r32f", 23), ("r8", 8)])
+    @pytest.mark.parametrize("target, bits", [("r16f", 10), ("r32f", 23), ("r8", 8)])
     def test_widest_field_a_float_or_unorm_channel_holds(self, target, bits):
         build("bitfield", {"fields": [("id", bits)]}, target)   # fits
         f = impl("bitfield", {"fields": [("id", bits)]})
@@ -651,12 +651,13 @@ class TestNormals:
         assert np.allclose(f["encode"](np.zeros((1, 3), F32)), [[0.5, 0.5]])   # no NaN
 
     @pytest.mark.parametrize("scheme, target, bound", [
-        ("kircher", "rg8", 1.0), ("kircher", "rg16", 0.005), ("kircher", "rg16f", 0.12),
+        ("kircher", "rg8", 1.0), ("kircher", "rg16", 0.005), ("kircher", "rg16f", 0.25),
         ("octahedral", "rg8", 1.0), ("octahedral", "rg16", 0.005),
-        ("octahedral", "rg16f", 0.13),
-        ("spheremap", "rg8", 13.0), ("spheremap", "rg16", 1.0), ("spheremap", "rg16f", 5.0),
+        ("octahedral", "rg16f", 0.26),
+        ("spheremap", "rg8", 13.0), ("spheremap", "rg16", 1.0), ("spheremap", "rg16f", 6.5),
     ])
     def test_measured_error(self, scheme, target, bound):
+        # rg16f bounds include llvmpipe's truncating half store (formats.half_toward_zero).
         spec = build(scheme, {}, target)
         assert 0 < spec.error < bound
         assert any("degrees" in note for note in spec.notes)

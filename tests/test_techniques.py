@@ -7,8 +7,8 @@ Tolerances (rgba8 codes, interior pixels):
   float value (1 code); G-buffer techniques also quantise albedo/specular to 8 bits and normals
   to half before lighting, which moves the result by < 1 code more.
 - technique vs float64 reference: 2 codes, for the same reasons.
-Pixels on silhouettes (the reference's edge mask) are excluded and counted; coverage there
-depends on each rasteriser's vertex arithmetic.
+Pixels on silhouettes and creases (the reference's silhouette mask) are excluded, and their
+share is bounded; coverage there depends on each rasteriser's vertex arithmetic.
 """
 
 from pathlib import Path
@@ -37,7 +37,7 @@ class Reference:
     def __init__(self, scene):
         rgb, self.gbuffer = reference_image(scene)
         self.rgb = rgb[::-1]
-        self.edge = self.gbuffer.edge[::-1]
+        self.edge = self.gbuffer.silhouette[::-1]
 
 
 @pytest.fixture(scope="module")

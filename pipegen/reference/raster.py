@@ -57,6 +57,15 @@ class GBuffer:
     triangle: np.ndarray      # int64 index into the drawn triangle list, -1 on sky
     edge: np.ndarray          # bool: the 3x3 neighbourhood sees another triangle or the sky
 
+    @property
+    def silhouette(self) -> np.ndarray:
+        """Pixels whose 3x3 neighbourhood sees another object, another normal group (a crease)
+        or the sky: where a one-pixel coverage difference changes the shaded value.  Edges
+        between triangles of one smooth surface are not included: the interpolated
+        attributes are continuous across them."""
+        surface = np.where(self.object_id < 0, -1, self.object_id * 256 + self.normal_group)
+        return edge_mask(surface)
+
 
 def rasterize(scene, material: tuple[str, ...] = (), cull: str = "back") -> GBuffer:
     """Rasterise the scene's geometry (filtered by ``material``) into a reference G-buffer.
