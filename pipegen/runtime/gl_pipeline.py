@@ -406,6 +406,18 @@ class GLPipeline:
     # -- rendering --------------------------------------------------------------------------
     def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
         """Render ``scene``; ``{target: codes}`` (and the per-pass captures, see module doc)."""
+        captures = self._draw(scene, params, capture_passes)
+        result = self._read_all()
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        return (result, captures) if capture_passes else result
+
+    def frame(self, scene, params: Optional[dict] = None) -> None:
+        """Render ``scene`` and wait for the GPU (no read-back): what frame timings measure."""
+        self._draw(scene, params, False)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        GL.glFinish()
+
+    def _draw(self, scene, params: Optional[dict], capture_passes: bool) -> list[dict]:
         if self._released:
             raise RuntimeError("GLPipeline used after release()")
         self._check_params(params)
@@ -441,9 +453,7 @@ class GLPipeline:
                         captures.append({"pass": q.name, "light": light,
                                          "targets": self._read_all()})
             k += len(group)
-        result = self._read_all()
-        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
-        return (result, captures) if capture_passes else result
+        return captures
 
     def _check_params(self, params: Optional[dict]) -> None:
         if not params:
