@@ -20,7 +20,10 @@ examples:
   pipegen run pipelines/forward.pipe -o out/forward
       render the built-in default scene: one PNG and one .npy per target
   pipegen run pipelines/deferred.pipe --scene examples/scenes/many_lights.toml --size 640x360 -o out/
-  pipegen run pipelines/inferred.pipe -p lbuffer_scale=0.5 -o out/inferred
+  pipegen run pipelines/forward.pipe --backend cl -o out/forward-cl
+      the same technique on the PoCL software reference
+  pipegen check pipelines/lidr_max_stencil.pipe --scene examples/scenes/stress_overlap.toml
+      GL vs CL, one row per target; exit 1 and the first divergent pass on disagreement
 """
 
 
@@ -69,6 +72,15 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--size", help="output size WxH (default: the scene's)")
     r.add_argument("--backend", choices=["gl", "cl"], default="gl")
     r.set_defaults(func=cmd_run)
+
+    k = sub.add_parser("check", help="render on GL and CL, compare every target",
+                       epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    common(k)
+    k.add_argument("--scene", help="scene .toml (default: the built-in default scene)")
+    k.add_argument("--size", help="output size WxH (default: the scene's)")
+    k.add_argument("-o", "--out", help="folder for the error images "
+                                       "(default: build/check/<technique>)")
+    k.set_defaults(func=cmd_check)
     return parser
 
 
@@ -118,11 +130,8 @@ def cmd_compile(args) -> int:
 def cmd_run(args) -> int:
     from .compiler import compile_file
     from .outputs import write_render
-    from .scene import default_scene, load_scene
     compiled = compile_file(args.file, parse_params(args.param))
-    scene = load_scene(args.scene) if args.scene else default_scene()
-    if args.size:
-        scene = scene.with_size(*parse_size(args.size))
+    scene = _scene(args)
     pipeline = compiled.pipeline(args.backend)
     print(f"rendering {compiled.name} on {args.backend} at {scene.width}x{scene.height} "
           f"({len(scene.objects)} objects, {len(scene.lights)} lights)", file=sys.stderr)
@@ -131,6 +140,23 @@ def cmd_run(args) -> int:
     for name in sorted(targets):
         print(f"  {out / (name + '.png')}")
     return 0
+
+
+def cmd_check(args) -> int:
+    from .check import main_check
+    from .compiler import compile_file
+    compiled = compile_file(args.file, parse_params(args.param))
+    scene = _scene(args)
+    out = Path(args.out) if args.out else Path("build/check") / compiled.name
+    return main_check(compiled, scene, out)
+
+
+def _scene(args):
+    from .scene import default_scene, load_scene
+    scene = load_scene(args.scene) if args.scene else default_scene()
+    if args.size:
+        scene = scene.with_size(*parse_size(args.size))
+    return scene
 
 
 if __name__ == "__main__":

@@ -1,0 +1,140 @@
+"""``pipegen check``: render a technique on both backends and compare every target.
+
+Tolerances come from ``formats.py`` (DESIGN.md §7): unorm targets may differ by 1 + P codes
+where P counts the blend steps into the target, float targets by ulps, and packed light-index
+or ID targets and stencil must be exact.  When a target disagrees, both backends are re-run
+capturing every target after every pass, and the first pass whose outputs diverge is named.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from . import formats
+from .compare import TargetComparison, compare_target
+from .outputs import target_hints
+from .visualize import save_png
+
+
+@dataclass
+class CheckResult:
+    technique: str
+    rows: list[TargetComparison]
+    first_divergence: Optional[str] = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.rows)
+
+    def table(self) -> str:
+        header = ("target", "format", "max error", "rmse", "tolerance", "over", "edges/bound",
+                  "")
+        rows = [header] + [r.row() for r in self.rows]
+        widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
+        lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+        return "\n".join(lines)
+
+
+def blend_steps(plan: dict, target: str, lights: int) -> int:
+    """How many times per frame a target is blended into (repeat groups: once per light)."""
+    n = 0
+    for p in plan["passes"]:
+        b = p["state"].get("blend", {}).get(target)
+        if target in p["writes"] and b and b.get("enabled"):
+            n += lights if p.get("repeat_group") is not None else 1
+    return n
+
+
+def compare_targets(compiled, gl: dict, cl: dict, lights: int,
+                    only: Optional[set] = None) -> list[TargetComparison]:
+    tech = compiled.technique
+    plan = compiled.plan("gl")
+    hints = target_hints(tech)
+    rows = []
+    for key in sorted(gl):
+        base, _, aspect = key.partition(".")
+        if only is not None and base not in only:
+            continue
+        fmt = tech.target(base).format
+        exact = aspect == "stencil" or hints.get(base) == "index"
+        tol = formats.Tolerance("exact", 0) if exact else None
+        if key not in cl:
+            raise AssertionError(f"the CL backend returned no {key!r}")
+        rows.append(compare_target(key, fmt, gl[key], cl[key], blend_steps(plan, base, lights),
+                                   tolerance=tol))
+    return rows
+
+
+def check(compiled, scene, out_dir: Optional[Path] = None,
+          progress: Callable[[str], None] = lambda msg: None) -> CheckResult:
+    gl_pipe = compiled.pipeline("gl")
+    cl_pipe = compiled.pipeline("cl")
+    progress("rendering on GL (llvmpipe)")
+    gl = gl_pipe.render(scene)
+    progress("rendering on CL (PoCL)")
+    cl = cl_pipe.render(scene)
+    result = CheckResult(compiled.name, compare_targets(compiled, gl, cl, len(scene.lights)))
+    if out_dir is not None:
+        write_error_images(result.rows, out_dir)
+    if not result.passed:
+        progress("localising the first divergent pass")
+        result.first_divergence = first_divergent_pass(compiled, gl_pipe, cl_pipe, scene)
+    return result
+
+
+def first_divergent_pass(compiled, gl_pipe, cl_pipe, scene) -> Optional[str]:
+    """Replay both backends pass by pass; the first pass after which a target it wrote
+    (colour, depth or stencil) differs beyond tolerance."""
+    _, gl_caps = gl_pipe.render(scene, capture_passes=True)
+    _, cl_caps = cl_pipe.render(scene, capture_passes=True)
+    passes = {p.name: p for p in compiled.technique.passes}
+    for g, c in zip(gl_caps, cl_caps):
+        assert (g["pass"], g["light"]) == (c["pass"], c["light"]), "backends ran different passes"
+        p = passes[g["pass"]]
+        written = set(p.writes) | ({p.depth_target} if p.depth_target else set())
+        rows = compare_targets(compiled, g["targets"], c["targets"], len(scene.lights), written)
+        bad = [r.name for r in rows if not r.passed]
+        if bad:
+            where = g["pass"] if g["light"] is None else f"{g['pass']} (light {g['light']})"
+            return f"{where}: {', '.join(bad)}"
+    return None
+
+
+def error_image(row: TargetComparison) -> np.ndarray:
+    """Black: equal; grey ramp: within tolerance; red: over tolerance; yellow: admitted edge."""
+    e = row.error_map
+    limit = max(row.tolerance.limit, 1)
+    img = np.zeros(e.shape + (3,), np.uint8)
+    within = (e > 0) & (e <= row.tolerance.limit)
+    img[within] = (60 + 120 * np.minimum(e[within] / limit, 1.0))[:, None].astype(np.uint8)
+    over = e > row.tolerance.limit
+    img[over] = (255, 40, 40)
+    return img
+
+
+def write_error_images(rows: list[TargetComparison], out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for r in rows:
+        save_png(out_dir / f"error_{r.name}.png", error_image(r))
+
+
+def main_check(compiled, scene, out_dir: Path) -> int:
+    def say(msg: str) -> None:
+        print(f"  … {msg}", file=sys.stderr)
+
+    result = check(compiled, scene, out_dir, say)
+    print(f"{compiled.name} on {scene.width}x{scene.height}, {len(scene.lights)} lights: "
+          f"GL (llvmpipe) vs CL (PoCL)")
+    print(result.table())
+    print(f"error images: {out_dir}/error_<target>.png")
+    if result.passed:
+        print("all targets agree")
+        return 0
+    print(f"DISAGREE; first divergent pass: {result.first_divergence or 'not localised'}")
+    return 1
