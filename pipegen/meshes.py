@@ -275,6 +275,14 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
     order = np.argsort(edge_key, kind="stable")
     same = edge_key[order][1:] == edge_key[order][:-1]
     e0, e1 = order[:-1][same], order[1:][same]   # pairs of triangle-edges on the same edge
+    # A non-manifold edge (3+ triangles) needs every pair, not only neighbours in the sort.
+    starts = np.flatnonzero(np.r_[True, ~same])
+    runs = np.diff(np.r_[starts, len(order)])
+    extra = [(order[s + i], order[s + j]) for s, n in zip(starts[runs > 2], runs[runs > 2])
+             for i in range(n) for j in range(i + 2, n)]
+    if extra:
+        e0 = np.concatenate([e0, [p[0] for p in extra]])
+        e1 = np.concatenate([e1, [p[1] for p in extra]])
 
     def agree(c0, c1):
         return np.einsum("ij,ij->i", _normalize(normals[c0]), _normalize(normals[c1])) > 1 - tol

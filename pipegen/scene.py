@@ -25,6 +25,7 @@ A scene file::
                                      # divisions (plane)
     material = { albedo = [0.8, 0.2, 0.2], specular = 0.3, shininess = 32, alpha = 1.0,
                  translucent = false }
+    layer = 2                        # optional, translucent objects only: stipple layer 1..3
 
     [[lights]]
     type = "point"                   # point | spot | directional (default point)
@@ -37,6 +38,24 @@ A scene file::
 
 Procedural meshes fit in the unit cube (see ``pipegen.meshes``).  Errors are ``PipegenError``
 with the file position of the offending key where it can be found.
+
+Stipple layers (inferred lighting, Kircher & Lawrance 2009, §4)
+----------------------------------------------------------------
+Every object has a ``layer``: 0 for opaque objects, 1..3 for translucent ones.  In a G-buffer
+a translucent object of layer L may only write the pixels that :func:`stipple_owner` gives to
+L, a 2x2 pattern (layer 0, the opaque surface, keeps one pixel of every 2x2 block), so up to
+three translucent layers and the opaque surface behind them are all lit in the same light
+pass.  The layer of a translucent object is
+
+- explicit: ``layer = N`` (1..3) in its ``[[objects]]`` table; or else
+- automatic: the translucent objects *without* an explicit layer, ordered far -> near by the
+  distance from the camera position to the centre of their world-space bounding box (ties:
+  file order), get layers 1, 2, 3, 1, 2, 3, ... in that order.  So up to three translucent
+  objects stacked in depth get distinct layers; explicit layers are not taken into account
+  by the automatic cycle (give every overlapping object an explicit layer to control them
+  all).
+
+Layers are assigned when the scene is loaded, from its camera.
 """
 
 from __future__ import annotations
@@ -68,6 +87,32 @@ LIGHT_FIELDS = {
 }
 
 
+STIPPLE_LAYERS = 3   # translucent layers 1..3; layer 0 is the opaque surface
+
+
+def stipple_owner(x, y):
+    """The layer that owns G-buffer pixel (x, y) in the 2x2 stipple pattern:
+    ``(x & 1) + 2 * (y & 1)``, so each 2x2 block has one pixel of each layer 0..3.
+
+    ``x``, ``y`` are the integer pixel coordinates (the floor of the window coordinates, i.e.
+    ``gl_FragCoord.xy`` rounded down) of the G-buffer the pattern is applied to (the
+    low-resolution one in inferred lighting), with ``y`` counted from the *bottom* row as GL
+    window coordinates are.  For an array stored top row first, ``y = height - 1 - row``
+    (:func:`stipple_map` does that).  Accepts Python ints or integer numpy arrays.
+    """
+    return (x & 1) + 2 * (y & 1)
+
+
+def stipple_map(width: int, height: int, top_down: bool = True) -> np.ndarray:
+    """int64 (height, width): :func:`stipple_owner` of every pixel, rows top first (like the
+    reference images) or, with ``top_down=False``, bottom first (GL / runtime row order)."""
+    x = np.arange(width, dtype=np.int64)[None, :]
+    y = np.arange(height, dtype=np.int64)[:, None]
+    if top_down:
+        y = height - 1 - y
+    return stipple_owner(x, y)
+
+
 # -- data --------------------------------------------------------------------------------------
 
 
@@ -97,10 +142,16 @@ class SceneObject:
     positions: np.ndarray          # (3T, 3) world space, ccw front faces seen from outside
     normals: np.ndarray            # (3T, 3) world space, unit length
     groups: np.ndarray             # (T,) normal group per triangle, 0..255
+    layer: int = 0                 # stipple layer: 0 opaque, 1..3 translucent (see above)
 
     @property
     def triangle_count(self) -> int:
         return len(self.groups)
+
+    @property
+    def bounds_centre(self) -> np.ndarray:
+        """Centre of the world-space bounding box (float64 (3,))."""
+        return 0.5 * (self.positions.min(axis=0) + self.positions.max(axis=0))
 
 
 @dataclass(frozen=True)
@@ -172,13 +223,19 @@ class Geometry:
     albedo: np.ndarray      # (V, 3)
     material: np.ndarray    # (V, 3): specular, shininess, alpha
     ids: np.ndarray         # (V, 2): object id, normal group
+    layer: Optional[np.ndarray] = None   # (V,): stipple layer (0 opaque, 1..3); not interleaved
+
+    def __post_init__(self):
+        if self.layer is None:   # geometry built without layers (tests, fakes): all opaque
+            object.__setattr__(self, "layer", np.zeros(len(self.positions), np.float32))
 
     @property
     def vertex_count(self) -> int:
         return len(self.positions)
 
     def interleaved(self) -> np.ndarray:
-        """(V, 14) float32 in attribute order position, normal, albedo, material, ids."""
+        """(V, 14) float32 in attribute order position, normal, albedo, material, ids
+        (``layer`` is a separate array, not part of this layout)."""
         return np.concatenate([self.positions, self.normals, self.albedo, self.material, self.ids],
                               axis=1).astype(np.float32)
 
@@ -222,7 +279,7 @@ class Scene:
         objs = self.select(tuple(material))
         if not objs:
             z = np.zeros((0, 3), np.float32)
-            return Geometry(z, z, z, z, np.zeros((0, 2), np.float32))
+            return Geometry(z, z, z, z, np.zeros((0, 2), np.float32), np.zeros(0, np.float32))
         pos = np.concatenate([o.positions for o in objs])
         nrm = np.concatenate([o.normals for o in objs])
         counts = [len(o.positions) for o in objs]
@@ -231,8 +288,9 @@ class Scene:
                         counts, axis=0)
         ids = np.concatenate([np.stack([np.full(len(o.groups) * 3, o.id), np.repeat(o.groups, 3)], axis=1)
                               for o in objs])
+        layer = np.repeat([o.layer for o in objs], counts)
         f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
-        return Geometry(f32(pos), f32(nrm), f32(albedo), f32(mat), f32(ids))
+        return Geometry(f32(pos), f32(nrm), f32(albedo), f32(mat), f32(ids), f32(layer))
 
     def light_table(self, fields: list[tuple[str, str]], capacity: int) -> np.ndarray:
         """float32 (capacity, F, 4): field k of light i in ``[i, k]``, components first, the
@@ -468,7 +526,8 @@ def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", na
     objects_raw = data.get("objects", [])
     if not isinstance(objects_raw, list) or not objects_raw:
         top.fail("objects", "a scene needs at least one [[objects]] entry")
-    objects = [_object(_Reader(o, ("objects", i), loc), i, Path(base_dir)) for i, o in enumerate(objects_raw)]
+    parsed = [_object(_Reader(o, ("objects", i), loc), i, Path(base_dir)) for i, o in enumerate(objects_raw)]
+    objects = assign_layers([o for o, _ in parsed], camera.position, [layer for _, layer in parsed])
     seen: dict[int, int] = {}
     for i, o in enumerate(objects):
         if o.id in seen:
@@ -541,7 +600,7 @@ def make_object(name: str, obj_id: int, mesh_name: str, mesh: meshes.Mesh, mater
 
 def _object(r: _Reader, index: int, base_dir: Path) -> SceneObject:
     r.check_keys({"name", "id", "mesh", "obj", "translate", "rotate_deg", "scale", "material",
-                  "segments", "rings", "divisions"})
+                  "segments", "rings", "divisions", "layer"})
     if r.has("mesh") == r.has("obj"):
         r.fail((), f"objects[{index}] needs exactly one of 'mesh' (plane, box, sphere, cylinder) "
                    "or 'obj' (a path)")
@@ -588,7 +647,39 @@ def _object(r: _Reader, index: int, base_dir: Path) -> SceneObject:
     )
     obj_id = r.integer("id", index + 1, minimum=1, maximum=255)
     name = r.string("name", f"{mesh_name if r.has('mesh') else 'obj'}{index}")
-    return make_object(name, obj_id, mesh_name, mesh, material, matrix)
+    layer = None
+    if r.has("layer"):
+        if not material.translucent:
+            r.fail("layer", f"objects[{index}].layer is for translucent objects only",
+                   hint="set `translucent = true` in its material, or remove the layer")
+        layer = r.integer("layer", minimum=1, maximum=STIPPLE_LAYERS)
+    return make_object(name, obj_id, mesh_name, mesh, material, matrix), layer
+
+
+def assign_layers(objects: list[SceneObject], camera_position,
+                  explicit: Optional[list[Optional[int]]] = None) -> list[SceneObject]:
+    """Objects with their stipple ``layer`` set (see the module docstring): opaque 0;
+    translucent: ``explicit[i]`` where given (1..3), else the automatic far -> near cycle
+    1, 2, 3, 1, ... over the translucent objects without an explicit layer, by the distance
+    from ``camera_position`` to the centre of each one's bounding box (stable: ties keep
+    list order)."""
+    explicit = list(explicit) if explicit is not None else [None] * len(objects)
+    eye = np.asarray(camera_position, dtype=np.float64)
+    auto = [i for i, o in enumerate(objects) if o.material.translucent and explicit[i] is None]
+    dist = [float(np.linalg.norm(objects[i].bounds_centre - eye)) for i in auto]
+    order = sorted(range(len(auto)), key=lambda k: -dist[k])       # stable: far first
+    layers = [0] * len(objects)
+    for rank, k in enumerate(order):
+        layers[auto[k]] = rank % STIPPLE_LAYERS + 1
+    out = []
+    for i, o in enumerate(objects):
+        if o.material.translucent and explicit[i] is not None:
+            if not 1 <= explicit[i] <= STIPPLE_LAYERS:
+                raise PipegenError(None, f"object '{o.name}': layer {explicit[i]} is not in "
+                                   f"1..{STIPPLE_LAYERS}")
+            layers[i] = int(explicit[i])
+        out.append(o if o.layer == layers[i] else dataclasses.replace(o, layer=layers[i]))
+    return out
 
 
 def _light(r: _Reader) -> Light:

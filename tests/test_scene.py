@@ -10,7 +10,8 @@ import pytest
 
 from pipegen import meshes
 from pipegen.diagnostics import PipegenError
-from pipegen.scene import Camera, default_scene, load_scene, parse_scene
+from pipegen.scene import (Camera, Geometry, assign_layers, default_scene, load_scene, parse_scene,
+                           stipple_map, stipple_owner)
 
 SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 
@@ -37,7 +38,8 @@ color = [1, 1, 1]
 # -- loading -------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name", ["small", "many_lights", "stress_overlap", "mixed_lights"])
+@pytest.mark.parametrize("name", ["small", "many_lights", "stress_overlap", "mixed_lights",
+                                  "translucent_layers", "edges"])
 def test_example_scenes_load(name):
     s = load_scene(SCENES / f"{name}.toml")
     assert s.name == name
@@ -60,6 +62,17 @@ def test_example_scene_sizes():
     mixed = load_scene(SCENES / "mixed_lights.toml")
     assert mixed.light_types == {"point", "spot", "directional"}
     assert mixed.has_translucent
+    layers = load_scene(SCENES / "translucent_layers.toml")
+    assert (layers.width, layers.height) == (192, 108)
+    assert 8 <= len(layers.lights) <= 12 and layers.light_types == {"point"}
+    glass = [o for o in layers.objects if o.material.translucent]
+    assert len(glass) >= 3 and {o.layer for o in glass} == {1, 2, 3}
+    assert all(0.3 <= o.material.alpha <= 0.6 for o in glass)
+    assert all(o.layer == 0 for o in layers.objects if not o.material.translucent)
+    edges = load_scene(SCENES / "edges.toml")
+    assert (edges.width, edges.height) == (192, 108)
+    assert 8 <= len(edges.lights) <= 16 and edges.light_types == {"point"}
+    assert not edges.has_translucent
 
 
 def test_default_scene():
@@ -99,6 +112,79 @@ def test_mirroring_transform_keeps_ccw_outside():
     centroid = o.positions.reshape(-1, 3, 3).mean(axis=1)
     assert np.all(np.einsum("ij,ij->i", fn, centroid) > 0)
     assert np.all(np.einsum("ij,ij->i", fn, o.normals[::3]) > 0.99)
+
+
+# -- stipple layers ------------------------------------------------------------------------------
+
+
+def _pane(z: float, extra: str = "", alpha: float = 0.5) -> str:
+    return (f'[[objects]]\nmesh = "box"\ntranslate = [0, 0, {z}]\nscale = [1, 1, 0.05]\n{extra}'
+            f'material = {{ albedo = [0, 0, 1], alpha = {alpha}, translucent = true }}\n\n')
+
+
+def test_layers_automatic_far_to_near_cycle():
+    # camera at z = 5; panes listed in a shuffled depth order
+    zs = [-1.0, -4.0, 2.0, -2.0, 0.0, 1.0, -3.0]
+    s = parse_scene(MINIMAL.replace("[[lights]]", "".join(_pane(z) for z in zs) + "[[lights]]"))
+    assert s.objects[0].layer == 0                                        # the opaque box
+    panes = s.objects[1:]
+    by_depth = sorted(panes, key=lambda o: o.bounds_centre[2])            # far (most negative z) first
+    assert [o.layer for o in by_depth] == [1, 2, 3, 1, 2, 3, 1]
+    g = s.geometry()
+    for o in s.objects:
+        assert np.all(g.layer[g.ids[:, 0] == o.id] == o.layer)
+
+
+def test_layers_explicit_and_mixed():
+    text = MINIMAL.replace("[[lights]]", _pane(-2.0, "layer = 3\n") + _pane(-1.0) + _pane(0.0)
+                           + _pane(1.0, "layer = 1\n") + "[[lights]]")
+    s = parse_scene(text)
+    # explicit layers are kept; the others cycle far -> near among themselves
+    assert [o.layer for o in s.objects] == [0, 3, 1, 2, 1]
+    # same ordering through the helper
+    again = assign_layers(list(s.objects), s.camera.position, [None, 3, None, None, 1])
+    assert [o.layer for o in again] == [0, 3, 1, 2, 1]
+    # ties keep file order
+    tie = parse_scene(MINIMAL.replace("[[lights]]", _pane(-1.0) + _pane(-1.0) + "[[lights]]"))
+    assert [o.layer for o in tie.objects] == [0, 1, 2]
+
+
+def test_layer_errors():
+    err = _error(MINIMAL.replace('mesh = "box"', 'mesh = "box"\nlayer = 2'))
+    assert "translucent objects only" in err.message and err.span.source_line.startswith("layer")
+    err = _error(MINIMAL.replace("[[lights]]", _pane(0.0, "layer = 4\n") + "[[lights]]"))
+    assert "layer" in err.message and "[1, 3]" in err.message
+    err = _error(MINIMAL.replace("[[lights]]", _pane(0.0, "layer = 0\n") + "[[lights]]"))
+    assert "layer" in err.message
+
+
+def test_geometry_layer_array():
+    s = load_scene(SCENES / "translucent_layers.toml")
+    g = s.geometry()
+    assert g.layer.dtype == np.float32 and g.layer.shape == (g.vertex_count,)
+    assert g.interleaved().shape == (g.vertex_count, 14)                 # layout unchanged
+    t = s.geometry(("translucent",))
+    assert set(np.unique(t.layer).tolist()) == {1.0, 2.0, 3.0}
+    assert np.all(s.geometry(("opaque",)).layer == 0)
+    # a Geometry built without layers (fakes in the runtime tests) is all layer 0
+    z = np.zeros((3, 3), np.float32)
+    assert Geometry(z, z, z, z, np.zeros((3, 2), np.float32)).layer.tolist() == [0, 0, 0]
+
+
+def test_stipple_owner_partitions_2x2_blocks():
+    for x0 in (0, 2, 10):
+        for y0 in (0, 4, 6):
+            owners = sorted(stipple_owner(x0 + dx, y0 + dy) for dx in (0, 1) for dy in (0, 1))
+            assert owners == [0, 1, 2, 3]
+    assert stipple_owner(0, 0) == 0 and stipple_owner(1, 0) == 1 and stipple_owner(0, 1) == 2
+    xs, ys = np.meshgrid(np.arange(6), np.arange(4))
+    counts = np.bincount(stipple_owner(xs, ys).ravel())
+    assert counts.tolist() == [6, 6, 6, 6]
+    # the map is in GL window coordinates: y counts from the bottom row
+    m = stipple_map(4, 3)                                                  # top row first
+    assert m[-1].tolist() == [0, 1, 0, 1] and m[-2].tolist() == [2, 3, 2, 3]
+    assert m[0].tolist() == [0, 1, 0, 1]
+    np.testing.assert_array_equal(stipple_map(4, 3, top_down=False), m[::-1])
 
 
 # -- errors --------------------------------------------------------------------------------------
@@ -306,6 +392,90 @@ def test_normal_groups():
         assert len({tuple(n) for n in fn[b.groups == g]}) == 1
 
 
+def test_geometry_normal_groups_every_object_type(tmp_path):
+    (tmp_path / "cube.obj").write_text(_CUBE_OBJ)
+    text = MINIMAL.replace('mesh = "box"', 'obj = "cube.obj"')
+    text = text.replace("[[lights]]", "".join(
+        f'[[objects]]\nmesh = "{m}"\ntranslate = [{3 * k}, 0, 0]\nmaterial = {{ albedo = [1, 1, 1] }}\n\n'
+        for k, m in enumerate(["box", "sphere", "cylinder", "plane"], 1)) + "[[lights]]")
+    (tmp_path / "s.toml").write_text(text)
+    s = load_scene(tmp_path / "s.toml")
+    g = s.geometry()
+    expect = {"cube.obj": 6, "box": 6, "sphere": 1, "cylinder": 3, "plane": 1}
+    for o in s.objects:
+        groups = g.ids[g.ids[:, 0] == o.id, 1]
+        np.testing.assert_array_equal(groups, np.repeat(o.groups, 3))
+        assert len(set(groups.tolist())) == expect[Path(o.mesh).name]
+
+
+def _ridge_obj(path, normals: str) -> None:
+    """A 'tent': two curved height-field patches y = -|x| + 0.1 z² meeting at a 90° ridge
+    along x = 0, sharing the ridge vertices.  ``normals``: "smooth" (none: the loader
+    smooths within its 45° crease angle), "explicit" (vn records: each patch's own normals,
+    so two different normals at every ridge vertex) or "shared" (one normal per ridge vertex,
+    used by both patches: no discontinuity)."""
+    xs, zs = np.linspace(-1, 1, 9), np.linspace(-1, 1, 5)
+    vid = {}
+    lines = []
+    for i, x in enumerate(xs):
+        for j, z in enumerate(zs):
+            vid[i, j] = len(vid) + 1
+            lines.append(f"v {x} {-abs(x) + 0.1 * z * z} {z}")
+    vn = {}
+    if normals != "smooth":
+        for side, sx in (("L", -1.0), ("R", 1.0)):
+            for j, z in enumerate(zs):
+                n = np.array([sx, 1.0, -0.2 * z])   # (-dy/dx, 1, -dy/dz) of y = -|x| + 0.1 z²
+                vn[side, j] = len(vn) + 1
+                lines.append(f"vn {n[0]} {n[1]} {n[2]}")
+        for j, z in enumerate(zs):
+            vn["M", j] = len(vn) + 1
+            lines.append(f"vn 0 1 {-0.2 * z}")
+    for i in range(len(xs) - 1):
+        side = "L" if xs[i + 1] <= 0 else "R"
+        for j in range(len(zs) - 1):
+            quad = [(i, j), (i, j + 1), (i + 1, j + 1), (i + 1, j)]
+            if normals == "smooth":
+                lines.append("f " + " ".join(str(vid[c]) for c in quad))
+            else:
+                def nid(c):
+                    ridge = xs[c[0]] == 0 and normals == "shared"
+                    return vn["M" if ridge else side, c[1]]
+                lines.append("f " + " ".join(f"{vid[c]}//{nid(c)}" for c in quad))
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("normals,expect", [("smooth", 2), ("explicit", 2), ("shared", 1)])
+def test_normal_groups_two_smooth_parts_joined_at_a_crease(tmp_path, normals, expect):
+    obj = tmp_path / "ridge.obj"
+    _ridge_obj(obj, normals)
+    m = meshes.load_obj(obj)
+    assert m.triangle_count == 8 * 4 * 2
+    left = m.positions.reshape(-1, 3, 3)[:, :, 0].mean(axis=1) < 0
+    # each side is one group (smooth, and curved: its normals vary) ...
+    for side in (left, ~left):
+        assert len(set(m.groups[side].tolist())) == 1
+        nz = m.normals.reshape(-1, 3, 3)[side][:, :, 2]
+        assert np.ptp(nz) > 0.1
+    # ... and the ridge separates them exactly when the normals are discontinuous there
+    assert len(set(m.groups.tolist())) == expect
+    # through a scene: Geometry.ids[:, 1] carries the groups
+    scene = tmp_path / "s.toml"
+    scene.write_text(MINIMAL.replace('mesh = "box"', 'obj = "ridge.obj"'))
+    g = load_scene(scene).geometry()
+    assert len(np.unique(g.ids[:, 1])) == expect
+    np.testing.assert_array_equal(g.ids[:, 1], np.repeat(m.groups, 3))
+
+
+def test_normal_groups_non_manifold_edge():
+    # three triangles on one edge: the first and last agree on the normals, the middle not
+    e0, e1 = [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]
+    pos = np.array([e0, e1, [0.5, 1, 0], e0, e1, [0.5, 0, 1], e1, e0, [0.5, -1, 0]])
+    nrm = np.array([[0, 0, 1.0]] * 3 + [[0, 1.0, 0]] * 3 + [[0, 0, 1.0]] * 3)
+    g = meshes.normal_groups(pos, nrm)
+    assert g[0] == g[2] != g[1]
+
+
 def test_normal_groups_wrap_at_256():
     # 300 disconnected triangles: group ids stay 8-bit
     tri = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
@@ -315,13 +485,16 @@ def test_normal_groups_wrap_at_256():
     assert g.max() == 255 and g[256] == 0 and g[0] == 0 and g[255] == 255
 
 
+_CUBE_OBJ = """# cube
+v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
+f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6
+"""
+
+
 def test_obj_loader(tmp_path):
     # a unit cube as quads without normals: triangulated, faceted by the crease angle
     cube = tmp_path / "cube.obj"
-    cube.write_text("""# cube
-v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1
-f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6
-""")
+    cube.write_text(_CUBE_OBJ)
     m = meshes.load_obj(cube)
     assert m.triangle_count == 12 and len(set(m.groups)) == 6
     fn = meshes.face_normals(m.positions)

@@ -73,7 +73,12 @@ def rasterize(scene, material: tuple[str, ...] = (), cull: str = "back") -> GBuf
     The inputs are the float32 vertex data every backend receives (``Scene.geometry``), widened
     to float64, so the reference sees exactly the same scene.
     """
-    geo = scene.geometry(tuple(material))
+    return rasterize_geometry(scene, scene.geometry(tuple(material)), cull)
+
+
+def rasterize_geometry(scene, geo, cull: str = "back") -> GBuffer:
+    """Rasterise a ``Geometry`` (float32 vertex data, widened to float64) with the scene's
+    camera and output size."""
     mvp = scene.camera.projection(scene.aspect) @ scene.camera.view_matrix()
     tri_attr = np.concatenate([geo.albedo, geo.material, geo.ids], axis=1).astype(np.float64)[::3]
     frags = rasterize_triangles(
@@ -81,6 +86,23 @@ def rasterize(scene, material: tuple[str, ...] = (), cull: str = "back") -> GBuf
         geo.normals.astype(np.float64).reshape(-1, 3, 3),
         mvp, scene.width, scene.height, cull)
     return _gbuffer(frags, tri_attr, scene.width, scene.height)
+
+
+def rasterize_each(scene, material: tuple[str, ...] = ("translucent",),
+                   cull: str = "back") -> list[tuple[object, GBuffer]]:
+    """Rasterise every object passing ``material`` *on its own*: ``[(SceneObject, GBuffer)]``
+    in scene order, each G-buffer holding that object's nearest (unculled) surface only.
+    This gives the per-pixel lists of fragments that a single depth-tested G-buffer hides,
+    e.g. the stacked translucent layers.  The vertex data is the same float32
+    ``Scene.geometry`` the backends draw (object ids are unique, so the slices are exact)."""
+    geo = scene.geometry(tuple(material))
+    out = []
+    for obj in scene.select(tuple(material)):
+        keep = geo.ids[:, 0] == obj.id
+        part = type(geo)(geo.positions[keep], geo.normals[keep], geo.albedo[keep],
+                         geo.material[keep], geo.ids[keep], geo.layer[keep])
+        out.append((obj, rasterize_geometry(scene, part, cull)))
+    return out
 
 
 # -- triangles to fragments ----------------------------------------------------------------------
