@@ -1,0 +1,646 @@
+"""The OpenCL C backend: a ``CStyleLanguage`` dialect (data plus a few hooks) and
+``emit_cl(tech) -> PLAN dict`` with one OpenCL program per pass.
+
+The program of a pass (``pass["kernel"]``) is the software reference of that pass: the same
+pipeline the GLSL backend describes, with the fixed-function stages written out.  It holds
+
+- the prelude (``templates/cl_prelude.cl.j2``: matrices, GLSL-compatible builtins, format
+  conversions, depth/stencil/blend building blocks);
+- the pass's fixed-function state as ``S_*`` macros (literals: the compiler bakes them, and the
+  OpenCL compiler folds every switch on them away);
+- the fragment function ``bool pg_fragment(const pg_in *in, pg_out *out)`` generated from the IR
+  through ``OpenCLLanguage`` (false = discarded);
+- the kernels (``templates/cl_pass.cl.j2``): ``pg_vertex`` (one work-item per vertex: clip
+  position and the varyings the fragment function reads) and ``pg_raster`` (one work-item per
+  pixel, one work-group per 16x16 tile, walking the tile's triangles in submission order:
+  edge functions in 8-sub-pixel fixed point with the top-left rule, perspective-correct
+  interpolation, early or late depth/stencil, the fragment function, blending in registers,
+  colour masks, stores in the target formats).
+
+Clipping, viewport snapping, culling, polygon offset and binning run on the host between the two
+kernels (``pipegen/runtime/cl_setup.py``).  Conventions shared with the CL runtime:
+
+- ``pass["cl"]`` = ``{"fragment": text or None, "inputs": [stage inputs read], "discard": bool,
+  "sampled": [targets read with sample()]}``: enough for ``pass_program(plan, pass)`` to rebuild
+  the program, e.g. in the tests' dynamic-state mode, where the ``S_*`` macros read a kernel
+  argument instead (one compile serves every state).
+- ``pass["sampled"]`` (targets read with ``sample()``) as in the GL plan.
+- Buffers hold GL window rows (row 0 = window y 0, the bottom row), the order ``render``
+  returns; a target with S samples holds S planes (plane k = sample k, llvmpipe's positions).
+- Varyings are float4 slots ``vary[slot * nverts + v]`` in the order of ``varying_slots()``;
+  flat values (object id, normal group, light index) travel per triangle.
+
+Choices mirrored from the GLSL backend (glsl.py's docstring): ``load`` clamps coordinates to the
+target, outputs are zero-initialised, ``round`` is round-half-to-even (``rint``), scene
+vertices ``proj * (view * p)``, light volumes and the full-screen triangle placed the same way.
+
+Arithmetic follows llvmpipe where the two could differ (each measured bit-exact on Mesa 22.3):
+no contraction of ``a * b + c`` (``FP_CONTRACT OFF``), correctly rounded ``/`` and ``sqrt``,
+``inversesqrt`` = ``1 / sqrt``, ``dot`` = ``x + (y + (z + w))`` of unfused products (and
+``length``, ``distance``, matrix products built on it), ``mix`` = ``a + (b - a) t`` or, for a
+constant t, ``a (1 - t) + b t``, ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` /
+``log2`` polynomials (so ``pow``, ``exp``, ``log``), unorm reads as ``code * (1 / max)``,
+unorm8 bilinear filtering in 8-bit fixed point.  Not mirrored: ``atan``, ``sin``, ``cos``
+(OpenCL's, within a few ulp) and NIR's constant reassociation (``(x * 3.0) * 0.7`` folded to
+``x * 2.1``).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Optional
+
+import numpy as np
+
+from .. import formats as F
+from .. import ir, irwalk
+from ..diagnostics import PipegenError
+from ..ir import DrawKind, Scalar, Type
+from . import plan as planlib
+from . import templating
+from .cstyle import ATOM, FLT_MIN, CStyleLanguage
+
+TILE = 16
+
+# ---- enumerations shared by the prelude and the state macros -------------------------------------
+
+COMPARE = {"never": 0, "less": 1, "equal": 2, "lequal": 3, "greater": 4, "notequal": 5,
+           "gequal": 6, "always": 7}
+STENCIL_OP = {"keep": 0, "zero": 1, "replace": 2, "incr": 3, "decr": 4, "incr_wrap": 5,
+              "decr_wrap": 6, "invert": 7}
+BLEND_OP = {"add": 0, "sub": 1, "revsub": 2, "min": 3, "max": 4}
+BLEND_FACTOR = {f.value: k for k, f in enumerate(ir.BlendFactor)}
+CULL = {"none": 0, "back": 1, "front": 2}
+
+
+def _enum_defines() -> list[tuple[str, int]]:
+    out = [(f"PG_{k.upper()}", v) for k, v in COMPARE.items()]
+    out += [(f"PG_SOP_{k.upper()}", v) for k, v in STENCIL_OP.items()]
+    out += [(f"PG_BO_{k.upper()}", v) for k, v in BLEND_OP.items()]
+    out += [(f"PG_BF_{k.upper()}", v) for k, v in BLEND_FACTOR.items()]
+    return out
+
+
+# ---- the dialect ----------------------------------------------------------------------------------
+
+_T = ir.Type
+_TYPE_NAMES = {ir.VOID: "void", ir.MAT3: "pg_mat3", ir.MAT4: "pg_mat4"}
+for _s, _n in ((Scalar.FLOAT, "float"), (Scalar.INT, "int"), (Scalar.UINT, "uint")):
+    _TYPE_NAMES[_T(_s)] = _n
+    for _k in (2, 3, 4):
+        _TYPE_NAMES[_T(_s, _k)] = f"{_n}{_k}"
+_TYPE_NAMES[ir.BOOL] = "bool"
+for _k in (2, 3, 4):
+    _TYPE_NAMES[_T(Scalar.BOOL, _k)] = f"int{_k}"     # OpenCL relational results: -1 / 0
+
+CL_RESERVED = frozenset("""
+    auto break case char const continue default do double else enum extern float for goto if
+    inline int long register restrict return short signed sizeof static struct switch typedef
+    union unsigned void volatile while bool half uchar ushort uint ulong size_t ptrdiff_t
+    intptr_t uintptr_t true false kernel __kernel global __global local __local constant
+    __constant private __private read_only write_only read_write image2d_t image3d_t sampler_t
+    event_t in out
+    float2 float3 float4 float8 float16 int2 int3 int4 uint2 uint3 uint4 char2 char4 uchar2
+    uchar4 short2 short4 ushort2 ushort4 long2 long4 ulong2 ulong4 double2 double4 bool2 bool4
+    dot cross normalize length distance clamp mix step smoothstep pow exp exp2 log log2 sqrt
+    rsqrt min max fmin fmax fabs abs sign floor ceil rint round fract fmod sin cos tan atan
+    atan2 select all any convert_float convert_int convert_uint as_float as_uint as_int
+    isnan isinf isless isgreater copysign vload_half vstore_half
+""".split())
+
+# stage input -> OpenCL expression (``in`` is the fragment context, see cl_pass.cl.j2)
+INPUTS = {
+    "frag_coord": "in->frag_coord", "camera_pos": "in->frame->camera_pos.xyz",
+    "view": "in->frame->view", "proj": "in->frame->proj", "inv_view": "in->frame->inv_view",
+    "inv_proj": "in->frame->inv_proj", "output_size": "in->frame->output_size.xy",
+    "num_lights": "in->frame->num_lights", "ambient": "in->frame->ambient.xyz",
+    "light_index": "in->light",
+}
+# scene varyings: input -> (OpenCL type, value in the vertex kernel; p = float4 position,
+# n = float3 normal, vp = view-space position)
+SCENE_VARYINGS = {
+    "world_pos": ("float3", "p.xyz"),
+    "view_pos": ("float3", "vp.xyz"),
+    "normal": ("float3", "n"),
+    "view_normal": ("float3", "pg_m3_mul_v3(pg_m3_from_m4(frame->view), n)"),
+    "albedo": ("float3", "a_albedo[v].xyz"),
+    "specular": ("float", "a_material[v].x"),
+    "shininess": ("float", "a_material[v].y"),
+    "alpha": ("float", "a_material[v].z"),
+}
+SCENE_FLAT = ("object_id", "normal_group")
+VOLUME_FIELDS = {"sphere": ("position", "radius"), "quad": ("position", "radius"),
+                 "cone": ("position", "radius", "direction", "cos_outer")}
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+class OpenCLLanguage(CStyleLanguage):
+    """OpenCL C 1.2 (PoCL).  User functions take the fragment context ``in`` as a hidden first
+    parameter, since OpenCL has no program-scope uniforms."""
+
+    type_names = _TYPE_NAMES
+    builtin_map = {
+        # llvmpipe's inversesqrt is the correctly rounded 1/sqrt(x) (measured)
+        "inversesqrt": "(1.0f / sqrt({0}))", "mod": "pg_mod", "fract": "pg_fract", "round": "rint",
+        "abs": "pg_abs", "sign": "pg_sign", "dot": "pg_dot", "length": "pg_length",
+        "distance": "pg_distance", "cross": "pg_cross", "mix": "pg_mix",
+        "smoothstep": "pg_smoothstep",
+        # llvmpipe's exp2/log2 polynomials (prelude; bit-exact, and ~5x faster than PoCL's
+        # libm): pow = exp2(log2(x) * y), exp = exp2(log2(e) x), log = ln(2) log2(x)
+        "pow": "pg_pow({0}, {1})", "exp2": "pg_exp2", "log2": "pg_log2", "exp": "pg_exp",
+        "log": "pg_log",
+        "atan": lambda self, a, t, r: f"atan2({a[0]}, {a[1]})" if len(a) == 2 else f"atan({a[0]})",
+    }
+    vector_ops: dict = {}
+    float_suffix = "f"
+    inf_literal = "INFINITY"
+    nan_literal = "NAN"
+    function_qualifier = "static inline "
+    reserved = CL_RESERVED
+
+    def __init__(self, tech: Optional[ir.Technique] = None, pass_: Optional[ir.Pass] = None):
+        super().__init__()
+        self.tech, self.pass_ = tech, pass_
+        self.light_fields = tuple(f.name for f in tech.lights.fields) if tech else ()
+        self.in_body = False
+
+    # -- names and hidden context parameter ------------------------------------------------------
+    def signature(self, f: ir.Function) -> str:
+        ctx = [] if f.name in self.helpers else ["const pg_in *in"]   # guard helpers: pure
+        params = ", ".join(ctx + [f"{self.type_name(t)} {self.ident(n)}" for n, t in f.params])
+        return f"{self.function_qualifier}{self.type_name(f.ret)} {self.ident(f.name)}({params})"
+
+    def _call(self, e: ir.Call) -> tuple[str, int]:
+        if e.builtin and e.name == "mix" and isinstance(e.args[2], ir.Const) \
+                and e.args[2].type.scalar is Scalar.FLOAT:
+            # llvmpipe (NIR) lowers mix(x, y, constant t) to x * (1 - t) + y * t (measured)
+            t = e.args[2]
+            vals = t.value if isinstance(t.value, tuple) else (t.value,)
+            one_minus = tuple(float(np.float32(1.0) - np.float32(v)) for v in vals)
+            om = ir.Const(t.type, one_minus if isinstance(t.value, tuple) else one_minus[0])
+            x, y = self._sub(e.args[0], 13), self._sub(e.args[1], 13)
+            return f"({x} * {self.expr(om)} + {y} * {self.expr(t)})", ATOM
+        if not e.builtin and e.name not in self.helpers:
+            args = ", ".join(["in"] + [self.expr(a) for a in e.args])
+            return f"{self.ident(e.name)}({args})", ATOM
+        return super()._call(e)
+
+    def stmt(self, s: ir.Stmt, depth: int) -> list[str]:
+        if isinstance(s, ir.Return) and self.in_body:
+            return [self.indent * depth + "return true;"]
+        return super().stmt(s, depth)
+
+    # -- expressions that differ -------------------------------------------------------------------
+    def _binary(self, e: ir.Binary) -> tuple[str, int]:
+        # GLSL ==/!= on vectors give one bool; OpenCL gives a component mask.
+        if e.op in ("==", "!=") and (e.left.type.is_vector) and not e.type.is_vector:
+            l, r = self.expr(e.left), self.expr(e.right)
+            return (f"all({l} == {r})" if e.op == "==" else f"any({l} != {r})"), ATOM
+        if e.op in ("&&", "||", "^^") and e.type.is_vector:
+            raise AssertionError("vector logical operators are not in the language")
+        return super()._binary(e)
+
+    def render_construct(self, t: Type, args: list[str], types: list[Type]) -> str:
+        name = self.type_name(t)
+        if t.is_matrix:
+            return self._construct_matrix(t, args, types)
+        if t.is_scalar:
+            (a,), (at,) = args, types
+            if at == t:
+                return a
+            if t.scalar is Scalar.BOOL:
+                return f"(({a}) != 0)"
+            return f"(({name})({a}))"
+        # vectors
+        if len(args) == 1:
+            a, at = args[0], types[0]
+            if at.is_scalar:
+                if at.scalar is not t.scalar:
+                    a = f"({self.type_name(Type(t.scalar)) if t.scalar is not Scalar.BOOL else 'int'})({a})"
+                    if t.scalar is Scalar.BOOL:
+                        a = f"-(int)(({args[0]}) != 0)"
+                return f"(({name})({a}))"
+            if at.size > t.size:   # truncation: vec3(v4)
+                a, at = f"({a}).{'xyzw'[:t.size]}", Type(at.scalar, t.size)
+            if at.scalar is t.scalar:
+                return a if at.size == t.size else f"(({name})({a}))"
+            return self._convert_vec(a, at, t)
+        parts = []
+        for a, at in zip(args, types):
+            if at.scalar is not t.scalar:
+                if at.is_scalar:
+                    el = "int" if t.scalar is Scalar.BOOL else self.type_name(Type(t.scalar))
+                    a = f"-(int)(({a}) != 0)" if t.scalar is Scalar.BOOL else f"({el})({a})"
+                else:
+                    a = self._convert_vec(a, at, Type(t.scalar, at.size))
+            parts.append(a)
+        return f"(({name})({', '.join(parts)}))"
+
+    def _convert_vec(self, a: str, at: Type, t: Type) -> str:
+        name = self.type_name(t)
+        if t.scalar is Scalar.BOOL:
+            return f"(({a}) != 0)"
+        if at.scalar is Scalar.BOOL:      # int mask -1/0 -> 1/0
+            return f"convert_{name}(-({a}))"
+        return f"convert_{name}({a})"
+
+    def _construct_matrix(self, t: Type, args: list[str], types: list[Type]) -> str:
+        n = t.mat
+        if len(args) == 1 and types[0].is_matrix:
+            if types[0].mat == n:
+                return args[0]
+            return f"pg_m{n}_from_m{types[0].mat}({args[0]})"
+        if len(args) == 1 and types[0].is_scalar:
+            return f"pg_m{n}_diag((float)({args[0]}))"
+        if len(args) == n and all(a.is_vector and a.size == n for a in types):
+            return f"pg_m{n}_cols({', '.join(args)})"
+        if len(args) == n * n:
+            cols = [f"(float{n})({', '.join(args[i * n:(i + 1) * n])})" for i in range(n)]
+            return f"pg_m{n}_cols({', '.join(cols)})"
+        raise AssertionError(f"matrix constructor {t} from {[str(x) for x in types]}")
+
+    def render_index(self, base: str, index: str, base_type: Type) -> str:
+        if base_type.is_matrix:
+            return f"{base}.c[{index}]"
+        if index.isdigit():
+            return f"{base}.s{index}"
+        if _IDENT.match(base):       # a local: addressable, works as an lvalue too
+            el = self.type_name(Type(base_type.scalar)) if base_type.scalar is not Scalar.BOOL else "int"
+            return f"((({el} *)&{base})[{index}])"
+        return f"pg_index({base}, {index})"
+
+    def render_matrix_op(self, op, left, right, lt, rt, result) -> str:
+        if op == "*":
+            if lt.is_matrix and rt.is_matrix:
+                return f"pg_m{lt.mat}_mul_m{rt.mat}({left}, {right})"
+            if lt.is_matrix and rt.is_vector:
+                return f"pg_m{lt.mat}_mul_v{rt.size}({left}, {right})"
+            if lt.is_vector and rt.is_matrix:
+                return f"pg_v{lt.size}_mul_m{rt.mat}({left}, {right})"
+            if lt.is_matrix:
+                return f"pg_m{lt.mat}_scale({left}, {right})"
+            return f"pg_m{rt.mat}_scale({right}, {left})"
+        if op == "/" and lt.is_matrix and rt.is_scalar:
+            return f"pg_m{lt.mat}_scale({left}, 1.0f / ({right}))"
+        if op in ("+", "-") and lt.is_matrix and rt.is_matrix:
+            return f"pg_m{lt.mat}_{'add' if op == '+' else 'sub'}({left}, {right})"
+        raise AssertionError(f"matrix operation {lt} {op} {rt}")
+
+    # -- hooks ---------------------------------------------------------------------------------------
+    def render_discard(self) -> str:
+        return "return false;"
+
+    def render_param(self, name: str, t: Type) -> str:
+        default = next(p.default for p in self.tech.params if p.name == name)
+        return self.literal(default, t)
+
+    def render_input(self, name: str, t: Type) -> str:
+        return INPUTS.get(name, f"in->{name}")
+
+    def render_current_light(self) -> str:
+        return "in->light"
+
+    def render_light_field(self, index: str, slot: int, t: Type) -> str:
+        texel = f"in->lights[({index}) * PG_LIGHT_FIELDS + {slot}]{_select(t)}"
+        if t.scalar is Scalar.FLOAT:
+            return texel
+        return self.render_construct(t, [texel], [Type(Scalar.FLOAT, t.size)])
+
+    def render_load(self, target: str, coord: Optional[str], t: Type) -> str:
+        coord = "in->pix" if coord is None else coord
+        return f"pg_load_{target}(in, {coord}){_select(t)}"
+
+    def render_sample(self, target: str, uv: str, t: Type) -> str:
+        return f"pg_sample_{target}(in, {uv}){_select(t)}"
+
+    def render_target_size(self, target: str) -> str:
+        return f"in->size_{target}"
+
+    def render_output(self, target: str, value: str) -> str:
+        return f"out->o_{target} = {value};"
+
+
+def _select(t: Type) -> str:
+    return "" if t.size == 4 else "." + "xyzw"[:t.size]
+
+
+# ---- formats on the device --------------------------------------------------------------------------
+
+
+def cl_format(name: str) -> dict:
+    """How a target format lives in an OpenCL buffer and in the raster kernel's registers.
+
+    ``cls``: unorm8 | unorm | half | float | uint | d24 | d32f.  ``storage``: the buffer's
+    element type (one per pixel).  ``reg``: the register type (uint4 codes for unorm/uint,
+    float4 values for float formats, uint / float for depth).  ``load``/``store``: expression /
+    statement templates over ``b`` (buffer), ``i`` (pixel index) and ``r`` (register).
+    ``read``: the decoded float4 (uint4 for integer formats) a shader sees, over ``b``/``i``.
+    """
+    fmt = F.get(name)
+    n = fmt.channels
+    if fmt.kind is F.Kind.DEPTH_STENCIL:
+        return {"name": name, "cls": "d24", "storage": "uint", "reg": "uint", "np": "uint32",
+                "load": "b[i]", "store": "b[i] = r;",
+                "read": "(float4)((float)b[i] / 16777215.0f, 0.0f, 0.0f, 1.0f)", "vec": "float4"}
+    if fmt.kind is F.Kind.DEPTH:
+        return {"name": name, "cls": "d32f", "storage": "float", "reg": "float", "np": "float32",
+                "load": "b[i]", "store": "b[i] = r;",
+                "read": "(float4)(b[i], 0.0f, 0.0f, 1.0f)", "vec": "float4"}
+    if name == "rgb10a2":
+        return {"name": name, "cls": "unorm", "storage": "uint", "reg": "uint4", "np": "uint32",
+                "load": "(uint4)(b[i] & 1023u, (b[i] >> 10) & 1023u, (b[i] >> 20) & 1023u, b[i] >> 30)",
+                "store": "b[i] = (r.x & 1023u) | ((r.y & 1023u) << 10) | ((r.z & 1023u) << 20) | (r.w << 30);",
+                "maxv": "(float4)(1023.0f, 1023.0f, 1023.0f, 3.0f)",
+                "rcpv": _rcp([1023, 1023, 1023, 3]),
+                "read": None, "vec": "float4"}
+    bits = fmt.bits[0]
+    if fmt.kind is F.Kind.UNORM or fmt.kind is F.Kind.UINT:
+        el = {8: "uchar", 16: "ushort", 32: "uint"}[bits]
+        one = (1 << bits) - 1 if fmt.kind is F.Kind.UNORM else 1
+        storage = el if n == 1 else f"{el}{n}"
+        if n == 1:
+            load = f"(uint4)(b[i], 0u, 0u, {one}u)"
+            store = f"b[i] = ({el})r.x;"
+        elif n == 2:
+            load = f"(uint4)(convert_uint2(b[i]), 0u, {one}u)"
+            store = f"b[i] = convert_{el}2(r.xy);"
+        else:
+            load = "convert_uint4(b[i])" if el != "uint" else "b[i]"
+            store = f"b[i] = convert_{el}4(r);" if el != "uint" else "b[i] = r;"
+        if fmt.kind is F.Kind.UINT:
+            mask = (1 << bits) - 1
+            return {"name": name, "cls": "uint", "storage": storage, "reg": "uint4",
+                    "np": {8: "uint8", 16: "uint16", 32: "uint32"}[bits], "load": load,
+                    "store": store, "read": None, "vec": "uint4", "mask": f"{mask}u"}
+        m = float((1 << bits) - 1)
+        return {"name": name, "cls": "unorm8" if bits == 8 else "unorm", "storage": storage,
+                "reg": "uint4", "np": {8: "uint8", 16: "uint16"}[bits], "load": load,
+                "store": store, "maxv": f"(float4)({m:.1f}f)", "rcpv": _rcp([m] * 4),
+                "read": None, "vec": "float4"}
+    if fmt.kind is F.Kind.FLOAT:
+        if bits == 16:
+            suffix = "" if n == 1 else str(n)
+            if n == 1:
+                load = "(float4)(vload_half(i, b), 0.0f, 0.0f, 1.0f)"
+                store = "vstore_half_rtz(r.x, i, b);"
+            elif n == 2:
+                load = "(float4)(vload_half2(i, b), 0.0f, 1.0f)"
+                store = "vstore_half2_rtz(r.xy, i, b);"
+            else:
+                load = "vload_half4(i, b)"
+                store = "vstore_half4_rtz(r, i, b);"
+            return {"name": name, "cls": "half", "storage": "half", "reg": "float4",
+                    "np": "float16", "load": load, "store": store, "read": load, "vec": "float4",
+                    "suffix": suffix}
+        storage = "float" if n == 1 else f"float{n}"
+        if n == 1:
+            load, store = "(float4)(b[i], 0.0f, 0.0f, 1.0f)", "b[i] = r.x;"
+        elif n == 2:
+            load, store = "(float4)(b[i], 0.0f, 1.0f)", "b[i] = r.xy;"
+        else:
+            load, store = "b[i]", "b[i] = r;"
+        return {"name": name, "cls": "float", "storage": storage, "reg": "float4",
+                "np": "float32", "load": load, "store": store, "read": load, "vec": "float4"}
+    raise AssertionError(f"format {name} has no OpenCL layout")
+
+
+def _rcp(maxima) -> str:
+    """float4 literal of the float32 reciprocals 1/max: llvmpipe turns unorm codes into floats
+    as ``code * (1/max)`` (measured; 196 * (1/255) is one ulp above 196 / 255)."""
+    lang = OpenCLLanguage()
+    vals = [lang.render_float(float(np.float32(1.0) / np.float32(m))) for m in maxima]
+    return f"(float4)({', '.join(vals)})"
+
+
+def _read_expr(f: dict) -> str:
+    """Decoded value a shader reads (float4 / uint4) over buffer ``b`` and index ``i``."""
+    if f["read"] is not None:
+        return f["read"]
+    if f["cls"] == "uint":
+        return f["load"]
+    return f"convert_float4({f['load']}) * {f['rcpv']}"
+
+
+# ---- state macros ---------------------------------------------------------------------------------
+
+
+def _ival(x) -> int:
+    return int(x)
+
+
+def state_values(pass_: dict) -> list[tuple[str, str, object]]:
+    """The pass state as (macro name, kind "i"/"f", value) rows, in the dynamic-state order."""
+    st = pass_.get("state") or {}
+    depth = {"func": "always", "write": False, "clamp": False, **(st.get("depth") or {})}
+    has_depth = pass_.get("depth_target") is not None
+    enabled = has_depth and (depth["func"] != "always" or bool(depth["write"]))
+    rows: list[tuple[str, str, object]] = [
+        ("S_DEPTH_TEST", "i", int(enabled)),
+        ("S_DEPTH_FUNC", "i", COMPARE[_v(depth["func"])] if enabled else COMPARE["always"]),
+        ("S_DEPTH_WRITE", "i", int(enabled and bool(depth["write"]))),
+    ]
+    stencil = st.get("stencil") or {}
+    noop = {"func": "always", "ref": 0, "read_mask": 255, "write_mask": 255, "fail": "keep",
+            "zfail": "keep", "zpass": "keep"}
+    faces = []
+    for face in ("front", "back"):
+        f = {**noop, **(stencil.get(face) or {})}
+        faces.append(f)
+    st_on = any(_v(f["func"]) != "always" or any(_v(f[k]) != "keep" for k in ("fail", "zfail", "zpass"))
+                for f in faces)
+    rows.append(("S_STENCIL", "i", int(st_on)))
+    for tag, f in zip("FB", faces):
+        rows += [(f"S_ST_FUNC_{tag}", "i", COMPARE[_v(f["func"])]),
+                 (f"S_ST_REF_{tag}", "i", min(max(_ival(f["ref"]), 0), 255)),
+                 (f"S_ST_RMASK_{tag}", "i", _ival(f["read_mask"]) & 255),
+                 (f"S_ST_WMASK_{tag}", "i", _ival(f["write_mask"]) & 255),
+                 (f"S_ST_FAIL_{tag}", "i", STENCIL_OP[_v(f["fail"])]),
+                 (f"S_ST_ZFAIL_{tag}", "i", STENCIL_OP[_v(f["zfail"])]),
+                 (f"S_ST_ZPASS_{tag}", "i", STENCIL_OP[_v(f["zpass"])])]
+    const = list(st.get("blend_constant") or [0.0, 0.0, 0.0, 0.0])
+    rows += [(f"S_BCONST_{c}", "f", float(v)) for c, v in zip("RGBA", const)]
+    blend = st.get("blend") or {}
+    for k, name in enumerate(pass_.get("writes") or []):
+        b = {"enabled": False, "rgb": ["add", "one", "zero"], "alpha": ["add", "one", "zero"],
+             "write_mask": [True] * 4, **(blend.get(name) or {})}
+        rgb, alpha = _eq3(b["rgb"]), _eq3(b["alpha"])
+        mask = sum(1 << i for i, m in enumerate(b["write_mask"]) if m)
+        rows += [(f"S_BLEND_{k}", "i", int(bool(b["enabled"]))),
+                 (f"S_RGB_OP_{k}", "i", BLEND_OP[rgb[0]]),
+                 (f"S_RGB_SRC_{k}", "i", BLEND_FACTOR[rgb[1]]),
+                 (f"S_RGB_DST_{k}", "i", BLEND_FACTOR[rgb[2]]),
+                 (f"S_A_OP_{k}", "i", BLEND_OP[alpha[0]]),
+                 (f"S_A_SRC_{k}", "i", BLEND_FACTOR[alpha[1]]),
+                 (f"S_A_DST_{k}", "i", BLEND_FACTOR[alpha[2]]),
+                 (f"S_WMASK_{k}", "i", mask)]
+    return rows
+
+
+def _v(x):
+    return getattr(x, "value", x)
+
+
+def _eq3(e) -> tuple[str, str, str]:
+    e = [_v(x) for x in e]
+    if len(e) == 1:
+        return e[0], "one", "one"
+    return e[0], e[1], e[2]
+
+
+def state_words(pass_: dict) -> list[int]:
+    """The dynamic-state argument (int32 words) matching ``state_values`` order."""
+    import struct
+    out = []
+    for _, kind, value in state_values(pass_):
+        if kind == "f":
+            out.append(struct.unpack("<i", struct.pack("<f", float(value)))[0])
+        else:
+            out.append(int(value))
+    return out
+
+
+def _state_defines(pass_: dict, dynamic: bool) -> list[tuple[str, str]]:
+    lang = OpenCLLanguage()
+    out = []
+    for k, (name, kind, value) in enumerate(state_values(pass_)):
+        if dynamic:
+            out.append((name, f"as_float(pg_st[{k}])" if kind == "f" else f"(pg_st[{k}])"))
+        else:
+            out.append((name, lang.render_float(value) if kind == "f" else str(value)))
+    return out
+
+
+# llvmpipe's multisample positions (GL_SAMPLE_POSITION, measured; GL window space, y up)
+SAMPLE_POSITIONS = {1: [(0.5, 0.5)],
+                    4: [(0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)]}
+
+
+def sample_positions(samples: int) -> tuple[list[int], list[int]]:
+    """Sample offsets within a pixel in 1/256 pixel (x list, y list)."""
+    pos = SAMPLE_POSITIONS.get(samples)
+    if pos is None:
+        raise ValueError(f"{samples} samples per pixel: the reference supports 1 and 4 "
+                         "(llvmpipe's GL_MAX_SAMPLES is 4)")
+    return [int(x * 256) for x, _ in pos], [int(y * 256) for _, y in pos]
+
+
+# ---- per-pass program --------------------------------------------------------------------------------
+
+
+def varying_slots(pass_: dict) -> list[dict]:
+    """Interpolated varyings of a pass, in slot order: name, OpenCL type, vertex-kernel value."""
+    inputs = set((pass_.get("cl") or {}).get("inputs") or [])
+    if pass_["draw"]["kind"] != "scene":
+        return []
+    return [{"name": n, "type": t, "value": v, "slot": k}
+            for k, (n, (t, v)) in enumerate((n, SCENE_VARYINGS[n]) for n in SCENE_VARYINGS
+                                            if n in inputs)]
+
+
+def pass_program(plan: dict, pass_: dict, dynamic: bool = False, tile: int = TILE) -> str:
+    """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument)."""
+    targets = {t["name"]: t for t in plan["targets"]}
+    cl = pass_.get("cl") or {}
+    writes = []
+    for k, name in enumerate(pass_.get("writes") or []):
+        f = cl_format(targets[name]["format"])
+        writes.append({**f, "k": k, "name": name, "format": f["name"]})
+    depth = None
+    stencil = False
+    if pass_.get("depth_target"):
+        fmt = F.get(targets[pass_["depth_target"]]["format"])
+        depth = cl_format(fmt.name)
+        stencil = fmt.has_stencil
+    reads = []
+    for name in pass_.get("reads") or []:
+        f = cl_format(targets[name]["format"])
+        reads.append({**f, "name": name, "format": f["name"], "decoded": _read_expr(f),
+                      "integer": f["cls"] == "uint",
+                      "linear": f["cls"] in ("unorm8", "unorm", "half", "float"),
+                      "sampled": name in (cl.get("sampled") or [])})
+    inputs = set(cl.get("inputs") or [])
+    draw = pass_["draw"]
+    fields = [f[0] for f in plan["lights"]["fields"]]
+    volume = draw.get("volume") or "sphere"
+    slots = {f: k for k, f in enumerate(fields)}
+    prelude = templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines())
+    attached = list(pass_.get("writes") or []) + (
+        [pass_["depth_target"]] if pass_.get("depth_target") else [])
+    samples = max([int(targets[n].get("samples") or 1) for n in attached] or [1])
+    sx, sy = sample_positions(samples)
+    return templating.render(
+        "cl_pass.cl.j2",
+        technique=plan.get("technique", ""), pass_name=pass_["name"], prelude=prelude,
+        dynamic=dynamic, state=_state_defines(pass_, dynamic),
+        kind=draw["kind"], volume=volume, slots=slots, light_fields=len(fields),
+        varyings=varying_slots(pass_), flats=[n for n in SCENE_FLAT if n in inputs],
+        writes=writes, depth=depth, stencil=stencil, reads=reads,
+        fragment=cl.get("fragment"), discard=bool(cl.get("discard")),
+        flt_min=OpenCLLanguage().render_float(FLT_MIN),
+        scissor=bool(draw.get("scissor")), samples=samples, sample_x=sx, sample_y=sy)
+
+
+# ---- emission from the IR -----------------------------------------------------------------------------
+
+
+def emit_cl(tech: ir.Technique) -> dict:
+    """The PLAN dict of docs/internals.md with one OpenCL program (``"kernel"``) per pass."""
+    plan = planlib.technique_plan(tech, "cl")
+    for p, pd in zip(tech.passes, plan["passes"]):
+        pd["cl"] = emit_fragment(tech, p)
+        pd["sampled"] = [r for r in p.reads if r in pd["cl"]["sampled"]]
+        pd["kernel"] = pass_program(plan, pd)
+    return plan
+
+
+def emit_fragment(tech: ir.Technique, p: ir.Pass) -> dict:
+    """The fragment function of a pass (OpenCL C) and what it reads."""
+    lang = OpenCLLanguage(tech, p)
+    functions = planlib.pass_functions(tech, p.body)
+    inputs = planlib.stage_inputs(p.body, functions)
+    kind = p.draw.kind
+    scene_only = sorted(n for n in inputs if n in SCENE_VARYINGS or n in SCENE_FLAT)
+    if scene_only and kind is not DrawKind.SCENE:
+        raise PipegenError(p.span, f"pass '{p.name}' reads {', '.join(scene_only)}, which only "
+                           "passes that draw scene geometry have",
+                           hint="reconstruct positions from a depth target in other passes")
+    if inputs & {"light", "light_index"} and kind is not DrawKind.LIGHTS and not p.repeat_per_light:
+        raise PipegenError(p.span, f"pass '{p.name}' reads the drawn light, but it neither draws "
+                           "lights nor repeats per light",
+                           hint="use 'draw lights as ...' or 'repeat per light'")
+    if kind is DrawKind.LIGHTS:
+        volume = (p.draw.volume or ir.Volume.SPHERE).value
+        names = {f.name for f in tech.lights.fields}
+        missing = [f for f in VOLUME_FIELDS[volume] if f not in names]
+        if missing:
+            raise PipegenError(p.span or tech.lights.span,
+                               f"pass '{p.name}' draws {volume} light volumes, which need the "
+                               f"light field(s) {', '.join(missing)}",
+                               hint="add them to the lights { ... } schema")
+    sampled = sorted(planlib.sampled_targets(p.body, functions))
+    discard = any(isinstance(s, ir.Discard) for s in irwalk.walk_stmts(p.body)) or any(
+        isinstance(s, ir.Discard) for f in functions for s in irwalk.walk_stmts(f.body))
+    if not p.body:
+        return {"fragment": None, "inputs": sorted(inputs), "discard": False, "sampled": sampled}
+    code = [lang.function(f) for f in functions]
+    lang.in_body = True
+    body = lang.stmts(p.body, 1)
+    lang.in_body = False
+    if lang.helpers:
+        code = [lang.helper_source()] + code
+    main = "\n".join(["static inline bool pg_fragment(const pg_in *in, pg_out *out) {", *body,
+                      "    return true;", "}"])
+    text = "\n\n".join(code + [main]) + "\n"
+    return {"fragment": text, "inputs": sorted(inputs), "discard": discard, "sampled": sampled}
+
+
+# ---- the generated Python module -------------------------------------------------------------------
+
+
+def cl_module_source(plan: dict) -> str:
+    """Source of the generated ``pipeline_cl.py`` holding ``plan``."""
+    def safe(s: str) -> str:
+        return s.replace("\\", "/").replace('"""', "'''")
+    return templating.render("pipeline_cl.py.j2", plan=plan, title=safe(plan["title"]),
+                             source=safe(plan.get("source") or "<string>"))

@@ -1,0 +1,115 @@
+"""The process-wide OpenCL context of the software reference (pyopencl on PoCL's CPU device).
+
+PoCL reads ``POCL_CACHE_DIR`` once, when pyopencl first loads it, so ``configure_cache`` must run
+before anything imports ``pyopencl``: this module imports pyopencl lazily, inside
+``get_context()``, after choosing the cache folder.  The folder is (in order) the one passed to
+``configure_cache``/``get_context``, ``$POCL_CACHE_DIR`` if the user set it, or
+``<tempdir>/pipegen-cl-cache/<key>``.  pyopencl's own binary cache (in ``~/.cache``) is turned
+off with ``PYOPENCL_NO_CACHE`` (PoCL's cache does the same job inside the build folder).
+
+Programs are built with ``-cl-denorms-are-zero`` (DESIGN.md §7; note that PoCL treats it as a
+permission, not a promise: the generated code flushes explicitly where results are stored) and
+kept per process in a dict keyed by the source text, so a source is compiled at most once per
+process (PoCL compiles take 0.3–3 s; its disk cache makes a rebuild in a later process ~30 ms).
+
+``$PIPEGEN_CL_OPTIONS`` appends build options (experiments; results may then differ).
+
+Device choice: ``$PIPEGEN_CL_DEVICE`` (substring of the device name) or the first CPU device of
+the "Portable Computing Language" platform, else the first device found.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+import threading
+from typing import Optional
+
+__all__ = ["configure_cache", "get_context", "build_program", "describe", "BUILD_OPTIONS",
+           "cache_dir"]
+
+# correctly rounded / and sqrt: llvmpipe's are (measured), OpenCL's default allows 2.5 ulp
+BUILD_OPTIONS = ("-cl-denorms-are-zero", "-cl-std=CL1.2", "-cl-fp32-correctly-rounded-divide-sqrt")
+
+_lock = threading.Lock()
+_state: dict = {"ctx": None, "queue": None, "cache": None}
+_programs: dict[str, object] = {}
+
+
+def default_cache_dir(key: str = "default") -> str:
+    safe = hashlib.sha1(key.encode()).hexdigest()[:12] if key != "default" else key
+    return os.path.join(tempfile.gettempdir(), "pipegen-cl-cache", safe)
+
+
+def configure_cache(path: Optional[str] = None, key: str = "default") -> str:
+    """Choose PoCL's kernel cache folder (effective only before PoCL is loaded)."""
+    with _lock:
+        if _state["cache"] is not None:
+            return _state["cache"]
+        if path is None:
+            path = os.environ.get("POCL_CACHE_DIR") or default_cache_dir(key)
+        os.makedirs(path, exist_ok=True)
+        os.environ["POCL_CACHE_DIR"] = path
+        os.environ.setdefault("PYOPENCL_NO_CACHE", "1")
+        os.environ.setdefault("PYOPENCL_COMPILER_OUTPUT", "0")
+        _state["cache"] = path
+        return path
+
+
+def cache_dir() -> Optional[str]:
+    return _state["cache"]
+
+
+def get_context(cache: Optional[str] = None, key: str = "default"):
+    """(context, queue) on the PoCL CPU device, created on first use."""
+    configure_cache(cache, key)
+    with _lock:
+        if _state["ctx"] is None:
+            import pyopencl as cl
+
+            want = os.environ.get("PIPEGEN_CL_DEVICE", "")
+            candidates = []
+            for plat in cl.get_platforms():
+                for dev in plat.get_devices():
+                    score = 0
+                    if want and want.lower() in dev.name.lower():
+                        score += 4
+                    if "portable computing language" in plat.name.lower():
+                        score += 2
+                    if dev.type & cl.device_type.CPU:
+                        score += 1
+                    candidates.append((score, len(candidates), dev))
+            if not candidates:
+                raise RuntimeError("no OpenCL device found (is pocl-binary-distribution installed?)")
+            dev = max(candidates, key=lambda c: (c[0], -c[1]))[2]
+            ctx = cl.Context([dev])
+            _state["ctx"] = ctx
+            _state["queue"] = cl.CommandQueue(
+                ctx, properties=cl.command_queue_properties.PROFILING_ENABLE)
+        return _state["ctx"], _state["queue"]
+
+
+def build_program(source: str, options: tuple[str, ...] = ()):
+    """Build (once per process) and return the ``pyopencl.Program`` for ``source``."""
+    import pyopencl as cl
+
+    ctx, _ = get_context()
+    opts = tuple(BUILD_OPTIONS) + tuple(options) + tuple(
+        os.environ.get("PIPEGEN_CL_OPTIONS", "").split())
+    key = hashlib.sha256((source + "\0" + " ".join(opts)).encode()).hexdigest()
+    prog = _programs.get(key)
+    if prog is None:
+        try:
+            prog = cl.Program(ctx, source).build(options=list(opts))
+        except cl.RuntimeError as exc:  # keep the numbered source next to the build log
+            numbered = "\n".join(f"{i + 1:5d}  {line}" for i, line in enumerate(source.split("\n")))
+            raise RuntimeError(f"OpenCL build failed: {exc}\n--- source ---\n{numbered}") from None
+        _programs[key] = prog
+    return prog
+
+
+def describe() -> str:
+    ctx, _ = get_context()
+    dev = ctx.devices[0]
+    return f"{dev.platform.name} {dev.platform.version} / {dev.name} ({dev.max_compute_units} CUs)"
