@@ -97,3 +97,14 @@ def test_half_tolerance_has_absolute_floor(name):
     assert compare_target("accum", fmt, a, b).passed
     b[2, 2] = np.float16(0.01)
     assert not compare_target("accum", fmt, a, b).passed
+
+
+def test_float32_floor_scales_with_the_targets_range():
+    fmt = formats.get("rgba32f")
+    a = np.zeros((8, 8, 4), np.float32)
+    a[..., 0] = np.linspace(-24, 24, 64).reshape(8, 8)
+    b = a.copy()
+    b[3, 3, 1] = 2e-5          # near zero: ~10^5 ulps, but within 2^-18 of the range 24
+    assert compare_target("gpos", fmt, a, b).passed
+    b[3, 3, 1] = 5e-4          # 20x the range floor: a real difference
+    assert not compare_target("gpos", fmt, a, b).passed

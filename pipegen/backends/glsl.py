@@ -77,8 +77,10 @@ SCENE_VARYINGS = {
     "v_view_pos": ("vec3", False, "view_pos.xyz", "a_position"),
     "v_normal": ("vec3", False, "a_normal", "a_normal"),
     "v_view_normal": ("vec3", False, "mat3(u_view) * a_normal", "a_normal"),
-    "v_albedo": ("vec3", False, "a_albedo", "a_albedo"),
-    "v_material": ("vec3", False, "a_material", "a_material"),
+    # materials are per object: flat, so no interpolation noise rounds a value that sits on a
+    # unorm tie (albedo 0.7 = code 178.5) one way on llvmpipe and the other way on CL
+    "v_albedo": ("vec3", True, "a_albedo", "a_albedo"),
+    "v_material": ("vec3", True, "a_material", "a_material"),
     "v_ids": ("uvec2", True, "uvec2(a_ids + 0.5)", "a_ids"),
 }
 SCENE_ATTRIBUTES = [("a_position", "vec3"), ("a_normal", "vec3"), ("a_albedo", "vec3"),
