@@ -1,0 +1,72 @@
+"""GL (llvmpipe) vs CL (PoCL) frame time per technique, measured in one run.
+
+    python benchmarks/backends.py [--scene examples/scenes/many_lights.toml] [--size 640x360]
+        [--frames 3] [--threads 2] [technique ...]
+
+Both backends run the full ``render()`` (all passes, then read-back of every target), so the
+ratio compares like with like.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to
+``--threads`` before either runtime loads.  Each figure is the median of ``--frames`` renders
+after one warm-up render (which compiles shaders and kernels).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
+              "lidr_bitplanes"]
+
+
+def timed(fn, frames: int) -> float:
+    fn()                                           # warm-up: programs, buffers, kernel cache
+    times = []
+    for _ in range(frames):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", default=str(ROOT / "examples/scenes/many_lights.toml"))
+    ap.add_argument("--size", default="640x360")
+    ap.add_argument("--frames", type=int, default=3)
+    ap.add_argument("--threads", default="2")
+    ap.add_argument("techniques", nargs="*", default=TECHNIQUES)
+    args = ap.parse_args()
+    os.environ["LP_NUM_THREADS"] = args.threads
+    os.environ["POCL_MAX_PTHREAD_COUNT"] = args.threads
+
+    from pipegen.compiler import compile_file
+    from pipegen.scene import load_scene
+
+    w, h = (int(v) for v in args.size.split("x"))
+    scene = load_scene(args.scene).with_size(w, h)
+    print(f"{Path(args.scene).name} at {w}x{h}: {len(scene.objects)} objects, "
+          f"{len(scene.lights)} lights; LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {args.threads}",
+          file=sys.stderr)
+    rows = []
+    for i, name in enumerate(args.techniques, 1):
+        compiled = compile_file(ROOT / f"pipelines/{name}.pipe")
+        gl, cl = compiled.pipeline("gl"), compiled.pipeline("cl")
+        print(f"[{i}/{len(args.techniques)}] {name}", file=sys.stderr)
+        gl_s = timed(lambda: gl.render(scene), args.frames)
+        cl_s = timed(lambda: cl.render(scene), args.frames)
+        gl.release()
+        rows.append((name, gl_s, cl_s))
+    print(f"{'technique':<20} {'GL ms':>8} {'CL ms':>8} {'CL/GL':>7}")
+    for name, g, c in rows:
+        print(f"{name:<20} {g * 1e3:>8.1f} {c * 1e3:>8.1f} {c / g:>6.2f}x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
