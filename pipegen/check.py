@@ -17,7 +17,7 @@ import numpy as np
 
 from . import formats
 from .compare import TargetComparison, compare_target
-from .outputs import target_hints
+from .outputs import packed_channels, target_hints
 from .visualize import save_png
 
 
@@ -56,18 +56,20 @@ def compare_targets(compiled, gl: dict, cl: dict, lights: int,
     tech = compiled.technique
     plan = compiled.plan("gl")
     hints = target_hints(tech)
+    packed = packed_channels(tech)
     rows = []
     for key in sorted(gl):
         base, _, aspect = key.partition(".")
         if only is not None and base not in only:
             continue
         fmt = tech.target(base).format
-        exact = aspect == "stencil" or hints.get(base) == "index"
+        channels = packed.get(base, ()) if not aspect else ()
+        exact = aspect == "stencil" or (hints.get(base) == "index" and all(channels))
         tol = formats.Tolerance("exact", 0) if exact else None
         if key not in cl:
             raise AssertionError(f"the CL backend returned no {key!r}")
         rows.append(compare_target(key, fmt, gl[key], cl[key], blend_steps(plan, base, lights),
-                                   tolerance=tol))
+                                   tolerance=tol, exact_channels=channels))
     return rows
 
 

@@ -45,13 +45,22 @@ class TargetComparison:
 
 def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
                    blended_passes: int = 0, tolerance: Tolerance | None = None,
-                   stencil: bool = False) -> TargetComparison:
-    """Compare codes ``a`` and ``b`` (same shape) of target ``name`` in format ``fmt``."""
+                   stencil: bool = False, exact_channels: tuple[bool, ...] = ()
+                   ) -> TargetComparison:
+    """Compare codes ``a`` and ``b`` (same shape) of target ``name`` in format ``fmt``.
+
+    ``exact_channels`` flags channels that must match exactly (packed integers sharing a
+    target with ordinary values): any difference there counts as over tolerance.
+    """
     assert a.shape == b.shape, (name, a.shape, b.shape)
     tol = tolerance or (Tolerance("exact", 0) if stencil else fmt.tolerance(blended_passes))
     if tol.units == "ulp" and a.dtype == np.float32:
         tol = _range_floor(tol, a, b)
     err = channel_error(a, b, tol)
+    if any(exact_channels) and err.ndim == 3:
+        exact = np.array(exact_channels + (False,) * (err.shape[2] - len(exact_channels)))
+        err[..., exact] = np.where(err[..., exact] > 0,
+                                   np.maximum(err[..., exact], tol.limit + 1), 0.0)
     per_pixel = err.max(axis=-1) if err.ndim == 3 else err
     bad = per_pixel > tol.limit
     on_edge = _discontinuity(a, tol) | _discontinuity(b, tol)

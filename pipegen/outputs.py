@@ -34,6 +34,40 @@ def target_hints(tech: ir.Technique) -> dict[str, str]:
     return hints
 
 
+def packed_channels(tech: ir.Technique) -> dict[str, tuple[bool, ...]]:
+    """Per colour target, which channels hold packed integers (light indices, ID bit fields):
+    the channels whose written value comes from an index-packing function.  Those must match
+    exactly across backends; the other channels of the same target (a linear depth beside an
+    ID, say) keep their format's tolerance."""
+    prefixes = tuple(p.name + "_" for p in tech.packings if p.scheme in _INDEX_SCHEMES)
+    packed: dict[str, list[bool]] = {}
+    for p in tech.passes:
+        for s in irwalk.walk_stmts(p.body):
+            if not isinstance(s, ir.Output):
+                continue
+            flags = packed.setdefault(s.target, [False] * 4)
+            for c, part in enumerate(_components(s.value)):
+                if part is not None and _calls_packing(part, prefixes):
+                    flags[c] = True
+    return {t: tuple(f[:tech.target(t).format.channels]) for t, f in packed.items()}
+
+
+def _components(value: ir.Expr) -> list:
+    """The expression behind each of the 4 components of a written vec4 (None: unknown, or
+    the whole value when it is not a constructor)."""
+    if isinstance(value, ir.Construct):
+        parts: list = []
+        for a in value.args:
+            parts += [a] * max(1, a.type.size)
+        return (parts + [None] * 4)[:4]
+    return [value] * 4
+
+
+def _calls_packing(e: ir.Expr, prefixes: tuple[str, ...]) -> bool:
+    return any(isinstance(x, ir.Call) and not x.builtin and x.name.startswith(prefixes)
+               for x in irwalk.walk_exprs([ir.ExprStmt(e)]))
+
+
 def write_render(compiled, scene, targets: dict[str, np.ndarray], out: Path) -> Path:
     tech = compiled.technique
     hints = target_hints(tech)
