@@ -320,6 +320,7 @@ class Depth(Node):
     target: Name
     func: Optional[Word]          # None: `depth T off`
     flags: list[Word]             # write / nowrite / clamp
+    inside: Optional[Word] = None  # `inside FUNC` (with `cull auto`)
 
 
 @dataclass
@@ -380,7 +381,7 @@ class PassClear(Node):
 
 @dataclass
 class RepeatPerLight(Node):
-    pass
+    light_types: list[Word] = field(default_factory=list)   # `repeat per light spot …`
 
 
 @dataclass
@@ -403,6 +404,7 @@ class RepeatBlock(Node):
     """``repeat per light { pass … pass … }``: the passes run in sequence once per light."""
 
     passes: list[PassDecl]
+    light_types: list[Word] = field(default_factory=list)   # `repeat per light spot … { … }`
 
 
 Item = Union[TechniqueDecl, Include, ParamDecl, LightsDecl, TargetDecl, OutputDecl, PackDecl,

@@ -156,7 +156,7 @@ STAGE_INPUTS: dict[str, StageInput] = {
     **_inputs(Where.EVERYWHERE, ir.UINT, "num_lights"),
     **_inputs(Where.SCENE, ir.VEC3, "world_pos", "view_pos", "normal", "view_normal", "albedo"),
     **_inputs(Where.SCENE, ir.FLOAT, "specular", "shininess", "alpha"),
-    **_inputs(Where.SCENE, ir.UINT, "object_id", "normal_group"),
+    **_inputs(Where.SCENE, ir.UINT, "object_id", "normal_group", "layer"),
 }
 
 # ``light.FIELD`` (where: Where.LIGHT) and ``lights[i].FIELD`` (everywhere) read these fields.

@@ -74,6 +74,10 @@ class CullMode(enum.Enum):
     NONE = "none"
     BACK = "back"
     FRONT = "front"
+    # Light-volume draws only: per light, cull front faces (draw the back faces) when the
+    # camera may be inside the light's volume or its near plane may cut it, else cull back
+    # faces (``reference.fixed_function.light_volume_cull`` decides on the host).
+    AUTO = "auto"
 
 
 @dataclass(frozen=True)
@@ -81,6 +85,8 @@ class DepthState:
     func: CompareFunc = CompareFunc.ALWAYS   # ALWAYS + write False == depth test off
     write: bool = False
     clamp: bool = False
+    # `cull auto` passes: the test for the lights drawn with their back faces (None: ``func``)
+    inside: Optional[CompareFunc] = None
 
     @property
     def enabled(self) -> bool:
@@ -546,6 +552,7 @@ class Pass:
     repeat_group: Optional[int] = None  # consecutive passes sharing a group repeat per light
     clears: tuple[tuple[str, Clear], ...] = ()   # targets cleared before this pass draws
     span: Optional[Span] = field(default=None, compare=False)
+    repeat_types: tuple[str, ...] = ()  # repeat only for lights of these types; () all
 
     @property
     def repeat_per_light(self) -> bool:

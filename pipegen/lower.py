@@ -84,6 +84,7 @@ def _listing(names: Iterable[str]) -> str:
 class _PassItem:
     decl: ast.PassDecl
     group: Optional[int]          # repeat group from a `repeat per light { … }` block
+    block_types: tuple = ()       # the block's light types (`repeat per light spot { … }`)
 
 
 @dataclass
@@ -135,7 +136,8 @@ class _Collector:
                 raise _err(item.span, "an empty `repeat per light` block",
                            "put the passes that run once per light inside it")
             group = self._new_group()
-            d.passes.extend(_PassItem(p, group) for p in item.passes)
+            types = tuple(item.light_types)
+            d.passes.extend(_PassItem(p, group, types) for p in item.passes)
         elif isinstance(item, ast.PassDecl):
             # A pass with its own `repeat per light` is a repeat group of one.
             repeats = any(isinstance(s, ast.RepeatPerLight) for s in item.stmts)
@@ -1579,6 +1581,7 @@ class _PassLowerer:
         self.low = low
         self.decl = item.decl
         self.name = item.decl.name.name
+        self.item = item
         self.group = item.group
         self.single: dict[type, ast.Node] = {}
         for s in self.decl.stmts:
@@ -1603,7 +1606,7 @@ class _PassLowerer:
         state = ir.PassState(depth, stencil, blend, self._blend_constant(), self._cull(),
                              self._offset())
         return ir.Pass(self.name, draw, state, writes, reads, depth_target, body, self.group,
-                       self._clears(), self.decl.span)
+                       self._clears(), self.decl.span, self._repeat_types())
 
     # -- draw --------------------------------------------------------------------------------
     def _draw(self) -> ir.Draw:
@@ -1705,7 +1708,17 @@ class _PassLowerer:
         if write and t.name in reads:
             raise _err(d.span, f"pass '{self.name}' writes depth to '{t.name}' while reading "
                        f"it", f"test without writing: `depth {t.name} {d.func.value} nowrite`")
-        return t.name, ir.DepthState(ir.CompareFunc(d.func.value), write, "clamp" in flags)
+        inside = None
+        if d.inside is not None:
+            cull = self.single.get(ast.Cull)
+            if cull is None or cull.mode.value != "auto":
+                raise _err(d.inside.span, "`inside FUNC` is the depth test of the lights that "
+                           "`cull auto` draws with their back faces, but pass "
+                           f"'{self.name}' does not `cull auto`",
+                           "add `cull auto` or drop `inside`")
+            inside = ir.CompareFunc(d.inside.value)
+        return t.name, ir.DepthState(ir.CompareFunc(d.func.value), write, "clamp" in flags,
+                                     inside)
 
     # -- stencil -------------------------------------------------------------------------------
     def _stencil(self, depth_target: Optional[str]) -> ir.StencilState:
@@ -1806,10 +1819,41 @@ class _PassLowerer:
                        "write `blend constant (r, g, b, a)` or one value for all four")
         return tuple(float(self.low.number(e, "a blend constant component")) for e in items)
 
+    def _repeat_types(self) -> tuple[str, ...]:
+        """``repeat per light TYPE …`` (on the pass or on its block): the light types the
+        repeat group runs this pass for; () for every light."""
+        stmt = self.single.get(ast.RepeatPerLight)
+        own = list(stmt.light_types) if stmt is not None else []
+        block = list(self.item.block_types)
+        if own and block:
+            raise _err(own[0].span, f"pass '{self.name}' is in a `repeat per light "
+                       f"{' '.join(w.value for w in block)} {{ … }}` block and names light "
+                       f"types again", "give the light types once, on the block or the pass")
+        words = own or block
+        types: list[str] = []
+        for w in words:
+            if w.value in types:
+                raise _err(w.span, f"light type '{w.value}' is listed twice", "list it once")
+            types.append(w.value)
+        return tuple(t for t in LIGHT_TYPES if t in types)
+
     # -- other state ---------------------------------------------------------------------------
     def _cull(self) -> ir.CullMode:
         s = self.single.get(ast.Cull)
-        return ir.CullMode(s.mode.value) if s is not None else ir.CullMode.NONE
+        if s is None:
+            return ir.CullMode.NONE
+        mode = ir.CullMode(s.mode.value)
+        if mode is ir.CullMode.AUTO:
+            d = self.single.get(ast.Draw)
+            volume = d.volume.value if d is not None and d.volume is not None else None
+            if d is None or d.kind != "lights" or volume not in ("sphere", "cone"):
+                what = ("nothing" if d is None else "a screen quad" if volume == "quad" else
+                        "scene geometry" if d.kind == "scene" else "a full-screen triangle")
+                raise _err(s.span, f"`cull auto` chooses the faces of light volumes, but pass "
+                           f"'{self.name}' draws {what}",
+                           "use it with `draw lights as sphere` or `draw lights as cone`; "
+                           "otherwise write `cull back`, `cull front` or `cull none`")
+        return mode
 
     def _offset(self) -> Optional[ir.PolygonOffset]:
         s = self.single.get(ast.Offset)

@@ -54,7 +54,8 @@ def target_table(tech: ir.Technique, w: int, h: int) -> list[str]:
 def pass_section(tech: ir.Technique) -> list[str]:
     out = ["passes (in order)"]
     for i, p in enumerate(tech.passes, 1):
-        repeat = "  [repeat per light]" if p.repeat_per_light else ""
+        repeat = ("  [repeat per light" + "".join(" " + t for t in p.repeat_types) + "]"
+                  if p.repeat_per_light else "")
         out.append(f"  {i}. {p.name}: draw {_draw(p.draw)}{repeat}")
         if p.writes:
             out.append(f"       writes {', '.join(p.writes)}")
@@ -73,6 +74,8 @@ def state_lines(p: ir.Pass) -> list[str]:
         d = s.depth
         test = "off" if not d.enabled else \
             f"{d.func.value} {'write' if d.write else 'nowrite'}{' clamp' if d.clamp else ''}"
+        if d.inside is not None:
+            test += f" inside {d.inside.value}"
         out.append(f"depth  {p.depth_target} {test}")
     if s.stencil.enabled:
         for face_name, face in (("front", s.stencil.front), ("back", s.stencil.back)):

@@ -71,6 +71,11 @@ class _StencilTail(ast.Node):
         self.span = span
 
 
+class _DepthInside:
+    def __init__(self, func: ast.Word, span: Span):
+        self.func, self.span = func, span
+
+
 class _LightSet:
     def __init__(self, pack: ast.Name, index: ast.Expr):
         self.pack, self.index = pack, index
@@ -231,8 +236,10 @@ class _ToAst(Transformer):
             prev.span = _join(prev.span, s.span)
         return out
 
-    def repeat_block(self, meta, passes):
-        return ast.RepeatBlock(passes, span=self._span(meta))
+    def repeat_block(self, meta, ch):
+        types = [c for c in ch if isinstance(c, ast.Word)]
+        passes = [c for c in ch if not isinstance(c, ast.Word)]
+        return ast.RepeatBlock(passes, types, span=self._span(meta))
 
     def draw(self, meta, ch):
         span = self._span(meta)
@@ -268,7 +275,15 @@ class _ToAst(Transformer):
         target, rest = self._name(ch[0]), ch[1:]
         if isinstance(rest[0], Token):   # OFF
             return ast.Depth(target, None, [], span=self._span(meta))
-        return ast.Depth(target, rest[0], rest[1:], span=self._span(meta))
+        flags = [f for f in rest[1:] if not isinstance(f, _DepthInside)]
+        inside = [f for f in rest[1:] if isinstance(f, _DepthInside)]
+        if len(inside) > 1:
+            raise self._error(inside[1].span, "`inside` is given twice", "give it once")
+        return ast.Depth(target, rest[0], flags, inside[0].func if inside else None,
+                         span=self._span(meta))
+
+    def depth_inside(self, meta, ch):
+        return _DepthInside(ch[0], self._span(meta))
 
     def stencil(self, meta, ch):
         return ast.Stencil(ch[0], ch[1:], span=self._span(meta))
@@ -308,7 +323,7 @@ class _ToAst(Transformer):
         return ast.PassClear(self._name(ch[0]), ch[1], span=self._span(meta))
 
     def repeat_stmt(self, meta, ch):
-        return ast.RepeatPerLight(span=self._span(meta))
+        return ast.RepeatPerLight(list(ch), span=self._span(meta))
 
     def fragment(self, meta, stmts):
         return ast.Fragment(_flatten(stmts), span=self._span(meta))

@@ -174,6 +174,14 @@ class _Verifier:
             _check(d.volume is None and not d.light_types and d.light_set is None
                    and not d.scissor, where, f"light-draw options on a {d.kind.value} draw")
         _check(d.kind is ir.DrawKind.SCENE or not d.material, where, "material filter")
+        _check(p.state.cull is not ir.CullMode.AUTO or (
+            d.kind is ir.DrawKind.LIGHTS and d.volume in (ir.Volume.SPHERE, ir.Volume.CONE)),
+            where, "cull auto on a draw that is not a sphere or cone light draw")
+        _check(p.state.depth.inside is None or p.state.cull is ir.CullMode.AUTO, where,
+               "a depth `inside` test without cull auto")
+        _check(set(p.repeat_types) <= set(LIGHT_TYPES), where, f"types {p.repeat_types}")
+        _check(not p.repeat_types or p.repeat_group is not None, where,
+               "repeat light types on a pass that does not repeat per light")
 
     def _attachments(self, p: ir.Pass, where: str) -> None:
         st = p.state

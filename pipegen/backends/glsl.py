@@ -15,14 +15,18 @@ made here that the runtime (and the OpenCL backend, which must agree) rely on:
 - ``round`` is round-half-to-even (``roundEven``), the defined rounding both backends have.
 - Scene vertices: ``gl_Position = u_proj * (u_view * vec4(a_position, 1.0))``.  Only the
   varyings (and so attributes) the fragment shader uses are emitted; ``"attributes"`` in the
-  pass dict lists the active ones (locations: position 0, normal 1, albedo 2, material 3, ids 4).
+  pass dict lists the active ones (locations: position 0, normal 1, albedo 2, material 3, ids 4,
+  layer 5; ``a_layer`` is the scene's ``Geometry.layer`` as a float, read as ``flat uint
+  v_layer = uint(a_layer + 0.5)``).
 - Light volumes: ``a_position`` (location 0) is the unit mesh of ``meshes.light_volume``,
   ``a_light`` (location 1, per instance) the light's table index, passed on as ``flat uint
   v_light``.  Sphere: centre + a_position * radius.  Cone: z scaled by radius, x/y by
   radius * tan(acos(cos_outer)), local -z rotated onto the direction (a rotation, so winding is
   kept).  Quad: the clip-space rectangle of the projected bounding box of the light's sphere,
   at the depth of its nearest point; full screen at the near plane when the box reaches
-  in front of the near plane.
+  in front of the near plane, or when the light's radius is <= 0 (directional lights).
+  ``cull auto`` (sphere and cone only) is a host-side choice per light
+  (``reference.fixed_function.cull_runs``); the shaders do not see it.
 - Full-screen draws: one triangle from ``gl_VertexID`` (3 vertices, no attributes) at the far
   plane (window depth 1.0), so ``depth greater`` selects covered pixels and ``equal`` the sky.
 """
@@ -69,6 +73,7 @@ INPUTS: dict[str, tuple[str, Optional[str]]] = {
     "albedo": ("v_albedo", "v_albedo"), "specular": ("v_material.x", "v_material"),
     "shininess": ("v_material.y", "v_material"), "alpha": ("v_material.z", "v_material"),
     "object_id": ("v_ids.x", "v_ids"), "normal_group": ("v_ids.y", "v_ids"),
+    "layer": ("v_layer", "v_layer"),
 }
 
 # scene varying -> (type, flat, value in the vertex stage, attribute it reads)
@@ -82,9 +87,11 @@ SCENE_VARYINGS = {
     "v_albedo": ("vec3", True, "a_albedo", "a_albedo"),
     "v_material": ("vec3", True, "a_material", "a_material"),
     "v_ids": ("uvec2", True, "uvec2(a_ids + 0.5)", "a_ids"),
+    # the stipple layer (0 opaque, 1..3 translucent): a small whole number, exact in a float
+    "v_layer": ("uint", True, "uint(a_layer + 0.5)", "a_layer"),
 }
 SCENE_ATTRIBUTES = [("a_position", "vec3"), ("a_normal", "vec3"), ("a_albedo", "vec3"),
-                    ("a_material", "vec3"), ("a_ids", "vec2")]
+                    ("a_material", "vec3"), ("a_ids", "vec2"), ("a_layer", "float")]
 
 UNIFORMS = [("mat4", "u_view"), ("mat4", "u_proj"), ("mat4", "u_inv_view"),
             ("mat4", "u_inv_proj"), ("vec3", "u_camera_pos"), ("vec3", "u_ambient"),

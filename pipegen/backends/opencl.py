@@ -28,7 +28,7 @@ kernels (``pipegen/runtime/cl_setup.py``).  Conventions shared with the CL runti
 - Buffers hold GL window rows (row 0 = window y 0, the bottom row), the order ``render``
   returns; a target with S samples holds S planes (plane k = sample k, llvmpipe's positions).
 - Varyings are float4 slots ``vary[slot * nverts + v]`` in the order of ``varying_slots()``;
-  flat values (object id, normal group, light index) travel per triangle.
+  flat values (object id, normal group, light index or stipple layer) travel per triangle.
 
 Choices mirrored from the GLSL backend (glsl.py's docstring): ``load`` clamps coordinates to the
 target, outputs are zero-initialised, ``round`` is round-half-to-even (``rint``), scene
@@ -128,7 +128,9 @@ SCENE_VARYINGS = {
     "shininess": ("float", "a_material[v].y"),
     "alpha": ("float", "a_material[v].z"),
 }
-SCENE_FLAT = ("object_id", "normal_group")
+# flat scene inputs -> component of the per-triangle ``tri_flat`` (x is the facing bit; w holds
+# the light index in light draws and the stipple layer in scene draws)
+SCENE_FLAT = {"object_id": "y", "normal_group": "z", "layer": "w"}
 VOLUME_FIELDS = {"sphere": ("position", "radius"), "quad": ("position", "radius"),
                  "cone": ("position", "radius", "direction", "cos_outer")}
 
@@ -474,7 +476,24 @@ def state_values(pass_: dict) -> list[tuple[str, str, object]]:
                  (f"S_A_SRC_{k}", "i", BLEND_FACTOR[alpha[1]]),
                  (f"S_A_DST_{k}", "i", BLEND_FACTOR[alpha[2]]),
                  (f"S_WMASK_{k}", "i", mask)]
+    inside = _inside_func(pass_)
+    if inside is not None:
+        # `cull auto` + `depth … inside FUNC`: the test of the triangles of lights drawn with
+        # their back faces (the runtime sets bit 1 of their tri_flat.x, `pg_inside`)
+        on = has_depth and (inside != "always" or bool(depth["write"]))
+        rows += [("S_DEPTH_TEST_IN", "i", int(on)),
+                 ("S_DEPTH_FUNC_IN", "i", COMPARE[inside] if on else COMPARE["always"]),
+                 ("S_DEPTH_WRITE_IN", "i", int(on and bool(depth["write"])))]
     return rows
+
+
+def _inside_func(pass_: dict) -> Optional[str]:
+    """The `inside FUNC` depth test of a `cull auto` pass (None when it has none)."""
+    st = pass_.get("state") or {}
+    inside = (st.get("depth") or {}).get("inside")
+    if inside is None or _v(st.get("cull")) != "auto" or not pass_.get("depth_target"):
+        return None
+    return _v(inside)
 
 
 def _v(x):
@@ -508,6 +527,10 @@ def _state_defines(pass_: dict, dynamic: bool) -> list[tuple[str, str]]:
             out.append((name, f"as_float(pg_st[{k}])" if kind == "f" else f"(pg_st[{k}])"))
         else:
             out.append((name, lang.render_float(value) if kind == "f" else str(value)))
+    names = {name for name, _ in out}
+    for i, (name, value) in enumerate(out):
+        if name + "_IN" in names:     # per triangle: the `inside` test or the pass's own
+            out[i] = (name, f"(pg_inside ? {name}_IN : {value})")
     return out
 
 
@@ -574,11 +597,13 @@ def pass_program(plan: dict, pass_: dict, dynamic: bool = False, tile: int = TIL
         technique=plan.get("technique", ""), pass_name=pass_["name"], prelude=prelude,
         dynamic=dynamic, state=_state_defines(pass_, dynamic),
         kind=draw["kind"], volume=volume, slots=slots, light_fields=len(fields),
-        varyings=varying_slots(pass_), flats=[n for n in SCENE_FLAT if n in inputs],
+        varyings=varying_slots(pass_),
+        flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
         writes=writes, depth=depth, stencil=stencil, reads=reads,
         fragment=cl.get("fragment"), discard=bool(cl.get("discard")),
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
-        scissor=bool(draw.get("scissor")), samples=samples, sample_x=sx, sample_y=sy)
+        scissor=bool(draw.get("scissor")), samples=samples, sample_x=sx, sample_y=sy,
+        inside=_inside_func(pass_) is not None)
 
 
 # ---- emission from the IR -----------------------------------------------------------------------------

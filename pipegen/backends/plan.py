@@ -53,6 +53,7 @@ def pass_plan(p: ir.Pass) -> dict:
                  "light_set": None if d.light_set is None else list(d.light_set),
                  "scissor": d.scissor},
         "repeat_group": p.repeat_group,
+        "repeat_types": list(p.repeat_types),
         "clears": [{"target": name, **_clear(c)} for name, c in p.clears],
         "writes": list(p.writes),
         "reads": list(p.reads),
@@ -77,8 +78,11 @@ def state_plan(s: ir.PassState, writes: tuple[str, ...]) -> dict:
         b = s.blend_for(t)
         blend[t] = {"enabled": b.enabled, "rgb": _eq(b.rgb), "alpha": _eq(b.alpha),
                     "write_mask": list(b.write_mask)}
+    depth = {"func": s.depth.func.value, "write": s.depth.write, "clamp": s.depth.clamp}
+    if s.depth.inside is not None:      # `cull auto` passes: the back-face lights' test
+        depth["inside"] = s.depth.inside.value
     return {
-        "depth": {"func": s.depth.func.value, "write": s.depth.write, "clamp": s.depth.clamp},
+        "depth": depth,
         "stencil": {"front": _face(s.stencil.front), "back": _face(s.stencil.back)},
         "blend": blend,
         "blend_constant": list(s.blend_constant),

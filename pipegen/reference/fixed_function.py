@@ -49,7 +49,8 @@ __all__ = [
     "compare", "unorm_store", "half_store", "store", "load", "depth_codes", "depth_test",
     "depth_update", "stencil_test", "stencil_op", "stencil_update", "blend_factor", "blend",
     "mul_unorm8", "blend_unorm8", "color_mask", "write_color", "process_fragments",
-    "light_scissor_rect",
+    "light_scissor_rect", "near_plane_reach", "light_volume_bound", "light_volume_clearance",
+    "light_volume_cull", "cull_runs",
 ]
 
 
@@ -534,10 +535,13 @@ def light_scissor_rect(center, radius: float, view, proj, width: int, height: in
 
     Projects the 8 corners of the sphere's world-space bounding box; when any corner is at or
     behind the camera plane (w <= 1e-6) the rectangle is the whole viewport.  The rectangle is
-    conservative (floor/ceil, clamped to the viewport) and may be empty (w or h 0).
+    conservative (floor/ceil, clamped to the viewport) and may be empty (w or h 0).  A light
+    without a radius (``radius <= 0``: a directional light) covers the whole viewport.
     """
     c = np.asarray(center, np.float64)
     r = float(radius)
+    if r <= 0.0:
+        return (0, 0, int(width), int(height))
     corners = np.array([[c[0] + sx * r, c[1] + sy * r, c[2] + sz * r, 1.0]
                         for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
     clip = corners @ (np.asarray(proj, np.float64) @ np.asarray(view, np.float64)).T
@@ -554,3 +558,144 @@ def light_scissor_rect(center, radius: float, view, proj, width: int, height: in
     ya = int(min(max(np.floor(y0), 0), height))
     yb = int(min(max(np.ceil(y1), 0), height))
     return (xa, ya, max(xb - xa, 0), max(yb - ya, 0))
+
+
+# ---------------------------------------------------------------------------------------------
+# light volumes: which faces to draw (`cull auto`)
+# ---------------------------------------------------------------------------------------------
+
+
+def near_plane_reach(proj) -> float:
+    """Distance from the eye to the farthest point of the near-plane rectangle of a GL
+    perspective projection (``Camera.projection``; an infinite far plane works too):
+    ``near * sqrt(1 + tan_x^2 + tan_y^2)`` with ``near = P[2,3] / (P[2,2] - 1)``,
+    ``tan_x = 1 / P[0,0]``, ``tan_y = 1 / P[1,1]``.  Every point that the near plane clips
+    away in front of a visible pixel lies within this distance of the eye."""
+    p = np.asarray(proj, np.float64)
+    near = abs(p[2, 3] / (p[2, 2] - 1.0))
+    return float(near * np.sqrt(1.0 + (1.0 / p[0, 0]) ** 2 + (1.0 / p[1, 1]) ** 2))
+
+
+_UNIT_BOUNDS: dict = {}
+
+
+def _unit_mesh(volume: str) -> np.ndarray:
+    if volume not in _UNIT_BOUNDS:
+        from ..meshes import light_volume
+        _UNIT_BOUNDS[volume] = np.asarray(light_volume(volume), np.float64)
+    return _UNIT_BOUNDS[volume]
+
+
+def light_volume_bound(volume: str, radius: float, cos_outer: float = -2.0) -> float:
+    """Radius of a sphere around the light's position that contains its light-volume mesh as
+    the vertex stages place it (``meshes.light_volume`` scaled like gl_vertex_lights.glsl.j2):
+
+    - sphere: ``radius * R`` with ``R`` the unit mesh's circumradius (its farthest vertex,
+      about 1.02: the mesh circumscribes the unit sphere);
+    - cone: the farthest vertex from the apex of the unit cone scaled by ``spread`` in x/y
+      (``radius * tan(outer)``, with cos(outer) clamped to [0.001, 1] as the shaders do) and
+      ``radius`` in z.
+    """
+    r = max(float(radius), 0.0)
+    m = _unit_mesh(volume)
+    if volume == "sphere":
+        return r * float(np.sqrt((m * m).sum(axis=1)).max())
+    if volume == "cone":
+        c = min(max(float(cos_outer), 0.001), 1.0)
+        spread = r * np.sqrt(1.0 - c * c) / c
+        scaled = m * np.array([spread, spread, r])
+        return float(np.sqrt((scaled * scaled).sum(axis=1)).max())
+    raise ValueError(f"`cull auto` has no rule for {volume!r} light volumes (sphere, cone)")
+
+
+# Relative slack on the distances: the GPU places the mesh from float32 light fields.
+CULL_SLACK = 1e-3
+
+
+def _cone_tan(radius: float, cos_outer: float) -> float:
+    """tan of the half-angle of the circular cone around the axis that contains the cone
+    mesh: the unit mesh's rim radius (its polygon circumscribes the unit circle) times
+    ``spread / radius`` = tan(outer), cos(outer) clamped to [0.001, 1] like the shaders."""
+    m = _unit_mesh("cone")
+    rim = float(np.sqrt(m[:, 0] ** 2 + m[:, 1] ** 2).max())
+    c = min(max(float(cos_outer), 0.001), 1.0)
+    return rim * np.sqrt(1.0 - c * c) / c
+
+
+def light_volume_clearance(volume: str, position, radius: float, eye, cos_outer: float = -2.0,
+                           direction=(0.0, 0.0, -1.0)) -> float:
+    """A lower bound on the distance from ``eye`` to a light's volume mesh (<= 0: the eye may
+    be inside it), from a shape that contains the mesh:
+
+    - sphere: the ball of radius ``light_volume_bound`` (the mesh's circumradius) around the
+      light's position: ``|eye - position| - bound``;
+    - cone: the circular cone around the light direction, apex at the light's position and
+      half-angle ``atan(_cone_tan)``, cut by the plane of its base at ``radius`` along the
+      axis (the mesh is inside both): the larger of the distances to the base plane,
+      ``h - radius``, and to the cone's tangent plane nearest the eye,
+      ``q cos(a) - h sin(a)`` (h, q: the eye's axial and radial offsets from the apex).
+      Both are separating-plane distances, so the bound holds whatever the mesh's rotation
+      about its axis.
+    """
+    v = np.asarray(eye, np.float64) - np.asarray(position, np.float64)
+    r = max(float(radius), 0.0)
+    if volume == "sphere":
+        return float(np.linalg.norm(v)) - light_volume_bound("sphere", r)
+    if volume == "cone":
+        d = np.asarray(direction, np.float64)
+        n = float(np.linalg.norm(d))
+        axis = d / n if n > 0 else np.array([0.0, 0.0, -1.0])
+        h = float(v @ axis)
+        q = float(np.linalg.norm(v - h * axis))
+        half = float(np.arctan(_cone_tan(r, cos_outer)))
+        side = q * np.cos(half) - h * np.sin(half)
+        return float(max(side, h - r))
+    raise ValueError(f"`cull auto` has no rule for {volume!r} light volumes (sphere, cone)")
+
+
+def light_volume_cull(volume: str, position, radius: float, eye, proj,
+                      cos_outer: float = -2.0, direction=(0.0, 0.0, -1.0)) -> str:
+    """The face to cull for one light under ``cull auto``: ``"front"`` (draw the volume's
+    back faces) or ``"back"`` (draw its front faces).
+
+    Front faces cover every pixel of a closed convex volume exactly once unless the near
+    plane cuts them; back faces do so whenever the far plane does not (an infinite far plane,
+    i.e. ``depth … clamp``).  So the rule draws front faces only when the near plane cannot
+    touch the mesh, conservatively::
+
+        inside = clearance <= reach * (1 + CULL_SLACK) + bound * CULL_SLACK
+
+    ``clearance`` is ``light_volume_clearance`` (a lower bound on the eye's distance to the
+    mesh), ``reach`` is ``near_plane_reach(proj)`` (everything the near plane clips in front
+    of a visible pixel lies within it of the eye) and ``bound`` is ``light_volume_bound``
+    (the slack covers the float32 placement of the mesh).  For a sphere this is
+    ``|eye - position| <= radius * R + reach`` with R (about 1.02) the unit mesh's
+    circumradius.  Inside: ``"front"``; else ``"back"``.  Both runtimes call this with the
+    same float64 inputs (the scene light, the camera position and the frame's projection),
+    so they choose identically.
+    """
+    bound = light_volume_bound(volume, radius, cos_outer)
+    clearance = light_volume_clearance(volume, position, radius, eye, cos_outer, direction)
+    inside = clearance <= near_plane_reach(proj) * (1.0 + CULL_SLACK) + bound * CULL_SLACK
+    return "front" if inside else "back"
+
+
+def cull_runs(cull: str, volume: str, lights, indices, eye, proj) -> list:
+    """Split a light draw into ``[(cull, [light index, …]), …]``: consecutive runs of lights
+    (in the given order, so submission order is kept) that share a cull mode.  For a fixed
+    mode there is one run; ``"auto"`` asks ``light_volume_cull`` per light (``lights`` is the
+    scene's light list: objects with ``position``, ``radius``, ``cos_outer`` and ``direction``)."""
+    indices = [int(i) for i in indices]
+    if cull != "auto":
+        return [(cull, indices)] if indices else []
+    runs: list = []
+    for i in indices:
+        light = lights[i]
+        mode = light_volume_cull(volume, light.position, light.radius, eye, proj,
+                                 getattr(light, "cos_outer", -2.0),
+                                 getattr(light, "direction", (0.0, 0.0, -1.0)))
+        if runs and runs[-1][0] == mode:
+            runs[-1][1].append(i)
+        else:
+            runs.append((mode, [i]))
+    return runs

@@ -14,10 +14,12 @@ Per pass (see ``backends/opencl.py`` for the program and ``cl_setup.py`` for the
 Targets live in device buffers in GL row order for the whole frame; clears write the codes of
 ``Format.quantize`` (the same the GL runtime clears with).  Passes of one ``repeat_group`` run
 once per light in turn (the group's passes for light 0, then for light 1, ...; a pass whose
-light filter excludes the light is skipped for it), the light index reaching the fragment
-function as ``in->light``; light draws instance the pass's light list (types, CPU-sorted
+light filter or ``repeat_types`` excludes the light is skipped for it), the light index
+reaching the fragment function as ``in->light``; light draws instance the pass's light list (types, CPU-sorted
 ``light_set`` via ``packing.sort_lights_into_slots``), ``scissor`` light draws clip each
-light's triangles to ``fixed_function.light_scissor_rect``.  All as ``GLPipeline`` does.
+light's triangles to ``fixed_function.light_scissor_rect``, ``cull auto`` light draws keep
+each light's front or back faces as ``fixed_function.cull_runs`` chooses.  All as
+``GLPipeline`` does.
 
 Multisampled targets (4 samples, llvmpipe's positions) keep one plane per sample; the passes
 that read them, and ``render``'s result, see the resolve llvmpipe's blit computes (colour: the
@@ -390,6 +392,9 @@ class CLPipeline:
                 for j in range(k, end):
                     if j in lists and light not in lists[j]:
                         continue
+                    types = passes[j].get("repeat_types") or []
+                    if types and _light_type(scene.lights[light]) not in types:
+                        continue
                     self._run_pass(j, light)
                     if capture_passes:
                         captures.append({"pass": passes[j]["name"], "light": light,
@@ -540,6 +545,10 @@ class CLPipeline:
                                + 0.5).astype(np.uint32)            # uvec2(a_ids + 0.5), flat
                 flat = np.zeros((n // 3, 4), np.uint32)
                 flat[:, 1:3] = ids
+                layer = getattr(g, "layer", None)          # uint(a_layer + 0.5), flat
+                if layer is not None:
+                    flat[:, 3] = np.floor(np.asarray(layer, np.float32)[2::3].astype(np.float64)
+                                          + 0.5).astype(np.uint32)
                 attrs = [self._buffer(_f4(a)) for a in (g.positions, g.normals, g.albedo,
                                                          g.material)]
                 self._scene_attrs[material] = (n, attrs, flat)
@@ -601,9 +610,12 @@ class CLPipeline:
             cl.enqueue_copy(self.queue, vary, vary_buf)
         timing["vertex"] = (ev.profile.end - ev.profile.start) * 1e-6
         t0 = time.perf_counter()
-        tris = setup_triangles(clip, width, height, cull=st.get("cull") or "none",
+        cull = st.get("cull") or "none"
+        tris = setup_triangles(clip, width, height, cull="none" if cull == "auto" else cull,
                                polygon_offset=st.get("polygon_offset"), depth_clamp=depth_clamp,
                                depth_format=dfmt, flat=flat, vary=vary, scissor=scissor)
+        if cull == "auto":
+            tris = self._cull_auto(tris, draw.get("volume") or "sphere", lights)
         t1 = time.perf_counter()
         bins = bin_triangles(tris, width, height, self.tile)
         t2 = time.perf_counter()
@@ -626,6 +638,24 @@ class CLPipeline:
         self._geometry_cache[key] = (tris, bins, bufs)
         return self._geometry_cache[key]
 
+    def _cull_auto(self, tris, volume: str, lights: list):
+        """``cull auto``: keep each light's front faces or back faces as
+        ``fixed_function.cull_runs`` chooses (the GL runtime draws the same runs).  Filtering
+        the set-up triangles keeps their submission order, so per pixel the lights still
+        arrive in light order."""
+        from ..reference.fixed_function import cull_runs
+        runs = cull_runs("auto", volume, list(self._scene.lights), lights,
+                         self._scene.camera.position, self._proj)
+        draw_front = np.zeros(max(lights) + 1, bool)
+        for mode, run in runs:
+            draw_front[run] = mode == "back"          # culling back faces draws front faces
+        front = (tris.flat[:, 0] & 1).astype(bool)
+        by_front = draw_front[tris.flat[:, 3]]
+        tris = _select_triangles(tris, front == by_front)
+        # bit 1 of flat.x: a light drawn with its back faces (`pg_inside`, `depth … inside`)
+        tris.flat[:, 0] |= np.where(by_front[front == by_front], 0, 2).astype(np.uint32)
+        return tris
+
     def _light_scissors(self, lights: np.ndarray, width: int, height: int, tris_per: int):
         """Per-triangle scissor rectangles (x0, y0, x1, y1) of each light's screen rectangle."""
         from ..reference.fixed_function import light_scissor_rect
@@ -637,6 +667,22 @@ class CLPipeline:
                                             height)
             rects.append((x, y, x + w, y + h))
         return np.repeat(np.asarray(rects, np.int32).reshape(-1, 4), tris_per, axis=0)
+
+
+def _select_triangles(tris, keep: np.ndarray):
+    """The set-up triangles where ``keep`` holds, in their order (per-triangle arrays are
+    indexed; the varyings, which the triangles index, are kept whole)."""
+    import dataclasses
+    n = tris.count
+    idx = np.flatnonzero(keep)
+    changes = {}
+    for f in dataclasses.fields(tris):
+        if f.name in ("vary", "nverts"):
+            continue
+        v = getattr(tris, f.name)
+        if isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == n:
+            changes[f.name] = v[idx]
+    return dataclasses.replace(tris, **changes)
 
 
 def _light_filter(draw: dict) -> bool:

@@ -12,15 +12,21 @@ clear value, then runs the passes in order:
 * reads bound as textures: unit 0 is ``u_lights``, ``reads[k]`` is unit ``k + 1``; a sampler
   object per unit, nearest, or linear for the pass's ``"sampled"`` targets (integer and depth
   formats always nearest), clamp to edge;
-* the draw: scene geometry of the material filter; light volumes instanced over the light list
+* the draw: scene geometry of the material filter (one VBO per filter: the 14 floats of
+  ``Geometry.interleaved()`` plus ``Geometry.layer``, attributes ``a_position`` … ``a_layer``);
+  light volumes instanced over the light list
   with a per-instance ``a_light`` (all lights, the pass's ``light_types``, or the CPU-sorted
   set ``light_sets[pack][k]`` from ``packing.sort_lights_into_slots``); ``scissor`` light draws
   go one light at a time under ``reference.fixed_function.light_scissor_rect``; full-screen
   draws are one 3-vertex triangle.
 
 Consecutive passes with the same ``repeat_group`` run as a group once per light (``u_light`` set;
-a light draw inside the group draws only that light, and a pass whose light filter excludes the
-light is skipped for it, clears included).
+a light draw inside the group draws only that light, and a pass whose light filter or
+``repeat_types`` excludes the light is skipped for it, clears included).
+
+``cull auto`` light draws are split into consecutive runs of lights (in light order) that
+``reference.fixed_function.cull_runs`` gives the same face (back faces where the camera may be
+inside the volume, front faces elsewhere), each run drawn under its own cull state.
 
 Results are in GL row order (row 0 = window y 0, the bottom row), as codes (``gl_formats``); a
 d24s8 target ``ds`` yields ``"ds"`` (uint32 24-bit depth codes) and ``"ds.stencil"`` (uint8).
@@ -35,7 +41,7 @@ from typing import Any, Optional, Sequence
 import numpy as np
 
 from .. import formats as F
-from ..reference.fixed_function import light_scissor_rect
+from ..reference.fixed_function import cull_runs, light_scissor_rect
 from . import gl_formats as GF
 from . import gl_state as GS
 from .gl_context import GL, get_context
@@ -45,7 +51,8 @@ import moderngl
 __all__ = ["GLPipeline", "target_size"]
 
 SCENE_ATTRIBUTES = [("a_position", 3), ("a_normal", 3), ("a_albedo", 3), ("a_material", 3),
-                    ("a_ids", 2)]
+                    ("a_ids", 2), ("a_layer", 1)]
+SCENE_STRIDE = 4 * sum(n for _, n in SCENE_ATTRIBUTES)    # bytes per vertex (15 floats)
 
 
 def target_size(t: dict, out_w: int, out_h: int) -> tuple[int, int]:
@@ -167,6 +174,7 @@ class _Pass:
         self.depth_target = spec.get("depth_target")
         self.state = spec.get("state") or GS.default_state()
         self.group = spec.get("repeat_group")
+        self.repeat_types = list(spec.get("repeat_types") or [])
         try:
             fragment = spec.get("fragment") or None
             self.program = ctx.program(vertex_shader=spec["vertex"], fragment_shader=fragment)
@@ -331,8 +339,14 @@ class GLPipeline:
             else:
                 data = np.concatenate([g.positions, g.normals, g.albedo, g.material, g.ids],
                                       axis=1)
+            # the stipple layer is not part of ``interleaved()``: it is the last column here
+            layer = getattr(g, "layer", None)
+            if layer is None:
+                layer = np.zeros(len(data), np.float32)
+            data = np.concatenate([np.asarray(data, np.float32),
+                                   np.asarray(layer, np.float32).reshape(-1, 1)], axis=1)
             data = np.ascontiguousarray(data, dtype=np.float32)
-            buf = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * 56)
+            buf = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * SCENE_STRIDE)
             self._scene_vbos[material] = (buf, len(data))
         return self._scene_vbos[material]
 
@@ -448,6 +462,8 @@ class GLPipeline:
                 for q in group:
                     if q.name in lists and light not in lists[q.name]:
                         continue
+                    if q.repeat_types and _light_type(scene.lights[light]) not in q.repeat_types:
+                        continue
                     self._run_pass(q, light)
                     if capture_passes:
                         captures.append({"pass": q.name, "light": light,
@@ -510,7 +526,10 @@ class GLPipeline:
         w, h = p.viewport
         GL.glViewport(0, 0, w, h)
         depth_format = self.targets[p.depth_target].format if p.depth_target else None
-        GS.apply_state(p.state, p.writes, depth_format=depth_format)
+        state = p.state
+        if state.get("cull") == "auto":   # set per run of lights below
+            state = {**state, "cull": "none"}
+        GS.apply_state(state, p.writes, depth_format=depth_format)
         vao = self._vao(p)
         if p.kind == "scene":
             _, count = self._scene_vbo(tuple(p.draw.get("material") or ()))
@@ -520,10 +539,19 @@ class GLPipeline:
             indices = [light] if light is not None else self._light_list(p)
             if light is not None and p.light_filter() and light not in self._light_list(p):
                 indices = []
-            if indices:
+            lights = list(self._scene.lights)
+            cull = p.state.get("cull") or "none"
+            runs = cull_runs(cull, p.draw.get("volume") or "sphere", lights, indices,
+                             self._scene.camera.position, self._proj)
+            for mode, run in runs:
+                if cull == "auto":   # consecutive lights with the same choice, in light order
+                    run_state = {**p.state, "cull": mode}
+                    depth = p.state.get("depth") or {}
+                    if mode == "front" and depth.get("inside"):   # back faces: `inside FUNC`
+                        run_state["depth"] = {**depth, "func": depth["inside"]}
+                    GS.apply_state(run_state, p.writes, depth_format=depth_format)
                 if p.draw.get("scissor"):
-                    lights = list(self._scene.lights)
-                    for i in indices:
+                    for i in run:
                         rect = light_scissor_rect(lights[i].position, lights[i].radius,
                                                   self._view, self._proj, w, h)
                         if rect[2] == 0 or rect[3] == 0:
@@ -532,7 +560,7 @@ class GLPipeline:
                         self._draw_lights(p, vao, [i])
                     GS.set_scissor(None)
                 else:
-                    self._draw_lights(p, vao, indices)
+                    self._draw_lights(p, vao, run)
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
         for name in p.writes + ([p.depth_target] if p.depth_target else []):

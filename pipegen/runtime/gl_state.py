@@ -224,9 +224,12 @@ def state_from_ir(state) -> dict:
         return {"func": f.func.value, "ref": f.ref, "read_mask": f.read_mask,
                 "write_mask": f.write_mask, "fail": f.fail.value, "zfail": f.zfail.value,
                 "zpass": f.zpass.value}
+    depth = {"func": state.depth.func.value, "write": state.depth.write,
+             "clamp": state.depth.clamp}
+    if getattr(state.depth, "inside", None) is not None:
+        depth["inside"] = state.depth.inside.value
     return {
-        "depth": {"func": state.depth.func.value, "write": state.depth.write,
-                  "clamp": state.depth.clamp},
+        "depth": depth,
         "stencil": {"front": face(state.stencil.front), "back": face(state.stencil.back)},
         "blend": {name: {"enabled": b.enabled,
                          "rgb": [b.rgb.op.value, b.rgb.src.value, b.rgb.dst.value],
