@@ -86,7 +86,7 @@ def silhouette_mask(scene, translucent: bool = True, radius: int = 0) -> np.ndar
     return dilate(mask, radius)
 
 
-def _heat(t: np.ndarray) -> np.ndarray:
+def heat_map(t: np.ndarray) -> np.ndarray:
     """[0, 1] -> black, dark red, red, yellow, white (uint8 (..., 3))."""
     stops = np.array([[0, 0, 0], [128, 0, 0], [255, 32, 0], [255, 220, 0], [255, 255, 255]], np.float64)
     x = np.clip(t, 0.0, 1.0) * (len(stops) - 1)
@@ -106,7 +106,7 @@ def error_map_png(path, err: np.ndarray, vmax: float | None = None, mask: np.nda
     if e.ndim == 3:
         e = e.max(axis=2)
     top = float(vmax) if vmax is not None else max(float(e.max(initial=0.0)), 1.0)
-    rgb = _heat(e / top)
+    rgb = heat_map(e / top)
     if mask is not None:
         rgb[~np.asarray(mask, dtype=bool)] = (0, 0, 60)
     path = Path(path)
