@@ -1,35 +1,44 @@
 """Primitive setup and binning for the OpenCL reference (host side, numpy, vectorised).
 
-Between the vertex kernel (clip positions + varyings) and the raster kernel:
+Between the vertex kernel (clip positions + varyings) and the raster kernel.  Positions and
+window depth follow llvmpipe (Mesa 22.3) operation for operation, so depth codes agree exactly
+(tests/test_cl_depth.py):
 
-1. **clipping** in homogeneous space against z >= -w and z <= w (skipped with depth clamp, which
-   clips against w >= 1e-6 instead) and a guard band |x|, |y| <= 4w (so window coordinates stay
-   small enough for exact int64 edge functions).  Triangles crossing a plane are re-triangulated
-   as fans; new vertices interpolate clip position and varyings with the same parameter (exact
-   for perspective-correct interpolation); fans stay in the submission slot of their triangle.
-2. **viewport** in float32 like llvmpipe (``x * (1/w) * W/2 + W/2``), window z = ndc z / 2 + 1/2,
-   and **snapping** to 8 sub-pixel bits (``rint(x * 256)``, GL_SUBPIXEL_BITS = 8).
+1. **clipping** in homogeneous space as draw_pipe_clip.c: llvmpipe clips triangles against the
+   viewport planes x <= w, x >= -w, y <= w, y >= -w (no guard band) and, unless depth clamp is
+   on, z >= -w and z <= w, in that order, only against the planes some vertex is outside of
+   (vertex masks as draw's LLVM path tests them).  float32 throughout: plane distances
+   ``w - c`` / ``c + w``, ``t`` measured from the vertex nearer the plane, new vertex (clip
+   position and varyings) ``out + t * (in - out)``; a NaN/inf distance drops the triangle.
+   The polygon p0..pn-1 becomes the fan (p[i-1], p[i], p0) (emit_poly, last vertex
+   provoking), in the submission slot of its triangle.
+2. **viewport** in float32 like llvmpipe: shader vertices ``fma(x * (1/w), W/2, W/2)`` (draw's
+   LLVM path uses fmuladd, fused on FMA hardware), clipper-made ones ``x * (1/w) * W/2 + W/2``
+   rounded step by step (draw_pipe_clip.c interp); window z likewise with scale = translate =
+   1/2; **snapping** to 8 sub-pixel bits (``rint(x * 256)``, GL_SUBPIXEL_BITS = 8).
 3. **facing and culling** from the sign of the fixed-point area (counter-clockwise in GL window
    space = front); zero-area triangles produce no fragments.
 4. **interpolation planes** from the *unsnapped* window positions (llvmpipe computes its
    attribute planes from the float positions; only coverage uses the snapped ones): the
    barycentric weights of vertices 1 and 2 are linear in (x - x0, y - y0) (float32), the
-   varyings are weighted by ``l_k / w_k`` renormalised (perspective-correct).  Window z is a
-   plane in float64 (``zp``/``zq``), evaluated in double by the raster kernel and rounded once:
-   llvmpipe's own float plane is up to ~2-3 d24 codes off the exact depth on thin triangles,
-   a float32 evaluation here would add as much again.
+   varyings are weighted by ``l_k / w_k`` renormalised (perspective-correct).  Window z is
+   llvmpipe's own float32 plane (``depth_plane``): a0 at the window origin, dadx, dady from the
+   vertices in llvmpipe's order, evaluated per pixel by the raster kernel as
+   ``fma(dady, y, fma(dadx, x, a0))`` -- its rounding errors (several d24 codes on steep,
+   thin triangles far from the origin) included.
 5. **edge functions** ``E_k = A_k x + B_k y + C_k`` (edge k opposite vertex k, positive inside)
    in 1/256-pixel units, and the **top-left rule**: a pixel centre exactly on an edge belongs to
    the triangle when the edge's inward normal has A > 0, or A == 0 and B > 0 ("left" and, in GL
    window space with y up, "bottom" edges; measured on llvmpipe: it is the top-left rule of image
    space with row 0 on top).
-6. **polygon offset**: ``factor * max(|dz/dx|, |dz/dy|) + units * r`` with r = 2^-23 for d24
-   (llvmpipe's minimum resolvable difference times two: one unit moves d24 depth by two codes,
-   measured) and 2^(e - 23) for d32f (e = exponent of the triangle's largest |z|), added to
-   every fragment's z.
+6. **polygon offset** as lp_do_offset_tri, in float32 from the same setup values:
+   ``factor * max(|dz/dx|, |dz/dy|) + units * r`` with r = (float)(2 / (2^24 - 1)) for d24 (one
+   unit is two codes) and 2^(e - 23) for d32f (e = exponent of the triangle's largest |z|),
+   added to every fragment's z after the plane.
 7. **binning**: tiles of ``tile`` x ``tile`` pixels; per tile the triangles whose bounding box
    (and, for large boxes, whose edge functions) reach it, in submission order (a stable sort),
-   as CSR arrays ``tile_start`` / ``tile_tris``.
+   as CSR arrays ``tile_start`` / ``tile_tris``.  Boxes and tile tests use the pixel centres
+   with one sample per pixel (``samples=1``), any sample position otherwise.
 """
 
 from __future__ import annotations
@@ -40,7 +49,6 @@ from typing import Optional
 import numpy as np
 
 SUBPIXEL = 256
-GUARD_BAND = 4.0
 
 
 @dataclass
@@ -50,119 +58,301 @@ class Triangles:
     a: np.ndarray        # (N, 4) int32: A0, A1, A2, inclusive-edge bits
     b: np.ndarray        # (N, 4) int32: B0, B1, B2, 0
     c: np.ndarray        # (N, 4) int64: C0, C1, C2, 0
-    z: np.ndarray        # (N, 4) float32: z0, z1 - z0, z2 - z0, polygon offset
+    z: np.ndarray        # (N, 4) float32: window z plane a0, dadx, dady (llvmpipe's), offset
     iw: np.ndarray       # (N, 4) float32: 1/w of vertices 0..2, 0
     p: np.ndarray        # (N, 4) float32: window x, y of vertex 0 (unsnapped), 0, 0
     l: np.ndarray        # (N, 4) float32: l1 = l.x dx + l.y dy, l2 = l.z dx + l.w dy
-    zp: np.ndarray       # (N, 4) float64: window z plane x0, y0, z0 + offset, dz/dx
-    zq: np.ndarray       # (N, 4) float64: dz/dy, 0, 0, 0
+    zp: np.ndarray       # (N, 4) float64: exact plane x0, y0, z0 + offset, dz/dx (reference)
+    zq: np.ndarray       # (N, 4) float64: dz/dy, offset, a0 for pixel centre 0 (MSAA), 0
     flat: np.ndarray     # (N, 4) uint32: front bit, object id, normal group, light
     vtx: np.ndarray      # (N, 4) int32: vertex indices into the (extended) varyings
     scissor: np.ndarray  # (N, 4) int32: x0, y0, x1, y1 (exclusive); whole viewport if none
     bbox: np.ndarray     # (N, 4) int32: inclusive pixel range x0, y0, x1, y1
     vary: Optional[np.ndarray]   # (S, V', 4) float32 varyings incl. clipping's new vertices
     nverts: int
+    samples: Optional[int] = None    # samples per pixel the boxes are for (None: any)
 
     @property
     def count(self) -> int:
         return len(self.a)
 
 
-def _planes(depth_clamp: bool) -> np.ndarray:
-    g = GUARD_BAND
-    planes = [[1, 0, 0, g], [-1, 0, 0, g], [0, 1, 0, g], [0, -1, 0, g]]
-    if depth_clamp:
-        planes.append([0, 0, 0, 1])
-    else:
-        planes += [[0, 0, 1, 1], [0, 0, -1, 1]]
-    return np.array(planes, dtype=np.float64)
+def fma32(a, b, c) -> np.ndarray:
+    """Correctly rounded float32 ``a * b + c`` (vectorised): the product of two float32 is
+    exact in float64; the sum is rounded to odd in float64 (TwoSum error term) so that the
+    final rounding to float32 is a single correct one."""
+    a, b, c = (np.asarray(v, np.float32).astype(np.float64) for v in (a, b, c))
+    p = a * b
+    with np.errstate(invalid="ignore", over="ignore"):
+        s = p + c
+        bb = s - p
+        err = (p - (s - bb)) + (c - bb)
+        bits = s.view(np.int64)
+        fix = (err != 0) & np.isfinite(s) & ((bits & 1) == 0)
+        toward = np.where(np.signbit(err) == np.signbit(s), 1, -1)
+        s = np.where(fix, (bits + toward).view(np.float64), s)
+        return s.astype(np.float32)
+
+
+def depth_plane(xw, yw, zw, area, polygon_offset=None, depth_format=None, center=0.5,
+                with_ms_a0=False):
+    """Window-z plane of each triangle exactly as llvmpipe (Mesa 22.3) sets it up.
+
+    ``xw``, ``yw``, ``zw``: (N, 3) float32 window positions (unsnapped); ``area``: (N,) the
+    fixed-point doubled area (> 0 counter-clockwise in GL window space).  Returns ``(pz, off)``:
+    pz (N, 3) float32 ``a0, dadx, dady`` and off (N,) float32 polygon offset, such that the
+    fragment at pixel (X, Y) (integers) gets ``fma(dady, Y, fma(dadx, X, a0)) + off``.
+    ``center``: the pixel centre folded into a0 (0.5; 0 with multisampling, where llvmpipe
+    evaluates the plane at X + sample x, Y + sample y instead: key->pixel_center_half is
+    ``half_pixel_center && !multisample``).  ``with_ms_a0``: also return a0 for centre 0.
+
+    llvmpipe: lp_setup_tri.c (triangle_both) hands the setup function the vertices in its
+    own counter-clockwise order: (v0, v1, v2) when the GL-window area is negative, (v1, v0, v2)
+    when positive (the provoking vertex stays last).  lp_state_setup.c (init_args, calc_coef4)
+    then computes, all float32 without contraction:
+    ``ooa = 1 / ((x0-x1)(y2-y0) - (y0-y1)(x2-x0))``;
+    ``dadx = (z0-z1)((y2-y0) ooa) - (z2-z0)((y0-y1) ooa)``;
+    ``dady = (z2-z0)((x0-x1) ooa) - (z0-z1)((x2-x0) ooa)``;
+    ``a0 = z0 - (dadx (x0 - .5) + dady (y0 - .5))`` -- the value at the window origin, so the
+    float32 error grows with the gradient times the distance from the origin (up to tens of
+    d24 codes on steep, thin triangles; llvmpipe's own FIXME).  The fragment shader
+    (lp_bld_interp.c, attribs_update_simple) evaluates ``fmuladd(dady, y, fmuladd(dadx, x,
+    a0))`` at the integer pixel position (fused on FMA hardware) and adds the polygon offset
+    (lp_do_offset_tri, stored in a0.x) after the plane.
+    """
+    f32 = np.float32
+    xw, yw, zw = (np.asarray(v, f32) for v in (xw, yw, zw))
+    n = len(xw)
+    swap = np.asarray(area) > 0
+    order = np.where(swap[:, None], np.array([1, 0, 2]), np.array([0, 1, 2]))
+    x = np.take_along_axis(xw, order, 1)
+    y = np.take_along_axis(yw, order, 1)
+    z = np.take_along_axis(zw, order, 1)
+    half = f32(center)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        x0c, y0c = x[:, 0] - half, y[:, 0] - half
+        dx01, dy01 = x[:, 0] - x[:, 1], y[:, 0] - y[:, 1]
+        dx20, dy20 = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0]
+        ooa = f32(1.0) / (dx01 * dy20 - dy01 * dx20)
+        dz01, dz20 = z[:, 0] - z[:, 1], z[:, 2] - z[:, 0]
+        dadx = dz01 * (dy20 * ooa) - dz20 * (dy01 * ooa)
+        dady = dz20 * (dx01 * ooa) - dz01 * (dx20 * ooa)
+        a0 = z[:, 0] - (dadx * x0c + dady * y0c)
+        off = np.zeros(n, f32)
+        if polygon_offset is not None and n:
+            factor, units = float(polygon_offset[0]), float(polygon_offset[1])
+            # lp_do_offset_tri: cross(e, f).xy * ooa, max of the absolute values, * factor
+            zx = np.abs((dy20 * dz01 - dz20 * dy01) * ooa)
+            zy = np.abs((dz20 * dx01 - dx20 * dz01) * ooa)
+            mult = np.where(zx > zy, zx, zy) * f32(factor)
+            if depth_format == "d32f":
+                # units * 2^(exponent(max |z|) - 23), the exponent clamped at 2^-126.. 0
+                zmax = np.abs(z).max(axis=1)
+                e = (zmax.view(np.int32) & np.int32(0xFF << 23)) - np.int32(23 << 23)
+                bias = np.maximum(e, 0).astype(np.int32).view(f32) * f32(units)
+                off = bias + mult
+            else:
+                # lp_state_setup.c: pgon_offset_units = (float)(units * mrd * 2), mrd = 1/(2^24-1)
+                off = f32(units * (1.0 / 16777215.0) * 2.0) + mult
+        pz = np.stack([a0, dadx, dady], axis=1).astype(f32)
+        if with_ms_a0:
+            a0_ms = z[:, 0] - (dadx * x[:, 0] + dady * y[:, 0])
+            return pz, np.asarray(off, f32), a0_ms.astype(f32)
+        return pz, np.asarray(off, f32)
+
+
+# draw_pipe_clip.c's planes in its order (bit k of the vertex clip mask): x <= w, x >= -w,
+# y <= w, y >= -w, z >= -w (near), z <= w (far).  llvmpipe clips triangles without a guard
+# band (lp_context.c: draw_set_driver_clipping(draw, FALSE, FALSE, FALSE, TRUE)).
+_PLANE_AXIS = (0, 0, 1, 1, 2, 2)
+_PLANE_SIGN = (-1, 1, -1, 1, 1, -1)
+
+
+def _clip_mask(clip: np.ndarray, depth_clamp: bool) -> np.ndarray:
+    """Per-vertex outside bits as draw's LLVM vertex path tests them (float32)."""
+    x, y, z, w = (clip[:, k] for k in range(4))
+    zero = np.float32(0.0)
+    with np.errstate(invalid="ignore", over="ignore"):
+        bits = [x > w, zero > x + w, y > w, zero > y + w]
+        if not depth_clamp:      # depth clamp disables depth clipping (draw->clip_z)
+            bits += [zero > z + w, z > w]
+    m = np.zeros(len(clip), np.int64)
+    for k, b in enumerate(bits):
+        m |= b.astype(np.int64) << k
+    return m
+
+
+def _plane_dist(P: np.ndarray, k: int) -> np.ndarray:
+    """draw's dot4(clip_pos, plane) for plane k: ``w - c`` or ``c + w`` in float32."""
+    c, w = P[..., _PLANE_AXIS[k]], P[..., 3]
+    return (w - c) if _PLANE_SIGN[k] < 0 else (c + w)
+
+
+def _clip_polygons(P, A, n, mask):
+    """Sutherland-Hodgman as draw_pipe_clip.c (do_clip_tri, Mesa 22.3) on a batch of
+    polygons: P (M, K, 4) float32 clip positions, A (M, K, F) float32 attributes, n (M,)
+    vertex counts, mask (M,) the planes to clip against (union of the vertices' bits).
+    Returns (P, A, n, src) after clipping; src (M, K) is the input slot a vertex came from
+    (its original vertex when >= 0), -1 for vertices made by the clipper; n = 0: dropped."""
+    M, K = P.shape[:2]
+    src = np.where(np.arange(K)[None, :] < n[:, None], np.arange(K)[None, :], -1)
+    alive = np.ones(M, bool)
+    f32 = np.float32
+    for k in range(6):
+        sel = np.flatnonzero(alive & ((mask >> k) & 1 == 1) & (n >= 3))
+        if len(sel) == 0:
+            continue
+        Ps, As, ns, ss = P[sel], A[sel], n[sel], src[sel]
+        K = Ps.shape[1]
+        j = np.arange(K)[None, :]
+        valid = j < ns[:, None]
+        with np.errstate(invalid="ignore", over="ignore"):
+            dp = _plane_dist(Ps, k)
+        bad = (~np.isfinite(dp) & valid).any(axis=1)       # draw discards NaN/inf distances
+        cur = np.where(valid, (j + 1) % np.maximum(ns, 1)[:, None], 0)
+        dprev = dp
+        dcur = np.take_along_axis(dp, cur, 1)
+        inside = dprev >= 0
+        emit_prev = inside & valid
+        cross = np.where(inside, dcur < 0, ~(dcur < 0)) & valid
+        # t measured from the vertex nearer the plane: ``interp(new, t, out, in)`` with out
+        # the nearer one (measured: the older "t from the outside vertex" form misses
+        # llvmpipe 22.3.6 by up to hundreds of d24 codes on steep clipped triangles)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            denom = dcur - dprev
+            from_cur = np.where(dcur < 0, -dcur < dprev, ~(-dprev < dcur))
+            t = np.where(from_cur, dcur / denom, -dprev / denom).astype(f32)
+        Pc = np.take_along_axis(Ps, cur[..., None], 1)
+        Ac = np.take_along_axis(As, cur[..., None], 1)
+        fc = from_cur[..., None]
+        o_P, i_P = np.where(fc, Pc, Ps), np.where(fc, Ps, Pc)
+        o_A, i_A = np.where(fc, Ac, As), np.where(fc, As, Ac)
+        with np.errstate(invalid="ignore", over="ignore"):
+            newP = o_P + t[..., None] * (i_P - o_P)          # LINTERP(t, out, in)
+            newA = o_A + t[..., None] * (i_A - o_A)
+        # scatter: per edge [prev if inside] then [new if crossing]
+        cnt = emit_prev.astype(np.int64) + cross
+        pos = np.cumsum(cnt, axis=1) - cnt
+        n_out = cnt.sum(axis=1)
+        K2 = max(int(n_out.max()), 1)
+        oP = np.zeros((len(sel), K2, 4), f32)
+        oA = np.zeros((len(sel), K2, As.shape[2]), f32)
+        oS = np.full((len(sel), K2), -1, np.int64)
+        r, c = np.nonzero(emit_prev)
+        oP[r, pos[r, c]], oA[r, pos[r, c]], oS[r, pos[r, c]] = Ps[r, c], As[r, c], ss[r, c]
+        r, c = np.nonzero(cross)
+        q = pos[r, c] + emit_prev[r, c]
+        oP[r, q], oA[r, q] = newP[r, c], newA[r, c]
+        # write back (grow the batch arrays when a plane added vertices)
+        if K2 > P.shape[1]:
+            pad = K2 - P.shape[1]
+            P = np.concatenate([P, np.zeros((M, pad, 4), f32)], axis=1)
+            A = np.concatenate([A, np.zeros((M, pad, A.shape[2]), f32)], axis=1)
+            src = np.concatenate([src, np.full((M, pad), -1, np.int64)], axis=1)
+        P[sel, :K2], A[sel, :K2], src[sel, :K2] = oP, oA, oS
+        P[sel, K2:], src[sel, K2:] = 0, -1
+        n[sel] = n_out
+        alive[sel[bad]] = False
+    n = np.where(alive & (n >= 3), n, 0)
+    return P, A, n, src
 
 
 def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False):
-    """Clip (T*3, 4) clip-space vertices.  Returns (clip (V', 4) float32, vary (S, V', 4),
-    tri (N, 3) vertex indices, parent (N,) input triangle of each output triangle)."""
+    """Clip (T*3, 4) clip-space vertices like llvmpipe's draw module (float32, viewport x/y
+    planes, near/far unless ``depth_clamp``).  Returns (clip (V', 4) float32, vary (S, V', 4),
+    tri (N, 3) vertex indices, parent (N,) input triangle of each output triangle); vertices
+    from index len(clip) on were made by the clipper.  A clipped polygon p0..pn-1 is emitted as the
+    fan (p[i-1], p[i], p0), i = 2..n-1 (draw's emit_poly with the last vertex provoking), in
+    the submission slot of its triangle."""
     clip = np.asarray(clip, np.float32)
     T = len(clip) // 3
     tri = np.arange(T * 3, dtype=np.int64).reshape(T, 3)
     if T == 0:
         return clip, vary, tri, np.zeros(0, np.int64)
-    planes = _planes(depth_clamp)
-    eps = np.zeros(len(planes))
-    if depth_clamp:
-        eps[-1] = 1e-6
-    dist = clip.astype(np.float64) @ planes.T - eps           # (V, P), inside >= 0
-    out = (dist < 0).reshape(T, 3, -1)
-    outside_all = out.all(axis=1).any(axis=1)
-    crosses = out.any(axis=(1, 2)) & ~outside_all
-    keep = ~outside_all & ~crosses
+    vm = _clip_mask(clip[:T * 3], depth_clamp).reshape(T, 3)
+    union = vm[:, 0] | vm[:, 1] | vm[:, 2]
+    inter = vm[:, 0] & vm[:, 1] & vm[:, 2]
+    keep = union == 0
+    crosses = (union != 0) & (inter == 0)
     if not crosses.any():
         idx = np.flatnonzero(keep)
         return clip, vary, tri[idx], idx
     S = 0 if vary is None else vary.shape[0]
-    new_clip, new_vary, new_tri, new_parent = [], [], [], []
-    next_v = len(clip)
-    for t in np.flatnonzero(crosses):
-        verts = [np.concatenate([clip[3 * t + k].astype(np.float64),
-                                 (vary[:, 3 * t + k].reshape(-1).astype(np.float64) if S else np.zeros(0))])
-                 for k in range(3)]
-        poly = verts
-        for p, plane in enumerate(planes):
-            if not poly:
-                break
-            d = [float(v[:4] @ plane) - eps[p] for v in poly]
-            res = []
-            for k in range(len(poly)):
-                a, b, da, db = poly[k], poly[(k + 1) % len(poly)], d[k], d[(k + 1) % len(poly)]
-                if da >= 0:
-                    res.append(a)
-                if (da >= 0) != (db >= 0):
-                    res.append(a + (b - a) * (da / (da - db)))
-            poly = res
-        if len(poly) < 3:
-            continue
-        base = next_v
-        for v in poly:
-            new_clip.append(v[:4])
-            if S:
-                new_vary.append(v[4:].reshape(S, 4))
-        next_v += len(poly)
-        for k in range(1, len(poly) - 1):
-            new_tri.append((base, base + k, base + k + 1))
-            new_parent.append(t)
-    # merge kept and clipped triangles in submission order (fans stay in their slot)
+    ct = np.flatnonzero(crosses)
+    M = len(ct)
+    P = clip[tri[ct]].copy()                                   # (M, 3, 4)
+    if S:
+        A = np.transpose(np.asarray(vary, np.float32)[:, tri[ct]], (1, 2, 0, 3))
+        A = A.reshape(M, 3, S * 4)
+    else:
+        A = np.zeros((M, 3, 0), np.float32)
+    P, A, n, src = _clip_polygons(P, A, np.full(M, 3, np.int64), union[ct])
+    # vertex table: original vertices keep their index, clipper-made ones are appended
+    K = P.shape[1]
+    slot = np.arange(K)[None, :]
+    valid = slot < n[:, None]
+    made = valid & (src < 0)
+    new_id = np.full((M, K), -1, np.int64)
+    new_id[made] = len(clip) + np.arange(int(made.sum()))
+    orig_id = np.take_along_axis(tri[ct], np.maximum(src, 0), 1)
+    vid = np.where(src >= 0, orig_id, new_id)
+    # fans (p[i-1], p[i], p0)
+    nf = np.maximum(n - 2, 0)
+    par = np.repeat(np.arange(M), nf)
+    i = np.arange(int(nf.sum())) - np.repeat(np.cumsum(nf) - nf, nf) + 2
+    fan = np.stack([vid[par, i - 1], vid[par, i], vid[par, 0]], axis=1)
     kept = np.flatnonzero(keep)
-    all_tri = np.concatenate([tri[kept], np.array(new_tri, np.int64).reshape(-1, 3)])
-    parent = np.concatenate([kept, np.array(new_parent, np.int64)])
+    all_tri = np.concatenate([tri[kept], fan.reshape(-1, 3)])
+    parent = np.concatenate([kept, ct[par]])
     order = np.argsort(parent, kind="stable")
-    clip_out = np.concatenate([clip, np.array(new_clip, np.float32).reshape(-1, 4)])
+    clip_out = np.concatenate([clip, P[made]])
     vary_out = vary
     if S:
-        extra = np.stack(new_vary, axis=1).astype(np.float32) if new_vary else np.zeros((S, 0, 4), np.float32)
-        vary_out = np.concatenate([vary, extra], axis=1)
+        extra = np.transpose(A[made].reshape(-1, S, 4), (1, 0, 2))
+        vary_out = np.concatenate([np.asarray(vary, np.float32), extra], axis=1)
     return clip_out, vary_out, all_tri[order], parent[order]
+
+
+def window_coords(clip: np.ndarray, width: int, height: int, n_orig: int) -> np.ndarray:
+    """(V, 4) float32 ``1/w, x, y, z`` in window space, as llvmpipe's draw module computes
+    them: vertices ``< n_orig`` (from the vertex shader) in the LLVM path, ``x * (1/w)`` then a
+    fused multiply-add with the viewport scale and translation; vertices made by the clipper in
+    C (draw_pipe_clip.c interp: ``x * oow * scale + trans``, separately rounded)."""
+    f32 = np.float32
+    clip = np.asarray(clip, f32)
+    out = np.empty((len(clip), 4), f32)
+    scale = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
+    trans = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        oow = f32(1.0) / clip[:, 3]
+        out[:, 0] = oow
+        for k in range(3):
+            p = clip[:, k] * oow
+            out[:n_orig, k + 1] = fma32(p[:n_orig], scale[k], trans[k])
+            out[n_orig:, k + 1] = p[n_orig:] * scale[k] + trans[k]
+    return out
 
 
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "none",
                     polygon_offset=None, depth_clamp: bool = False,
                     depth_format: Optional[str] = None, flat: Optional[np.ndarray] = None,
                     vary: Optional[np.ndarray] = None,
-                    scissor: Optional[np.ndarray] = None) -> Triangles:
+                    scissor: Optional[np.ndarray] = None,
+                    samples: Optional[int] = None) -> Triangles:
     """Clip, project, snap, cull and build edge equations for a non-indexed triangle list.
 
     ``clip``: (3T, 4) clip-space positions; ``flat``: (T, 4) uint32 per input triangle (y, z,
     w are kept; x is replaced by the facing bit); ``vary``: (S, 3T, 4); ``scissor``: (T, 4)
-    int32 x0, y0, x1, y1 (exclusive) per input triangle, clamped to the viewport.
+    int32 x0, y0, x1, y1 (exclusive) per input triangle, clamped to the viewport;
+    ``samples``: samples per pixel of the pass (1: bounding boxes of pixel centres; None: of
+    any sample position, always safe).
     """
     clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp)
     N = len(tri)
     W, H = int(width), int(height)
     f32 = np.float32
-    c = clip_v[tri.reshape(-1)].reshape(N, 3, 4)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        iw = f32(1.0) / c[..., 3]
-        xw = (c[..., 0] * iw) * f32(W * 0.5) + f32(W * 0.5)
-        yw = (c[..., 1] * iw) * f32(H * 0.5) + f32(H * 0.5)
-        zw = (c[..., 2] * iw) * f32(0.5) + f32(0.5)
+    win = window_coords(clip_v, W, H, len(clip))
+    iw, xw, yw, zw = (win[:, k][tri] for k in range(4))
     X = np.rint(xw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     Y = np.rint(yw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
@@ -171,12 +361,14 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
         keep &= area > 0
     elif cull == "front":
         keep &= area < 0
-    # bounding boxes: pixels whose centres (p + 0.5) may be inside
-    half = SUBPIXEL // 2
-    x0 = -((-(X.min(1) - half)) // SUBPIXEL)
-    x1 = (X.max(1) - half) // SUBPIXEL
-    y0 = -((-(Y.min(1) - half)) // SUBPIXEL)
-    y1 = (Y.max(1) - half) // SUBPIXEL
+    # bounding boxes: pixels with a sample position (the centre, 128/256, when ``samples`` is
+    # 1; any of 1..255/256 otherwise) inside the box.  Clipping makes slivers along the
+    # viewport edges that cover samples but no pixel centre.
+    lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
+    x0 = -((-(X.min(1) - lo)) // SUBPIXEL)
+    x1 = (X.max(1) - hi) // SUBPIXEL
+    y0 = -((-(Y.min(1) - lo)) // SUBPIXEL)
+    y1 = (Y.max(1) - hi) // SUBPIXEL
     sc = np.tile(np.array([0, 0, W, H], np.int64), (N, 1))
     if scissor is not None:
         s = np.asarray(scissor, np.int64)[parent]
@@ -189,7 +381,8 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     keep &= (x0 <= x1) & (y0 <= y1)
     idx = np.flatnonzero(keep)
     X, Y, area, iw, zw, tri, parent = X[idx], Y[idx], area[idx], iw[idx], zw[idx], tri[idx], parent[idx]
-    xw, yw = xw[idx].astype(np.float64), yw[idx].astype(np.float64)
+    xw_f, yw_f = xw[idx], yw[idx]
+    xw, yw = xw_f.astype(np.float64), yw_f.astype(np.float64)
     x0, y0, x1, y1, sc = x0[idx], y0[idx], x1[idx], y1[idx], sc[idx]
     n = len(idx)
     s = np.sign(area)
@@ -206,11 +399,6 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     tri_b[:, :3] = B
     tri_c = np.zeros((n, 4), np.int64)
     tri_c[:, :3] = C
-    z64 = zw.astype(np.float64)
-    tri_z = np.zeros((n, 4), np.float32)
-    tri_z[:, 0] = zw[:, 0]
-    tri_z[:, 1] = z64[:, 1] - z64[:, 0]
-    tri_z[:, 2] = z64[:, 2] - z64[:, 0]
     tri_iw = np.zeros((n, 4), np.float32)
     tri_iw[:, :3] = iw
     tri_p = np.zeros((n, 4), np.float32)
@@ -221,30 +409,23 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = np.where(det != 0, 1.0 / det, 0.0)
     tri_l = np.stack([fy * inv, -fx * inv, -ey * inv, ex * inv], axis=1).astype(np.float32)
-    # window z in float64 (the raster kernel evaluates it in double and rounds once: half the
-    # error llvmpipe's float plane has, so the two stay within the d24 tolerance)
+    # window z: llvmpipe's float32 plane (a0 at the window origin, see depth_plane)
+    pz, offset, a0_ms = depth_plane(xw_f, yw_f, zw, area, polygon_offset, depth_format,
+                                    with_ms_a0=True)
+    tri_z = np.zeros((n, 4), np.float32)
+    tri_z[:, :3], tri_z[:, 3] = pz, offset
+    # zp: the exact plane in float64 (x0, y0, z0 + offset, dz/dx; for reference and tests);
+    # zq: dz/dy, the polygon offset, and a0 with pixel centre 0 (multisampling; read by the
+    # raster kernel only when PG_SAMPLES > 1)
+    z64 = zw.astype(np.float64)
     dz1, dz2 = z64[:, 1] - z64[:, 0], z64[:, 2] - z64[:, 0]
     tri_zp = np.zeros((n, 4), np.float64)
     tri_zq = np.zeros((n, 4), np.float64)
-    tri_zp[:, 0], tri_zp[:, 1], tri_zp[:, 2] = xw[:, 0], yw[:, 0], z64[:, 0]
+    tri_zp[:, 0], tri_zp[:, 1], tri_zp[:, 2] = xw[:, 0], yw[:, 0], z64[:, 0] + offset
     tri_zp[:, 3] = dz1 * (fy * inv) + dz2 * (-ey * inv)
     tri_zq[:, 0] = dz1 * (-fx * inv) + dz2 * (ex * inv)
-    if polygon_offset is not None and n:
-        factor, units = float(polygon_offset[0]), float(polygon_offset[1])
-        xs, ys, zs = X / SUBPIXEL, Y / SUBPIXEL, zw.astype(np.float64)
-        ex, ey, ez = xs[:, 1] - xs[:, 0], ys[:, 1] - ys[:, 0], zs[:, 1] - zs[:, 0]
-        fx, fy, fz = xs[:, 2] - xs[:, 0], ys[:, 2] - ys[:, 0], zs[:, 2] - zs[:, 0]
-        det = ex * fy - ey * fx
-        dzdx = (ez * fy - ey * fz) / det
-        dzdy = (ex * fz - ez * fx) / det
-        if depth_format == "d32f":
-            zmax = np.abs(zs).max(axis=1)
-            e = np.floor(np.log2(np.maximum(zmax, 2.0 ** -126)))
-            r = 2.0 ** (e - 23)
-        else:
-            r = 2.0 ** -23      # llvmpipe: units count two d24 codes each (measured)
-        tri_z[:, 3] = (factor * np.maximum(np.abs(dzdx), np.abs(dzdy)) + units * r).astype(np.float32)
-        tri_zq[:, 1] = tri_z[:, 3]
+    tri_zq[:, 1] = offset
+    tri_zq[:, 2] = a0_ms
     tri_flat = np.zeros((n, 4), np.uint32)
     if flat is not None:
         tri_flat[:] = np.asarray(flat, np.uint32)[parent]
@@ -254,7 +435,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     return Triangles(tri_a, tri_b, tri_c, tri_z, tri_iw, tri_p, tri_l, tri_zp, tri_zq, tri_flat,
                      tri_vtx,
                      sc.astype(np.int32), np.stack([x0, y0, x1, y1], axis=1).astype(np.int32),
-                     vary_v, len(clip_v))
+                     vary_v, len(clip_v), samples)
 
 
 def bin_triangles(tris: Triangles, width: int, height: int, tile: int = 16,
@@ -283,11 +464,13 @@ def bin_triangles(tris: Triangles, width: int, height: int, tile: int = 16,
     if big.any():
         sel = np.flatnonzero(big)
         t = rep[sel]
-        # the tile corner that maximises each edge function (pixel-centre positions)
-        xa = (tx[sel] * tile) * SUBPIXEL + SUBPIXEL // 2
-        xb = (np.minimum(tx[sel] * tile + tile, width) - 1) * SUBPIXEL + SUBPIXEL // 2
-        ya = (ty[sel] * tile) * SUBPIXEL + SUBPIXEL // 2
-        yb = (np.minimum(ty[sel] * tile + tile, height) - 1) * SUBPIXEL + SUBPIXEL // 2
+        # the tile corner that maximises each edge function (pixel-centre positions with one
+        # sample, else the extreme sample positions any pattern could use)
+        lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if tris.samples == 1 else (1, SUBPIXEL - 1)
+        xa = (tx[sel] * tile) * SUBPIXEL + lo
+        xb = (np.minimum(tx[sel] * tile + tile, width) - 1) * SUBPIXEL + hi
+        ya = (ty[sel] * tile) * SUBPIXEL + lo
+        yb = (np.minimum(ty[sel] * tile + tile, height) - 1) * SUBPIXEL + hi
         ok = np.ones(len(sel), bool)
         for k in range(3):
             A = tris.a[t, k].astype(np.int64)
