@@ -542,3 +542,19 @@ def test_depth_only_pass_without_fragment_shader(samples):
     assert (out["ds"][:, ~left] == 0xFFFFFF).all()
     assert (out["ds.stencil"][:, left] == 5).all() and (out["ds.stencil"][:, ~left] == 0).all()
     assert (out["c"][:, left] == 255).all() and (out["c"][:, ~left] == 0).all()
+
+
+def test_errors_left_by_other_moderngl_code_do_not_break_the_runtime():
+    """moderngl never checks glGetError: an error a user's own call leaves pending must not
+    surface from the runtime's next (PyOpenGL-checked) call."""
+    from pipegen.compiler import compile_source
+    from pipegen.runtime.gl_context import GL, get_context
+    from pipegen.scene import default_scene
+    ctx = get_context()
+    ctx.enable_direct(0xFFFF)            # GL_INVALID_ENUM, left pending by moderngl
+    compiled = compile_source('technique t "x"\ntarget color : rgba8\n'
+                              'pass p { draw fullscreen writes color '
+                              'fragment { color = vec4(1.0); } }\n')
+    out = compiled.pipeline("gl", size=(4, 4)).render(default_scene())
+    assert (out["color"] == 255).all()
+    assert GL.glGetError() == GL.GL_NO_ERROR

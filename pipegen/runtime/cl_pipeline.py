@@ -49,6 +49,7 @@ from .. import formats as F
 from ..backends import opencl as clgen
 from ..ir import Size
 from . import cl_context
+from .light_table import check_light_capacity
 from .cl_setup import bin_triangles, setup_triangles
 
 __all__ = ["CLPipeline", "FRAME_DTYPE"]
@@ -424,11 +425,11 @@ class CLPipeline:
         self.dropped_lights = {}
         self._scene_attrs = {}
         capacity = max(1, int(self.plan["lights"]["capacity"]))
-        if len(scene.lights) > capacity:
-            raise ValueError(f"the scene has {len(scene.lights)} lights but the technique's "
-                             f"light table holds {capacity}")
+        if self.plan["lights"]["fields"]:
+            check_light_capacity(len(scene.lights), capacity, self.plan)
         fields = [list(f) for f in self.plan["lights"]["fields"]]
-        table = np.asarray(scene.light_table(fields, capacity), np.float32)
+        table = (np.asarray(scene.light_table(fields, capacity), np.float32) if fields
+                 else np.zeros((0, 4), np.float32))
         self._lights_buf = self._buffer(table.reshape(-1, 4) if table.size
                                         else np.zeros((1, 4), np.float32))
 

@@ -25,7 +25,7 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 import moderngl  # noqa: E402
 from OpenGL import GL  # noqa: E402,F401  (re-exported: the runtime's single GL import point)
 
-__all__ = ["GL", "get_context", "gl_limits", "describe", "check_error"]
+__all__ = ["GL", "get_context", "gl_limits", "describe", "check_error", "clear_stale_errors"]
 
 _lock = threading.Lock()
 _ctx: moderngl.Context | None = None
@@ -71,3 +71,21 @@ def check_error(where: str = "") -> None:
     err = GL.glGetError()
     if err != GL.GL_NO_ERROR:
         raise RuntimeError(f"OpenGL error 0x{int(err):04x} {where}".rstrip())
+
+
+def clear_stale_errors() -> list[int]:
+    """Consume GL errors left pending by other code on the shared context.
+
+    moderngl never calls glGetError, so an error raised by a user's (or a test's) moderngl
+    call stays pending until PyOpenGL, which checks after every call, reports it from the next
+    unrelated call of ours.  The runtime clears them before it starts a frame so that its own
+    error checks only ever report its own calls.
+    """
+    get_context()
+    errors = []
+    for _ in range(16):          # GL may queue one error per flag; it never exceeds a few
+        e = GL.glGetError()
+        if e == GL.GL_NO_ERROR:
+            break
+        errors.append(int(e))
+    return errors

@@ -44,7 +44,8 @@ from .. import formats as F
 from ..reference.fixed_function import cull_runs, light_scissor_rect
 from . import gl_formats as GF
 from . import gl_state as GS
-from .gl_context import GL, get_context
+from .light_table import check_light_capacity
+from .gl_context import GL, clear_stale_errors, get_context
 
 import moderngl
 
@@ -216,6 +217,7 @@ class GLPipeline:
     def __init__(self, plan: dict, size: Optional[tuple[int, int]] = None):
         self.plan = plan
         self.ctx = get_context()
+        clear_stale_errors()
         self.size = None if size is None else (int(size[0]), int(size[1]))
         self.passes = [_Pass(self.ctx, p, k) for k, p in enumerate(plan["passes"])]
         self.targets: dict[str, _Target] = {}
@@ -321,12 +323,11 @@ class GLPipeline:
         self._light_sets = {}
         self.dropped_lights = {}
         lights = list(scene.lights)
-        if len(lights) > self.capacity:
-            raise ValueError(f"the scene has {len(lights)} lights but the technique's light "
-                             f"table holds {self.capacity}")
-        table = np.asarray(scene.light_table([list(f) for f in self.fields], self.capacity),
-                           dtype=np.float32)
         if self.fields:
+            check_light_capacity(len(lights), self.capacity, self.plan)
+        if self.fields:
+            table = np.asarray(scene.light_table([list(f) for f in self.fields],
+                                                 self.capacity), dtype=np.float32)
             GF.write_texture(self.light_tex, "rgba32f", table.reshape(self.capacity,
                                                                         len(self.fields), 4))
         self._scene = scene
@@ -432,6 +433,7 @@ class GLPipeline:
         GL.glFinish()
 
     def _draw(self, scene, params: Optional[dict], capture_passes: bool) -> list[dict]:
+        clear_stale_errors()
         if self._released:
             raise RuntimeError("GLPipeline used after release()")
         self._check_params(params)
