@@ -1,7 +1,9 @@
 """GL (llvmpipe) vs CL (PoCL) frame time per technique, measured in one run.
 
     python benchmarks/backends.py [--scene examples/scenes/many_lights.toml] [--size 640x360]
-        [--frames 3] [--threads 2] [technique ...]
+        [--frames 3] [--threads 2] [technique[:param=value,...] ...]
+
+e.g. ``inferred:lbuffer_scale=0.625 inferred:lbuffer_scale=1.0 light_prepass deferred forward``.
 
 Both backends run the full ``render()`` (all passes, then read-back of every target), so the
 ratio compares like with like.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to
@@ -21,6 +23,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
               "lidr_bitplanes"]
+
+
+def parse_spec(spec: str) -> tuple[str, dict]:
+    """``name:a=1,b=x`` -> ("name", {"a": "1", "b": "x"}) (the compiler parses the values)."""
+    name, _, rest = spec.partition(":")
+    params = dict(kv.split("=", 1) for kv in rest.split(",") if kv)
+    return name, params
 
 
 def timed(fn, frames: int) -> float:
@@ -54,17 +63,20 @@ def main() -> int:
           f"{len(scene.lights)} lights; LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {args.threads}",
           file=sys.stderr)
     rows = []
-    for i, name in enumerate(args.techniques, 1):
-        compiled = compile_file(ROOT / f"pipelines/{name}.pipe")
+    for i, spec in enumerate(args.techniques, 1):
+        name, params = parse_spec(spec)
+        compiled = compile_file(ROOT / f"pipelines/{name}.pipe", params=params)
+        name = spec
         gl, cl = compiled.pipeline("gl"), compiled.pipeline("cl")
         print(f"[{i}/{len(args.techniques)}] {name}", file=sys.stderr)
         gl_s = timed(lambda: gl.render(scene), args.frames)
         cl_s = timed(lambda: cl.render(scene), args.frames)
         gl.release()
         rows.append((name, gl_s, cl_s))
-    print(f"{'technique':<20} {'GL ms':>8} {'CL ms':>8} {'CL/GL':>7}")
+    width = max(20, *(len(r[0]) for r in rows))
+    print(f"{'technique':<{width}} {'GL ms':>8} {'CL ms':>8} {'CL/GL':>7}")
     for name, g, c in rows:
-        print(f"{name:<20} {g * 1e3:>8.1f} {c * 1e3:>8.1f} {c / g:>6.2f}x")
+        print(f"{name:<{width}} {g * 1e3:>8.1f} {c * 1e3:>8.1f} {c / g:>6.2f}x")
     return 0
 
 
