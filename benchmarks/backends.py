@@ -15,31 +15,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes"]
-
-
-def parse_spec(spec: str) -> tuple[str, dict]:
-    """``name:a=1,b=x`` -> ("name", {"a": "1", "b": "x"}) (the compiler parses the values)."""
-    name, _, rest = spec.partition(":")
-    params = dict(kv.split("=", 1) for kv in rest.split(",") if kv)
-    return name, params
-
-
-def timed(fn, frames: int) -> float:
-    fn()                                           # warm-up: programs, buffers, kernel cache
-    times = []
-    for _ in range(frames):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+from common import ROOT, TECHNIQUES, compile_spec, median_time, scene_at
 
 
 def main() -> int:
@@ -54,23 +33,19 @@ def main() -> int:
     os.environ["LP_NUM_THREADS"] = args.threads
     os.environ["POCL_MAX_PTHREAD_COUNT"] = args.threads
 
-    from pipegen.compiler import compile_file
-    from pipegen.scene import load_scene
-
-    w, h = (int(v) for v in args.size.split("x"))
-    scene = load_scene(args.scene).with_size(w, h)
+    scene = scene_at(args.scene, args.size)
+    w, h = scene.width, scene.height
     print(f"{Path(args.scene).name} at {w}x{h}: {len(scene.objects)} objects, "
           f"{len(scene.lights)} lights; LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {args.threads}",
           file=sys.stderr)
     rows = []
     for i, spec in enumerate(args.techniques, 1):
-        name, params = parse_spec(spec)
-        compiled = compile_file(ROOT / f"pipelines/{name}.pipe", params=params)
+        compiled = compile_spec(spec)
         name = spec
         gl, cl = compiled.pipeline("gl"), compiled.pipeline("cl")
         print(f"[{i}/{len(args.techniques)}] {name}", file=sys.stderr)
-        gl_s = timed(lambda: gl.render(scene), args.frames)
-        cl_s = timed(lambda: cl.render(scene), args.frames)
+        gl_s = median_time(lambda: gl.render(scene), args.frames)
+        cl_s = median_time(lambda: cl.render(scene), args.frames)
         gl.release()
         rows.append((name, gl_s, cl_s))
     width = max(20, *(len(r[0]) for r in rows))

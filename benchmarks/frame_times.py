@@ -1,7 +1,7 @@
 """Compile time and GL frame time per technique, measured in one run.
 
     LP_NUM_THREADS=2 python benchmarks/frame_times.py [--scene examples/scenes/many_lights.toml]
-        [--size 1280x720] [--frames 5]
+        [--size 1280x720] [--frames 5] [technique[:param=value,...] ...]
 
 Compile time is ``compile_file`` plus GLSL emission (median of 5).  Frame time is the median of
 ``--frames`` renders after one warm-up, each ending in ``glFinish`` with no read-back.
@@ -11,23 +11,10 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes"]
-
-
-def median_time(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
+from common import ROOT, TECHNIQUES, compile_spec, median_time, scene_at
 
 
 def main() -> int:
@@ -40,29 +27,25 @@ def main() -> int:
     args = ap.parse_args()
     os.environ.setdefault("LP_NUM_THREADS", "2")
 
-    from pipegen.compiler import compile_file
-    from pipegen.scene import load_scene
-
-    w, h = (int(v) for v in args.size.split("x"))
-    scene = load_scene(args.scene).with_size(w, h)
+    scene = scene_at(args.scene, args.size)
+    w, h = scene.width, scene.height
     print(f"scene {Path(args.scene).name}: {len(scene.objects)} objects, {len(scene.lights)} "
           f"lights, {w}x{h}; LP_NUM_THREADS={os.environ['LP_NUM_THREADS']}", file=sys.stderr)
     rows = []
     for name in args.techniques:
-        path = ROOT / f"pipelines/{name}.pipe"
-        compile_s = median_time(lambda: compile_file(path).plan("gl"), 5)
-        pipeline = compile_file(path).pipeline("gl")
-        pipeline.frame(scene)                      # warm-up: buffers, shader variants
+        compile_s = median_time(lambda: compile_spec(name).plan("gl"), 5)
+        pipeline = compile_spec(name).pipeline("gl")
         frame_s = median_time(lambda: pipeline.frame(scene), args.frames)
         pipeline.release()
         rows.append((name, compile_s, frame_s))
         print(f"  {name}: compile {compile_s * 1e3:.0f} ms, GL frame {frame_s * 1e3:.0f} ms",
               file=sys.stderr)
     base = dict((r[0], r[2]) for r in rows).get("forward")
-    print(f"{'technique':<20} {'compile ms':>10} {'GL frame ms':>12} {'vs forward':>10}")
+    width = max(20, *(len(r[0]) for r in rows))
+    print(f"{'technique':<{width}} {'compile ms':>10} {'GL frame ms':>12} {'vs forward':>10}")
     for name, c, f in rows:
         ratio = f"{f / base:.2f}x" if base else "-"
-        print(f"{name:<20} {c * 1e3:>10.1f} {f * 1e3:>12.1f} {ratio:>10}")
+        print(f"{name:<{width}} {c * 1e3:>10.1f} {f * 1e3:>12.1f} {ratio:>10}")
     return 0
 
 

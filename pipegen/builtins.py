@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Optional, Sequence
 
 from . import ir
-from .formats import Format, Kind
+from .formats import Format
 
 # ---------------------------------------------------------------------------------------------
 # Builtin functions

@@ -1432,7 +1432,7 @@ class _BodyChecker:
             if a.type.size < t.size:
                 raise _err(e.span, f"{t}(…) needs {t.size} components; {_a(a.type)} has "
                            f"{a.type.size}", f"add the missing ones, e.g. {t}(v, 1.0)"
-                           if t.scalar is ir.Scalar.FLOAT else f"add the missing components")
+                           if t.scalar is ir.Scalar.FLOAT else "add the missing components")
             if a.type.size > t.size:     # vec3(v4): keep the leading components
                 a = ir.Swizzle(a, "xyzw"[:t.size], a.type.with_size(t.size))
             return _convert(a, t.scalar)

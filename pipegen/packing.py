@@ -492,7 +492,7 @@ class _ChannelSlots(_Scheme):
                  f"vec4 {name}_value(uint index) {{\n"
                  f"    return vec4(float(index) / {_fl(sc)});\n"
                  f"}}")
-        lines = [f"// The index in slot k (0 = none).",
+        lines = ["// The index in slot k (0 = none).",
                  f"uint {name}_unpack(vec4 v, int k) {{"]
         for k in range(self.slots):
             lines += [f"    if (k == {k}) {{",
