@@ -2,7 +2,10 @@
 
 Tolerances come from ``formats.py`` (DESIGN.md §7): unorm targets may differ by 1 + P codes
 where P counts the blend steps into the target, float targets by ulps, and packed light-index
-or ID targets and stencil must be exact.  When a target disagrees, both backends are re-run
+or ID targets and stencil must be exact.  P is per pixel where the CL backend counted the
+fragments it blended into each pixel (``CLPipeline.last_blend_counts``: a light-volume pass
+blends once per overlapping light); otherwise ``blend_steps`` counts blended passes (once per
+light in repeat groups) for the whole target.  When a target disagrees, both backends are re-run
 capturing every target after every pass, and the first pass whose outputs diverge is named.
 """
 
@@ -52,7 +55,10 @@ def blend_steps(plan: dict, target: str, lights: int) -> int:
 
 
 def compare_targets(compiled, gl: dict, cl: dict, lights: int,
-                    only: Optional[set] = None) -> list[TargetComparison]:
+                    only: Optional[set] = None,
+                    counts: Optional[dict] = None) -> list[TargetComparison]:
+    """One comparison per target; ``counts``: per-pixel blend counts ``{target: (H, W)}`` (the
+    CL backend's ``last_blend_counts``), P of a target that has none is ``blend_steps``."""
     tech = compiled.technique
     plan = compiled.plan("gl")
     hints = target_hints(tech)
@@ -68,7 +74,11 @@ def compare_targets(compiled, gl: dict, cl: dict, lights: int,
         tol = formats.Tolerance("exact", 0) if exact else None
         if key not in cl:
             raise AssertionError(f"the CL backend returned no {key!r}")
-        rows.append(compare_target(key, fmt, gl[key], cl[key], blend_steps(plan, base, lights),
+        p = blend_steps(plan, base, lights)
+        per_pixel = (counts or {}).get(base) if not aspect else None
+        if per_pixel is not None and per_pixel.shape == gl[key].shape[:2]:
+            p = per_pixel
+        rows.append(compare_target(key, fmt, gl[key], cl[key], p,
                                    tolerance=tol, exact_channels=channels))
     return rows
 
@@ -81,7 +91,8 @@ def check(compiled, scene, out_dir: Optional[Path] = None,
     gl = gl_pipe.render(scene)
     progress("rendering on CL (PoCL)")
     cl = cl_pipe.render(scene)
-    result = CheckResult(compiled.name, compare_targets(compiled, gl, cl, len(scene.lights)))
+    result = CheckResult(compiled.name, compare_targets(
+        compiled, gl, cl, len(scene.lights), counts=getattr(cl_pipe, "last_blend_counts", None)))
     if out_dir is not None:
         write_error_images(result.rows, out_dir)
     if not result.passed:
@@ -100,7 +111,8 @@ def first_divergent_pass(compiled, gl_pipe, cl_pipe, scene) -> Optional[str]:
         assert (g["pass"], g["light"]) == (c["pass"], c["light"]), "backends ran different passes"
         p = passes[g["pass"]]
         written = set(p.writes) | ({p.depth_target} if p.depth_target else set())
-        rows = compare_targets(compiled, g["targets"], c["targets"], len(scene.lights), written)
+        rows = compare_targets(compiled, g["targets"], c["targets"], len(scene.lights), written,
+                               counts=c.get("blend_counts"))
         bad = [r.name for r in rows if not r.passed]
         if bad:
             where = g["pass"] if g["light"] is None else f"{g['pass']} (light {g['light']})"
@@ -111,11 +123,13 @@ def first_divergent_pass(compiled, gl_pipe, cl_pipe, scene) -> Optional[str]:
 def error_image(row: TargetComparison) -> np.ndarray:
     """Black: equal; grey ramp: within tolerance; red: over tolerance; yellow: admitted edge."""
     e = row.error_map
-    limit = max(row.tolerance.limit, 1)
+    tol = row.tolerance.limit if row.limit_map is None else row.limit_map
+    limit = np.maximum(tol, 1)
     img = np.zeros(e.shape + (3,), np.uint8)
-    within = (e > 0) & (e <= row.tolerance.limit)
-    img[within] = (60 + 120 * np.minimum(e[within] / limit, 1.0))[:, None].astype(np.uint8)
-    over = e > row.tolerance.limit
+    within = (e > 0) & (e <= tol)
+    ratio = e / limit
+    img[within] = (60 + 120 * np.minimum(ratio[within], 1.0))[:, None].astype(np.uint8)
+    over = e > tol
     img[over] = (255, 40, 40)
     return img
 

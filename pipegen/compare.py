@@ -10,6 +10,7 @@ on a primitive edge, if it sits next to a discontinuity: admitted, counted, and 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional, Union
 
 import numpy as np
 
@@ -31,6 +32,7 @@ class TargetComparison:
     edge_admitted: int
     edge_bound: int
     error_map: np.ndarray     # (H, W) float: per-pixel error in units (for the error PNG)
+    limit_map: Optional[np.ndarray] = None   # (H, W) per-pixel limit (per-pixel P), else None
 
     @property
     def passed(self) -> bool:
@@ -38,39 +40,59 @@ class TargetComparison:
 
     def row(self) -> tuple[str, ...]:
         units = {"code": "codes", "ulp": "ulp", "exact": "exact"}[self.tolerance.units]
+        limit = f"≤{self.tolerance.limit}"
+        if self.limit_map is not None and self.limit_map.size:
+            lo, hi = int(self.limit_map.min()), int(self.limit_map.max())
+            limit = f"≤{lo}..{hi}" if lo != hi else f"≤{hi}"
         return (self.name, self.format.name, f"{_num(self.max_error)} {units}",
-                f"{self.rmse:.3g}", f"≤{self.tolerance.limit}", str(self.over),
+                f"{self.rmse:.3g}", limit, str(self.over),
                 f"{self.edge_admitted}/{self.edge_bound}", "ok" if self.passed else "FAIL")
 
 
 def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
-                   blended_passes: int = 0, tolerance: Tolerance | None = None,
+                   blended_passes: Union[int, np.ndarray] = 0,
+                   tolerance: Tolerance | None = None,
                    stencil: bool = False, exact_channels: tuple[bool, ...] = ()
                    ) -> TargetComparison:
     """Compare codes ``a`` and ``b`` (same shape) of target ``name`` in format ``fmt``.
 
+    ``blended_passes``: P of DESIGN.md §7, one number for the whole target or an (H, W)
+    array of per-pixel counts (how many fragments were blended into each pixel); each pixel
+    is then held to ``fmt.tolerance(P[y, x])`` (the reported tolerance is the largest).
     ``exact_channels`` flags channels that must match exactly (packed integers sharing a
     target with ordinary values): any difference there counts as over tolerance.
     """
     assert a.shape == b.shape, (name, a.shape, b.shape)
-    tol = tolerance or (Tolerance("exact", 0) if stencil else fmt.tolerance(blended_passes))
+    p = np.asarray(blended_passes)
+    limit_map = None
+    if p.ndim:
+        assert p.shape == a.shape[:2], (name, p.shape, a.shape)
+        values = np.unique(p.astype(np.int64)) if p.size else np.zeros(1, np.int64)
+        tol = tolerance or (Tolerance("exact", 0) if stencil else fmt.tolerance(int(values[-1])))
+        if tolerance is None and not stencil:
+            limits = np.array([fmt.tolerance(int(v)).limit for v in values])
+            limit_map = limits[np.searchsorted(values, p.astype(np.int64))]
+    else:
+        tol = tolerance or (Tolerance("exact", 0) if stencil else fmt.tolerance(int(p)))
     if tol.units == "ulp" and a.dtype == np.float32:
         tol = _range_floor(tol, a, b)
+    limit = tol.limit if limit_map is None else limit_map
     err = channel_error(a, b, tol)
     if any(exact_channels) and err.ndim == 3:
         exact = np.array(exact_channels + (False,) * (err.shape[2] - len(exact_channels)))
-        err[..., exact] = np.where(err[..., exact] > 0,
-                                   np.maximum(err[..., exact], tol.limit + 1), 0.0)
+        over = (limit if limit_map is None else limit_map[..., None]) + 1
+        err[..., exact] = np.where(err[..., exact] > 0, np.maximum(err[..., exact], over), 0.0)
     per_pixel = err.max(axis=-1) if err.ndim == 3 else err
-    bad = per_pixel > tol.limit
-    on_edge = _discontinuity(a, tol) | _discontinuity(b, tol)
-    admitted = bad & on_edge & _neighbourhood_match(a, b, tol) & _neighbourhood_match(b, a, tol)
+    bad = per_pixel > limit
+    on_edge = _discontinuity(a, tol, limit) | _discontinuity(b, tol, limit)
+    admitted = bad & on_edge & _neighbourhood_match(a, b, tol, limit) \
+        & _neighbourhood_match(b, a, tol, limit)
     finite = per_pixel[np.isfinite(per_pixel)]
     rmse = float(np.sqrt(np.mean(finite.astype(np.float64) ** 2))) if finite.size else 0.0
     bound = max(EDGE_MIN, int(EDGE_FRACTION * per_pixel.size))
     return TargetComparison(name, fmt, tol, float(per_pixel.max()) if per_pixel.size else 0.0,
                             rmse, int((bad & ~admitted).sum()), int(admitted.sum()), bound,
-                            per_pixel.astype(np.float64))
+                            per_pixel.astype(np.float64), limit_map)
 
 
 # Interpolated float32 values (positions, depths) carry an absolute error proportional to the
@@ -121,12 +143,13 @@ def _ordered(i: np.ndarray) -> np.ndarray:
     return np.where(wide < 0, -(wide & magnitude_mask), wide)
 
 
-def _discontinuity(a: np.ndarray, tol: Tolerance) -> np.ndarray:
+def _discontinuity(a: np.ndarray, tol: Tolerance, limit=None) -> np.ndarray:
     """Pixels next to a jump in value much larger than the tolerance: where primitive edges
     are.  In smooth regions (gradients) no pixel qualifies, so a value that is off there
-    cannot hide behind a similar neighbour."""
+    cannot hide behind a similar neighbour.  ``limit``: the tolerance's limit, or a per-pixel
+    (H, W) array of limits."""
     jump = _neighbourhood_extreme(a, a, tol)
-    return jump > 4 * (tol.limit + 1)
+    return jump > 4 * ((tol.limit if limit is None else limit) + 1)
 
 
 def _neighbourhood_extreme(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:
@@ -141,8 +164,11 @@ def _neighbourhood_extreme(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.n
     return worst
 
 
-def _neighbourhood_match(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:
-    """For each pixel: does a's value match b's value at some pixel of the 3x3 neighbourhood?"""
+def _neighbourhood_match(a: np.ndarray, b: np.ndarray, tol: Tolerance, limit=None
+                         ) -> np.ndarray:
+    """For each pixel: does a's value match b's value at some pixel of the 3x3 neighbourhood?
+    (within ``limit``: the tolerance's, or a per-pixel (H, W) array)"""
+    limit = tol.limit if limit is None else limit
     h, w = a.shape[:2]
     pad = [(1, 1), (1, 1)] + [(0, 0)] * (b.ndim - 2)
     bp = np.pad(b, pad, mode="edge")
@@ -152,7 +178,7 @@ def _neighbourhood_match(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.nda
             shifted = bp[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
             e = channel_error(a, shifted, tol)
             e = e.max(axis=-1) if e.ndim == 3 else e
-            match |= e <= tol.limit
+            match |= e <= limit
     return match
 
 

@@ -326,18 +326,26 @@ def test_polygon_offset_float_depth_and_clamp_match_llvmpipe(fmt, offset, clamp)
 @needs_gl
 def test_msaa_sample_depth_matches_llvmpipe_through_its_resolve():
     """4x MSAA: per sample llvmpipe evaluates the plane with a0 for pixel centre 0 at (x + sx,
-    y + sy); the reference's sample 0 equals it once passed through the float round trip of
-    llvmpipe's depth resolve blit (code * (1/(2^24-1)) then * (2^24-1), rounded), which moves a
-    third of the codes by one."""
+    y + sy); its depth resolve blit passes sample 0 through a float round trip (code *
+    (1/(2^24-1)) then * (2^24-1), rounded), which moves a third of the codes by one; the
+    reference's resolve (``cl_pipeline.d24_resolve``) does the same."""
     W, H = 64, 48
     rng = np.random.default_rng(5)
-    f32 = np.float32
     for k in range(3):
         g, c = render_depth(thin_triangles(rng, 10, W, H, ["thin", "grazing", "generic"][k]),
                             W, H, samples=4)
-        trip = np.rint((c.astype(f32) * f32(1.0 / 16777215)).astype(f32)
-                       * f32(16777215.0)).astype(np.int64)
-        assert_depth_agrees(g, trip)
+        assert_depth_agrees(g, c)
+
+
+def test_d24_resolve_round_trip():
+    """The d24 resolve round trip is the identity on codes that survive float32 exactly and
+    moves the others by at most one code."""
+    from pipegen.runtime.cl_pipeline import d24_resolve
+    codes = np.arange(0, 1 << 24, 97, dtype=np.uint32)
+    out = d24_resolve(codes).astype(np.int64)
+    assert np.abs(out - codes).max() == 1
+    assert 0.2 < np.mean(out != codes) < 0.5
+    assert d24_resolve(np.array([0, 16777215], np.uint32)).tolist() == [0, 16777215]
 
 
 @needs_gl

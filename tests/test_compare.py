@@ -108,3 +108,24 @@ def test_float32_floor_scales_with_the_targets_range():
     assert compare_target("gpos", fmt, a, b).passed
     b[3, 3, 1] = 5e-4          # 20x the range floor: a real difference
     assert not compare_target("gpos", fmt, a, b).passed
+
+
+def test_per_pixel_blend_counts_set_the_tolerance_per_pixel():
+    """``blended_passes`` as an (H, W) array: each pixel is held to 1 + P(x, y) codes, so the
+    same error passes where enough fragments were blended and fails where fewer were."""
+    a = smooth_image()
+    b = a.copy()
+    b[8, 8, 0] += 3
+    b[20, 20, 0] += 3
+    p = np.zeros(a.shape[:2], np.uint32)
+    p[8, 8] = 2                      # 1 + 2 codes allowed: passes
+    p[20, 20] = 1                    # 1 + 1 codes allowed: fails
+    c = compare_target("color", RGBA8, a, b, blended_passes=p)
+    assert not c.passed and c.over == 1 and c.error_map[20, 20] == 3
+    assert c.limit_map is not None and c.limit_map[8, 8] == 3 and c.limit_map[0, 0] == 1
+    assert c.tolerance.limit == 3 and c.row()[4] == "≤1..3"
+    p[20, 20] = 2
+    assert compare_target("color", RGBA8, a, b, blended_passes=p).passed
+    # a scalar keeps the old behaviour: one tolerance for every pixel
+    assert compare_target("color", RGBA8, a, b, blended_passes=2).limit_map is None
+    assert compare_target("color", RGBA8, a, b, blended_passes=2).passed

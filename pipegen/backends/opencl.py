@@ -13,9 +13,9 @@ pipeline the GLSL backend describes, with the fixed-function stages written out.
 - the kernels (``templates/cl_pass.cl.j2``): ``pg_vertex`` (one work-item per vertex: clip
   position and the varyings the fragment function reads) and ``pg_raster`` (one work-item per
   pixel, one work-group per 16x16 tile, walking the tile's triangles in submission order:
-  edge functions in 8-sub-pixel fixed point with the top-left rule, perspective-correct
-  interpolation, early or late depth/stencil, the fragment function, blending in registers,
-  colour masks, stores in the target formats).
+  edge functions in 8-sub-pixel fixed point with the top-left rule, llvmpipe's
+  perspective-correct plane interpolation, early or late depth/stencil, the fragment
+  function, blending in registers, colour masks, stores in the target formats).
 
 Clipping, viewport snapping, culling, polygon offset and binning run on the host between the two
 kernels (``pipegen/runtime/cl_setup.py``).  Conventions shared with the CL runtime:
@@ -28,7 +28,13 @@ kernels (``pipegen/runtime/cl_setup.py``).  Conventions shared with the CL runti
 - Buffers hold GL window rows (row 0 = window y 0, the bottom row), the order ``render``
   returns; a target with S samples holds S planes (plane k = sample k, llvmpipe's positions).
 - Varyings are float4 slots ``vary[slot * nverts + v]`` in the order of ``varying_slots()``;
-  flat values (object id, normal group, light index or stipple layer) travel per triangle.
+  the raster kernel reads a flat slot (the GLSL ``flat`` ones) at the provoking vertex and a
+  smooth slot from its perspective plane (``coef[(t * ncoef + slot["coef"]) * 3 + k]``,
+  k = a0, dadx, dady; ``tri_w``: the 1/w plane); flat integer values (object id, normal
+  group, light index or stipple layer) travel per triangle.
+- Blend counts: one ``uint`` per pixel per non-integer colour target (``bc_<target>``), to
+  which the raster kernel adds the fragments it blended into the pixel (``CLPipeline.
+  last_blend_counts``, the P of ``pipegen check``'s tolerance).
 
 Choices mirrored from the GLSL backend (glsl.py's docstring): ``load`` clamps coordinates to the
 target, outputs are zero-initialised, ``round`` is round-half-to-even (``rint``), scene
@@ -40,7 +46,11 @@ no contraction of ``a * b + c`` (``FP_CONTRACT OFF``), correctly rounded ``/`` a
 ``length``, ``distance``, matrix products built on it), ``mix`` = ``a + (b - a) t`` or, for a
 constant t, ``a (1 - t) + b t``, ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` /
 ``log2`` polynomials (so ``pow``, ``exp``, ``log``), unorm reads as ``code * (1 / max)``,
-unorm8 bilinear filtering in 8-bit fixed point.  Not mirrored: ``atan``, ``sin``, ``cos``
+unorm8 bilinear filtering in 8-bit fixed point, bilinear filtering of other formats with
+llvmpipe's clamp-to-edge texel coordinates and fused lerps (x then y), unorm16 stores
+``x * (65535/65536) + 128`` (the low mantissa bits) and rgb10a2 stores that 16-bit code
+scaled down (rgb ``>> 6``), varyings interpolated with llvmpipe's float32 planes
+(``cl_setup.attribute_planes``).  Not mirrored: ``atan``, ``sin``, ``cos``
 (OpenCL's, within a few ulp) and NIR's constant reassociation (``(x * 3.0) * 0.7`` folded to
 ``x * 2.1``).
 """
@@ -128,6 +138,9 @@ SCENE_VARYINGS = {
     "shininess": ("float", "a_material[v].y"),
     "alpha": ("float", "a_material[v].z"),
 }
+# varyings the GLSL backend declares ``flat`` (materials are per object): the provoking vertex's
+# value; the others are perspective-corrected (llvmpipe: LP_INTERP_PERSPECTIVE)
+FLAT_VARYINGS = frozenset({"albedo", "specular", "shininess", "alpha"})
 # flat scene inputs -> component of the per-triangle ``tri_flat`` (x is the facing bit; w holds
 # the light index in light draws and the stipple layer in scene draws)
 SCENE_FLAT = {"object_id": "y", "normal_group": "z", "layer": "w"}
@@ -353,7 +366,7 @@ def cl_format(name: str) -> dict:
         return {"name": name, "cls": "unorm", "storage": "uint", "reg": "uint4", "np": "uint32",
                 "load": "(uint4)(b[i] & 1023u, (b[i] >> 10) & 1023u, (b[i] >> 20) & 1023u, b[i] >> 30)",
                 "store": "b[i] = (r.x & 1023u) | ((r.y & 1023u) << 10) | ((r.z & 1023u) << 20) | (r.w << 30);",
-                "maxv": "(float4)(1023.0f, 1023.0f, 1023.0f, 3.0f)",
+                "maxv": "(float4)(1023.0f, 1023.0f, 1023.0f, 3.0f)", "code": "pg_rgb10a2_code4",
                 "rcpv": _rcp([1023, 1023, 1023, 3]),
                 "read": None, "vec": "float4"}
     bits = fmt.bits[0]
@@ -379,6 +392,7 @@ def cl_format(name: str) -> dict:
         return {"name": name, "cls": "unorm8" if bits == 8 else "unorm", "storage": storage,
                 "reg": "uint4", "np": {8: "uint8", 16: "uint16"}[bits], "load": load,
                 "store": store, "maxv": f"(float4)({m:.1f}f)", "rcpv": _rcp([m] * 4),
+                "code": "pg_unorm8_code4" if bits == 8 else "pg_unorm16_code4",
                 "read": None, "vec": "float4"}
     if fmt.kind is F.Kind.FLOAT:
         if bits == 16:
@@ -552,13 +566,21 @@ def sample_positions(samples: int) -> tuple[list[int], list[int]]:
 
 
 def varying_slots(pass_: dict) -> list[dict]:
-    """Interpolated varyings of a pass, in slot order: name, OpenCL type, vertex-kernel value."""
+    """Varyings of a pass, in slot order: name, OpenCL type, vertex-kernel value, ``flat``
+    (the provoking vertex's value) and, for the others, ``coef``: the index of the slot's
+    perspective plane among the smooth slots (``Triangles.coef``)."""
     inputs = set((pass_.get("cl") or {}).get("inputs") or [])
     if pass_["draw"]["kind"] != "scene":
         return []
-    return [{"name": n, "type": t, "value": v, "slot": k}
-            for k, (n, (t, v)) in enumerate((n, SCENE_VARYINGS[n]) for n in SCENE_VARYINGS
-                                            if n in inputs)]
+    out = []
+    smooth = 0
+    for k, n in enumerate(n for n in SCENE_VARYINGS if n in inputs):
+        t, v = SCENE_VARYINGS[n]
+        flat = n in FLAT_VARYINGS
+        out.append({"name": n, "type": t, "value": v, "slot": k, "flat": flat,
+                    "coef": None if flat else smooth})
+        smooth += not flat
+    return out
 
 
 def pass_program(plan: dict, pass_: dict, dynamic: bool = False, tile: int = TILE) -> str:

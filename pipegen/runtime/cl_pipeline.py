@@ -5,7 +5,14 @@
 codes, ``(H, W)`` for one channel and ``(H, W, C)`` otherwise; a d24s8 target ``ds`` gives
 24-bit depth codes under ``"ds"`` and the stencil under ``"ds.stencil"``.
 ``render(..., capture_passes=True)`` returns ``(targets, captures)`` with one entry
-``{"pass", "light", "targets"}`` after every executed pass (per light inside repeat groups).
+``{"pass", "light", "targets", "blend_counts"}`` after every executed pass (per light inside
+repeat groups).
+
+``last_blend_counts`` (after ``render``): ``{target: (H, W) uint32}`` in GL row order, for every
+colour target some pass blended into this frame, how many fragments were blended into each
+pixel (counted by the raster kernel where it applies the blend: after discard, depth and
+stencil; once per fragment whatever its samples).  ``pipegen check`` allows 1 + P codes/ulps
+per pixel from it (DESIGN.md §7).
 
 Per pass (see ``backends/opencl.py`` for the program and ``cl_setup.py`` for the host stages):
 
@@ -23,7 +30,8 @@ each light's front or back faces as ``fixed_function.cull_runs`` chooses.  All a
 
 Multisampled targets (4 samples, llvmpipe's positions) keep one plane per sample; the passes
 that read them, and ``render``'s result, see the resolve llvmpipe's blit computes (colour: the
-average of the samples stored like a fragment output; depth, stencil, integers: sample 0).
+average of the samples stored like a fragment output; depth, stencil, integers: sample 0,
+d24 depth codes through llvmpipe's float round trip, ``d24_resolve``).
 
 Vertex outputs, set-up triangles and bins are cached per frame and shared by the passes that
 draw the same geometry under the same raster state (e.g. the passes of a repeat group).
@@ -52,7 +60,7 @@ from . import cl_context
 from .light_table import check_light_capacity
 from .cl_setup import bin_triangles, setup_triangles
 
-__all__ = ["CLPipeline", "FRAME_DTYPE"]
+__all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
 
 # host image of the prelude's pg_frame struct
 FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
@@ -61,6 +69,16 @@ FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
                         ("output_size", "<f4", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
                         ("light_fields", "<u4"), ("pad", "<u4")])
 assert FRAME_DTYPE.itemsize == 320
+
+
+def d24_resolve(codes: np.ndarray) -> np.ndarray:
+    """d24 codes as llvmpipe's multisample depth resolve writes them back: its blit reads
+    sample 0 as a float and stores it as a d24 code again, ``code * (float)(1/(2^24-1))``,
+    then ``* (2^24-1)`` rounded to nearest even, all float32 (measured on Mesa 22.3: moves
+    about a third of the codes by one)."""
+    f32 = np.float32
+    v = (np.asarray(codes).astype(f32) * f32(1.0 / 16777215.0)).astype(f32)
+    return np.rint((v * f32(16777215.0)).astype(f32)).astype(np.uint32)
 
 
 def _colmajor(m: np.ndarray) -> np.ndarray:
@@ -107,6 +125,8 @@ class CLPipeline:
         self.targets_spec = {t["name"]: t for t in plan["targets"]}
         self._programs: dict[int, object] = {}
         self.last_timings: list[dict] = []
+        self.last_blend_counts: dict[str, np.ndarray] = {}
+        self._blend_counts: dict = {}
         self._geometry_cache: dict = {}
         self._presets: dict = {}
         self._scene = None
@@ -237,7 +257,8 @@ class CLPipeline:
     def _resolve(self, t: _Target) -> None:
         """Resolve the samples like llvmpipe's blit (measured): colour = the average of the
         sample values, stored like a fragment output (unorm: round half to even, half:
-        toward zero); depth, stencil and integer formats take sample 0."""
+        toward zero); depth, stencil and integer formats take sample 0, d24 depth through
+        llvmpipe's float round trip (``d24_resolve``)."""
         import pyopencl as cl
         if t.samples == 1 or not t.dirty:
             return
@@ -263,6 +284,8 @@ class CLPipeline:
             else:
                 res = avg
             res = res[None]
+        elif fmt.kind is F.Kind.DEPTH_STENCIL:
+            res = d24_resolve(codes[0])[None]
         else:
             res = codes[:1]
         cl.enqueue_copy(self.queue, t.res, np.ascontiguousarray(self._pack(t, res[0])))
@@ -369,6 +392,7 @@ class CLPipeline:
         for name, (codes, stencil) in self._presets.items():
             self.write_target(name, codes, stencil)
         self.last_timings = []
+        self._blend_counts = {}
         self._geometry_cache = {}
         self._frame_np = self._frame(scene)
         self._frame_buf = self._buffer(self._frame_np)
@@ -381,7 +405,8 @@ class CLPipeline:
                 self._run_pass(k, None)
                 if capture_passes:
                     captures.append({"pass": passes[k]["name"], "light": None,
-                                     "targets": self._read_all()})
+                                     "targets": self._read_all(),
+                                     "blend_counts": self._read_blend_counts()})
                 k += 1
                 continue
             end = k
@@ -399,9 +424,11 @@ class CLPipeline:
                     self._run_pass(j, light)
                     if capture_passes:
                         captures.append({"pass": passes[j]["name"], "light": light,
-                                         "targets": self._read_all()})
+                                         "targets": self._read_all(),
+                                         "blend_counts": self._read_blend_counts()})
             k = end
         result = self._read_all()
+        self.last_blend_counts = self._read_blend_counts()
         self.queue.finish()
         return (result, captures) if capture_passes else result
 
@@ -437,6 +464,25 @@ class CLPipeline:
         out = {}
         for t in self._targets.values():
             out.update(self._read(t))
+        return out
+
+    def _blend_count_buffer(self, t: _Target):
+        """The per-pixel count of fragments blended into colour target ``t`` this frame (a
+        uint32 per pixel, zeroed at the first blended pass; the raster kernel adds its
+        pixel's count at the end of every blended pass)."""
+        buf = self._blend_counts.get(t.name)
+        if buf is None:
+            buf = self._blend_counts[t.name] = self._buffer(np.zeros(t.pixels, np.uint32))
+        return buf
+
+    def _read_blend_counts(self) -> dict:
+        import pyopencl as cl
+        out = {}
+        for name, buf in self._blend_counts.items():
+            t = self._targets[name]
+            a = np.empty((t.height, t.width), np.uint32)
+            cl.enqueue_copy(self.queue, a, buf)
+            out[name] = a
         return out
 
     def _run_pass(self, k: int, light: Optional[int]) -> None:
@@ -478,12 +524,19 @@ class CLPipeline:
             st = self._buffer(np.asarray(clgen.state_words(p), np.int32))
         args = [np.int32(width), np.int32(height), np.int32(tiles_x), bufs["tile_list"],
                 bufs["tile_start"], bufs["tile_tris"], bufs["a"], bufs["b"], bufs["c"],
-                bufs["z"], bufs["iw"], bufs["p"], bufs["l"], bufs["zp"], bufs["zq"],
+                bufs["z"], bufs["w"], bufs["coef"], np.int32(tris.coef.shape[1]),
+                bufs["zp"], bufs["zq"],
                 bufs["flat"], bufs["vtx"],
                 bufs["scissor"], bufs["vary"], np.int32(tris.nverts), self._frame_buf,
                 self._lights_buf, st, np.uint32(light or 0)]
         for name in p.get("writes") or []:
             args.append(self._targets[name].buf)
+        blend = (p.get("state") or {}).get("blend") or {}
+        for name in p.get("writes") or []:
+            t = self._targets[name]
+            if t.cl["cls"] != "uint":
+                on = bool((blend.get(name) or {}).get("enabled"))
+                args.append(self._blend_count_buffer(t) if on else self._dummy)
         if p.get("depth_target"):
             dt = self._targets[p["depth_target"]]
             args.append(dt.buf)
@@ -565,10 +618,14 @@ class CLPipeline:
         depth_clamp = bool((st.get("depth") or {}).get("clamp"))
         dfmt = p.get("depth_target") and self._targets[p["depth_target"]].fmt.name
         slots = clgen.varying_slots(p)
+        # llvmpipe folds the pixel centre into the planes' a0 unless the pass is multisampled
+        center = 0.0 if self._pass_samples(p) > 1 else 0.5
+        # the 1/w plane: for smooth varyings and frag_coord.w
+        w_plane = "frag_coord" in ((p.get("cl") or {}).get("inputs") or ())
         key = (draw["kind"], tuple(draw.get("material") or ()), draw.get("volume"),
                None if lights is None else tuple(lights), bool(draw.get("scissor")),
                st.get("cull"), str(st.get("polygon_offset")), depth_clamp, width, height,
-               tuple(v["name"] for v in slots), dfmt)
+               tuple((v["name"], v["flat"]) for v in slots), dfmt, center, w_plane)
         if key in self._geometry_cache:
             return self._geometry_cache[key]
         mesh_verts = 1
@@ -614,7 +671,9 @@ class CLPipeline:
         cull = st.get("cull") or "none"
         tris = setup_triangles(clip, width, height, cull="none" if cull == "auto" else cull,
                                polygon_offset=st.get("polygon_offset"), depth_clamp=depth_clamp,
-                               depth_format=dfmt, flat=flat, vary=vary, scissor=scissor)
+                               depth_format=dfmt, flat=flat, vary=vary, scissor=scissor,
+                               smooth=[v["slot"] for v in slots if not v["flat"]],
+                               pixel_center=center, w_plane=w_plane)
         if cull == "auto":
             tris = self._cull_auto(tris, draw.get("volume") or "sphere", lights)
         t1 = time.perf_counter()
@@ -631,13 +690,19 @@ class CLPipeline:
         bufs = {"tile_list": self._buffer(active), "ntiles": len(active),
                 "tile_start": self._buffer(bins[0]), "tile_tris": self._buffer(bins[1]),
                 "a": self._buffer(tris.a), "b": self._buffer(tris.b), "c": self._buffer(tris.c),
-                "z": self._buffer(tris.z), "iw": self._buffer(tris.iw),
-                "p": self._buffer(tris.p), "l": self._buffer(tris.l),
+                "z": self._buffer(tris.z), "w": self._buffer(tris.w),
+                "coef": self._buffer(tris.coef),
                 "zp": self._buffer(tris.zp), "zq": self._buffer(tris.zq),
                 "flat": self._buffer(tris.flat), "vtx": self._buffer(tris.vtx),
                 "scissor": self._buffer(tris.scissor), "vary": vary_buf}
         self._geometry_cache[key] = (tris, bins, bufs)
         return self._geometry_cache[key]
+
+    def _pass_samples(self, p: dict) -> int:
+        """Samples per pixel of a pass's attachments (as backends/opencl.pass_program)."""
+        attached = list(p.get("writes") or []) + (
+            [p["depth_target"]] if p.get("depth_target") else [])
+        return max([int(self.targets_spec[n].get("samples") or 1) for n in attached] or [1])
 
     def _cull_auto(self, tris, volume: str, lights: list):
         """``cull auto``: keep each light's front faces or back faces as

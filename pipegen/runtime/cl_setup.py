@@ -18,14 +18,20 @@ window depth follow llvmpipe (Mesa 22.3) operation for operation, so depth codes
    1/2; **snapping** to 8 sub-pixel bits (``rint(x * 256)``, GL_SUBPIXEL_BITS = 8).
 3. **facing and culling** from the sign of the fixed-point area (counter-clockwise in GL window
    space = front); zero-area triangles produce no fragments.
-4. **interpolation planes** from the *unsnapped* window positions (llvmpipe computes its
-   attribute planes from the float positions; only coverage uses the snapped ones): the
-   barycentric weights of vertices 1 and 2 are linear in (x - x0, y - y0) (float32), the
-   varyings are weighted by ``l_k / w_k`` renormalised (perspective-correct).  Window z is
-   llvmpipe's own float32 plane (``depth_plane``): a0 at the window origin, dadx, dady from the
-   vertices in llvmpipe's order, evaluated per pixel by the raster kernel as
-   ``fma(dady, y, fma(dadx, x, a0))`` -- its rounding errors (several d24 codes on steep,
-   thin triangles far from the origin) included.
+4. **interpolation planes** as llvmpipe's setup (lp_state_setup.c, init_args + calc_coef4)
+   from the *unsnapped* window positions (only coverage uses the snapped ones), float32 without
+   contraction, in llvmpipe's vertex order (v0, v1 swapped when the GL-window area is
+   positive): ``a0`` at the window origin (pixel centre folded in: 0.5, or 0 when the pass
+   is multisampled), ``dadx``, ``dady`` per channel.  The ``1/w`` of the vertices is a linear
+   plane (``w``: position slot 0, channel 3); smooth varyings are perspective-corrected
+   (LP_INTERP_PERSPECTIVE, apply_perspective_corr): premultiplied by their vertex's 1/w before
+   the plane is computed (``coef``).  The raster kernel evaluates a plane at the integer pixel
+   as ``fma(dady, y, fma(dadx, x, a0))`` (lp_bld_interp.c, interp_attrib_linear) and divides
+   a smooth varying by the interpolated 1/w: ``a * (1 / w)`` (attribs_update_simple:
+   lp_build_rcp is a correctly rounded division).  Flat varyings take the provoking (last)
+   vertex (LP_INTERP_CONSTANT, attribs[2]).  Window z is the same float32 plane
+   (``depth_plane``) -- its rounding errors (several d24 codes on steep, thin triangles far
+   from the origin) included.
 5. **edge functions** ``E_k = A_k x + B_k y + C_k`` (edge k opposite vertex k, positive inside)
    in 1/256-pixel units, and the **top-left rule**: a pixel centre exactly on an edge belongs to
    the triangle when the edge's inward normal has A > 0, or A == 0 and B > 0 ("left" and, in GL
@@ -59,9 +65,9 @@ class Triangles:
     b: np.ndarray        # (N, 4) int32: B0, B1, B2, 0
     c: np.ndarray        # (N, 4) int64: C0, C1, C2, 0
     z: np.ndarray        # (N, 4) float32: window z plane a0, dadx, dady (llvmpipe's), offset
-    iw: np.ndarray       # (N, 4) float32: 1/w of vertices 0..2, 0
-    p: np.ndarray        # (N, 4) float32: window x, y of vertex 0 (unsnapped), 0, 0
-    l: np.ndarray        # (N, 4) float32: l1 = l.x dx + l.y dy, l2 = l.z dx + l.w dy
+    w: np.ndarray        # (N, 4) float32: plane of 1/w: a0, dadx, dady (llvmpipe's), 0
+    coef: np.ndarray     # (N, K, 3, 4) float32: a0, dadx, dady of the K smooth varyings
+                         #   premultiplied by 1/w (llvmpipe's perspective planes)
     zp: np.ndarray       # (N, 4) float64: exact plane x0, y0, z0 + offset, dz/dx (reference)
     zq: np.ndarray       # (N, 4) float64: dz/dy, offset, a0 for pixel centre 0 (MSAA), 0
     flat: np.ndarray     # (N, 4) uint32: front bit, object id, normal group, light
@@ -159,6 +165,53 @@ def depth_plane(xw, yw, zw, area, polygon_offset=None, depth_format=None, center
             a0_ms = z[:, 0] - (dadx * x[:, 0] + dady * y[:, 0])
             return pz, np.asarray(off, f32), a0_ms.astype(f32)
         return pz, np.asarray(off, f32)
+
+
+def llvmpipe_order(area) -> np.ndarray:
+    """(N, 3) the vertex order llvmpipe's setup sees (lp_setup_tri.c, triangle_both): v0 and
+    v1 swapped when the GL-window area is positive; the provoking vertex stays last."""
+    swap = np.asarray(area) > 0
+    return np.where(swap[:, None], np.array([1, 0, 2]), np.array([0, 1, 2]))
+
+
+def attribute_planes(xw, yw, area, attrs, center=0.5) -> np.ndarray:
+    """Plane coefficients of per-vertex attributes exactly as llvmpipe's setup computes them.
+
+    ``xw``, ``yw``: (N, 3) float32 window positions (unsnapped); ``area``: (N,) the fixed-point
+    doubled area (its sign picks the vertex order); ``attrs``: (N, 3, C) float32 values at the
+    vertices (already multiplied by 1/w for perspective-corrected varyings).  Returns (N, 3, C)
+    float32: ``a0`` (at the window origin, ``center`` folded in), ``dadx``, ``dady``; the value
+    at pixel (X, Y) is ``fma(dady, Y, fma(dadx, X, a0))``.
+
+    lp_state_setup.c, init_args: ``ooa = 1 / ((x0-x1)(y2-y0) - (y0-y1)(x2-x0))``,
+    ``dx01_ooa = (x0-x1) ooa`` etc.; calc_coef4, all float32 unfused:
+    ``dadx = (a0-a1) dy20_ooa - (a2-a0) dy01_ooa``,
+    ``dady = (a2-a0) dx01_ooa - (a0-a1) dx20_ooa``,
+    ``a0' = a0 - (dadx (x0 - c) + dady (y0 - c))``.
+    """
+    f32 = np.float32
+    xw, yw, attrs = (np.asarray(v, f32) for v in (xw, yw, attrs))
+    swap = (np.asarray(area) > 0)[:, None]
+    # llvmpipe's vertex order (llvmpipe_order): v0 and v1 swapped where the area is positive
+    x0, x1 = np.where(swap[:, 0], xw[:, 1], xw[:, 0]), np.where(swap[:, 0], xw[:, 0], xw[:, 1])
+    y0, y1 = np.where(swap[:, 0], yw[:, 1], yw[:, 0]), np.where(swap[:, 0], yw[:, 0], yw[:, 1])
+    x2, y2 = xw[:, 2], yw[:, 2]
+    a0, a1 = np.where(swap, attrs[:, 1], attrs[:, 0]), np.where(swap, attrs[:, 0], attrs[:, 1])
+    a2 = attrs[:, 2]
+    half = f32(center)
+    out = np.empty((len(xw), 3) + attrs.shape[2:], f32)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+        dx01, dy01 = x0 - x1, y0 - y1
+        dx20, dy20 = x2 - x0, y2 - y0
+        ooa = f32(1.0) / (dx01 * dy20 - dy01 * dx20)
+        dx01o, dy01o = (dx01 * ooa)[:, None], (dy01 * ooa)[:, None]
+        dx20o, dy20o = (dx20 * ooa)[:, None], (dy20 * ooa)[:, None]
+        da01 = a0 - a1
+        da20 = a2 - a0
+        dadx = np.subtract(da01 * dy20o, da20 * dy01o, out=out[:, 1])
+        dady = np.subtract(da20 * dx01o, da01 * dx20o, out=out[:, 2])
+        np.subtract(a0, dadx * (x0 - half)[:, None] + dady * (y0 - half)[:, None], out=out[:, 0])
+    return out
 
 
 # draw_pipe_clip.c's planes in its order (bit k of the vertex clip mask): x <= w, x >= -w,
@@ -338,14 +391,19 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
                     depth_format: Optional[str] = None, flat: Optional[np.ndarray] = None,
                     vary: Optional[np.ndarray] = None,
                     scissor: Optional[np.ndarray] = None,
-                    samples: Optional[int] = None) -> Triangles:
+                    samples: Optional[int] = None, smooth: Optional[list] = None,
+                    pixel_center: float = 0.5, w_plane: bool = True) -> Triangles:
     """Clip, project, snap, cull and build edge equations for a non-indexed triangle list.
 
     ``clip``: (3T, 4) clip-space positions; ``flat``: (T, 4) uint32 per input triangle (y, z,
     w are kept; x is replaced by the facing bit); ``vary``: (S, 3T, 4); ``scissor``: (T, 4)
     int32 x0, y0, x1, y1 (exclusive) per input triangle, clamped to the viewport;
     ``samples``: samples per pixel of the pass (1: bounding boxes of pixel centres; None: of
-    any sample position, always safe).
+    any sample position, always safe); ``smooth``: the varying slots interpolated with
+    perspective correction (``coef``; default all of them); ``pixel_center``: the pixel
+    centre folded into the planes' a0 (0.5; 0 for multisampled passes, which evaluate the
+    planes at the pixel centre instead, as llvmpipe); ``w_plane``: set up the 1/w plane even
+    without smooth varyings (for ``frag_coord.w``; False leaves ``w`` zero).
     """
     clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp)
     N = len(tri)
@@ -399,16 +457,25 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     tri_b[:, :3] = B
     tri_c = np.zeros((n, 4), np.int64)
     tri_c[:, :3] = C
-    tri_iw = np.zeros((n, 4), np.float32)
-    tri_iw[:, :3] = iw
-    tri_p = np.zeros((n, 4), np.float32)
-    tri_p[:, 0], tri_p[:, 1] = xw[:, 0], yw[:, 0]
-    ex, ey = xw[:, 1] - xw[:, 0], yw[:, 1] - yw[:, 0]
-    fx, fy = xw[:, 2] - xw[:, 0], yw[:, 2] - yw[:, 0]
-    det = ex * fy - ey * fx
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(det != 0, 1.0 / det, 0.0)
-    tri_l = np.stack([fy * inv, -fx * inv, -ey * inv, ex * inv], axis=1).astype(np.float32)
+    # 1/w plane (linear) and the smooth varyings' planes premultiplied by 1/w (perspective),
+    # set up together: (n, 3, 1 + 4K) attributes, 1/w first
+    tri_w = np.zeros((n, 4), np.float32)
+    S = 0 if vary_v is None else vary_v.shape[0]
+    smooth = list(range(S)) if smooth is None else [int(k) for k in smooth]
+    tri_coef = np.zeros((n, len(smooth), 3, 4), np.float32)
+    if (smooth or w_plane) and n:
+        attrs = [iw[:, :, None]]
+        if smooth:
+            va = np.asarray(vary_v, np.float32)[smooth][:, tri]            # (K, n, 3, 4)
+            va = np.transpose(va, (1, 2, 0, 3)).reshape(n, 3, -1)           # (n, 3, K*4)
+            with np.errstate(invalid="ignore", over="ignore", under="ignore"):
+                attrs.append(va * iw[:, :, None])
+        planes = attribute_planes(xw_f, yw_f, area, np.concatenate(attrs, axis=2),
+                                  pixel_center)                          # (n, 3, 1 + 4K)
+        tri_w[:, :3] = planes[:, :, 0]
+        if smooth:
+            tri_coef = np.ascontiguousarray(
+                np.transpose(planes[:, :, 1:].reshape(n, 3, len(smooth), 4), (0, 2, 1, 3)))
     # window z: llvmpipe's float32 plane (a0 at the window origin, see depth_plane)
     pz, offset, a0_ms = depth_plane(xw_f, yw_f, zw, area, polygon_offset, depth_format,
                                     with_ms_a0=True)
@@ -417,6 +484,11 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     # zp: the exact plane in float64 (x0, y0, z0 + offset, dz/dx; for reference and tests);
     # zq: dz/dy, the polygon offset, and a0 with pixel centre 0 (multisampling; read by the
     # raster kernel only when PG_SAMPLES > 1)
+    ex, ey = xw[:, 1] - xw[:, 0], yw[:, 1] - yw[:, 0]
+    fx, fy = xw[:, 2] - xw[:, 0], yw[:, 2] - yw[:, 0]
+    det = ex * fy - ey * fx
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(det != 0, 1.0 / det, 0.0)
     z64 = zw.astype(np.float64)
     dz1, dz2 = z64[:, 1] - z64[:, 0], z64[:, 2] - z64[:, 0]
     tri_zp = np.zeros((n, 4), np.float64)
@@ -432,7 +504,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     tri_flat[:, 0] = (area > 0).astype(np.uint32)
     tri_vtx = np.zeros((n, 4), np.int32)
     tri_vtx[:, :3] = tri
-    return Triangles(tri_a, tri_b, tri_c, tri_z, tri_iw, tri_p, tri_l, tri_zp, tri_zq, tri_flat,
+    return Triangles(tri_a, tri_b, tri_c, tri_z, tri_w, tri_coef, tri_zp, tri_zq, tri_flat,
                      tri_vtx,
                      sc.astype(np.int32), np.stack([x0, y0, x1, y1], axis=1).astype(np.int32),
                      vary_v, len(clip_v), samples)

@@ -1,0 +1,282 @@
+"""Bit-exactness of the OpenCL reference with llvmpipe (Mesa 22.3) where it mirrors llvmpipe's
+arithmetic operation for operation:
+
+- varyings: llvmpipe's plane setup (lp_state_setup.c: perspective attributes premultiplied by
+  1/w, a0 at the window origin) and per-pixel evaluation (lp_bld_interp.c: two fused
+  multiply-adds, then ``* (1 / w)``), ``cl_setup.attribute_planes``;
+- bilinear filtering of float, half and 16-bit unorm textures (lp_bld_sample_soa.c,
+  clamp-to-edge texel coordinates, float weights, ``fma(w, v1 - v0, v0)`` x then y);
+- stores to 16-bit unorm (``x * (65535/65536) + 128``, the low mantissa bits) and rgb10a2
+  (that 16-bit code shifted down: rgb ``>> 6``, alpha rescaled);
+- the per-pixel blend counts the raster kernel keeps for ``pipegen check`` (no GL needed).
+
+llvmpipe fuses its ``fmuladd``s only on FMA hardware; the reference always fuses, so the exact
+assertions hold where the host has FMA, the tolerances of ``pipegen check`` elsewhere.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyopencl")
+
+from cl_util import TriScene, make_pass, make_plan, quad, target  # noqa: E402
+from pipegen.compare import compare_target, ulp_distance  # noqa: E402
+from pipegen.compiler import compile_file, compile_source  # noqa: E402
+from pipegen.runtime import cl_setup as CS  # noqa: E402
+from pipegen.runtime.cl_pipeline import CLPipeline  # noqa: E402
+from pipegen.scene import load_scene  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _host_has_fma() -> bool:
+    try:
+        return " fma " in f" {Path('/proc/cpuinfo').read_text()} ".replace("\n", " ")
+    except OSError:  # pragma: no cover
+        return False
+
+
+EXACT = _host_has_fma()
+
+
+@pytest.fixture(scope="module")
+def gl_available():
+    try:
+        from pipegen.runtime.gl_context import get_context
+        get_context()
+    except Exception as exc:   # no EGL / llvmpipe here: the CL-only tests still run
+        pytest.skip(f"no OpenGL context: {exc}")
+
+
+def _render_both(compiled, scene):
+    return compiled.pipeline("gl").render(scene), compiled.pipeline("cl").render(scene)
+
+
+def _assert_agree(compiled, g, c, names):
+    for name in names:
+        a, b = g[name], c[name]
+        if EXACT:
+            same = (a == b) | ((a != a) & (b != b)) if a.dtype.kind == "f" else a == b
+            assert same.all(), (name, int((~same).sum()))
+        else:   # pragma: no cover - hosts without FMA
+            fmt = compiled.technique.target(name).format
+            assert compare_target(name, fmt, a, b).passed, name
+
+
+# ---- varyings -------------------------------------------------------------------------------
+
+def test_attribute_planes_are_the_depth_plane_for_z():
+    """The general plane setup gives llvmpipe's depth plane (checked code for code against
+    llvmpipe in test_cl_depth.py) when the attribute is window z."""
+    rng = np.random.default_rng(3)
+    n = 200
+    xw = rng.uniform(0, 300, (n, 3)).astype(np.float32)
+    yw = rng.uniform(0, 200, (n, 3)).astype(np.float32)
+    zw = rng.uniform(0, 1, (n, 3)).astype(np.float32)
+    X, Y = np.rint(xw * 256.0).astype(np.int64), np.rint(yw * 256.0).astype(np.int64)
+    area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
+    pz, _ = CS.depth_plane(xw, yw, zw, area)
+    planes = CS.attribute_planes(xw, yw, area, zw[:, :, None])
+    assert planes.dtype == np.float32 and planes.shape == (n, 3, 1)
+    assert np.array_equal(planes[:, :, 0].view(np.int32), pz.view(np.int32))
+
+
+def test_perspective_planes_reproduce_the_vertex_values():
+    """a/w planes evaluated at a vertex and divided by the 1/w plane give the vertex's value
+    (to float32 rounding): the planes are llvmpipe's perspective-correct interpolation."""
+    xw = np.array([[10.25, 70.5, 20.0]], np.float32)
+    yw = np.array([[5.0, 12.75, 60.5]], np.float32)
+    iw = np.array([[1.0, 0.25, 0.5]], np.float32)
+    attr = np.array([[[1.0, -2.0], [3.0, 0.5], [-4.0, 8.0]]], np.float32)
+    area = np.array([1])
+    w = CS.attribute_planes(xw, yw, area, iw[:, :, None], center=0.0)[0, :, 0]
+    a = CS.attribute_planes(xw, yw, area, attr * iw[:, :, None], center=0.0)[0]
+    for k in range(3):
+        x, y = xw[0, k], yw[0, k]
+        val = (a[0] + a[1] * x + a[2] * y) / (w[0] + w[1] * x + w[2] * y)
+        assert np.allclose(val, attr[0, k], rtol=1e-5, atol=1e-5)
+
+
+def test_gbuffer_varyings_bit_exact_with_llvmpipe(gl_available):
+    """World positions (rgba32f) and normals (rgba16f) of a perspective G-buffer pass are the
+    values llvmpipe interpolates, bit for bit (they differed by ~1e-6 relative with
+    barycentric interpolation: thousands of ulps near zero, different halves after a store)."""
+    compiled = compile_file(ROOT / "pipelines/deferred.pipe")
+    scene = load_scene(ROOT / "examples/scenes/mixed_lights.toml").with_size(160, 90)
+    g, c = _render_both(compiled, scene)
+    _assert_agree(compiled, g, c, ["gpos", "gnormal", "galbedo", "ds"])
+
+
+MSAA_PROBE = """
+technique msaa "varyings and frag_coord.w with 4 samples, and with one"
+target gpos : rgba32f samples 4 clear 0
+target gn : rgba16f samples 4 clear 0
+target ds : d24s8 samples 4 clear depth 1.0 stencil 0
+target gpos1 : rgba32f clear 0
+target ds1 : d24s8 clear depth 1.0 stencil 0
+output gpos
+pass ms {
+  draw scene.opaque
+  writes gpos, gn
+  depth ds less write
+  cull back
+  fragment { gpos = vec4(world_pos, frag_coord.w); gn = vec4(normalize(normal), 1.0); }
+}
+pass single {
+  draw scene.opaque
+  writes gpos1
+  depth ds1 less write
+  cull back
+  fragment { gpos1 = vec4(view_pos.xy, frag_coord.zw); }
+}
+"""
+
+
+def test_multisampled_varyings_bit_exact_with_llvmpipe(gl_available):
+    """With multisampling llvmpipe folds no pixel centre into a0 and evaluates the planes at
+    the pixel centre; frag_coord.w is the interpolated 1/w plane (resolved averages of the
+    samples compared, edges included)."""
+    compiled = compile_source(MSAA_PROBE)
+    scene = load_scene(ROOT / "examples/scenes/mixed_lights.toml").with_size(160, 90)
+    g, c = _render_both(compiled, scene)
+    _assert_agree(compiled, g, c, ["gpos", "gn", "ds", "gpos1", "ds1"])
+
+
+# ---- texture filtering and unorm stores ------------------------------------------------------
+
+FILTER_PROBE = """
+technique probe "float bilinear filtering and unorm16 / rgb10a2 stores"
+target lut16 : rgba16f size 37 x 11
+target lut32 : r32f size 37 x 11
+target lutu : rgba16 size 37 x 11
+target o16 : rgba32f size 160 x 96
+target o32 : r32f size 160 x 96
+target ou : rgba32f size 160 x 96
+target s10 : rgb10a2 size 160 x 96
+target s16 : rgba16 size 160 x 96
+output o16
+pass tabulate {
+  draw fullscreen
+  writes lut16, lut32, lutu
+  fragment {
+    uint h = (uint(frag_coord.x) * 2654435761u) ^ (uint(frag_coord.y) * 40503u + 12345u);
+    h = h ^ (h >> 13);
+    float v = float(h & 65535u) / 65536.0;
+    vec4 q = vec4(v * 7.0 - 3.0, v * v * 100.0, 1.0 - v, v * 0.001);
+    lut16 = q;
+    lut32 = q;
+    lutu = vec4(v, v * v, 1.0 - v, fract(v * 3.5));
+  }
+}
+pass probe {
+  draw fullscreen
+  reads lut16, lut32, lutu
+  writes o16, o32, ou, s10, s16
+  fragment {
+    vec2 uv = frag_coord.xy / vec2(160.0, 96.0) * 1.4 - 0.2
+              + vec2(0.00123, 0.00071) * frag_coord.yx;
+    o16 = sample(lut16, uv);
+    o32 = sample(lut32, uv);
+    ou = sample(lutu, uv);
+    float x = (floor(frag_coord.y) * 160.0 + floor(frag_coord.x)) / 15359.0;
+    vec4 s = vec4(x, x * 0.999 + 0.0003, 1.0 - x, x * x);
+    s10 = s;
+    s16 = s;
+  }
+}
+"""
+
+
+@pytest.fixture(scope="module")
+def filter_probe(gl_available):
+    compiled = compile_source(FILTER_PROBE)
+    scene = load_scene(ROOT / "examples/scenes/small.toml")
+    return compiled, _render_both(compiled, scene)
+
+
+def test_float_bilinear_filtering_bit_exact(filter_probe):
+    """Bilinear samples of half, float and 16-bit unorm textures, including coordinates
+    outside [0, 1] (clamp to edge): llvmpipe's values bit for bit (with the textbook
+    ``mix(mix(t00, t10, wx), mix(t01, t11, wx), wy)`` a quarter of them differed, by up to
+    thousands of ulps near zero)."""
+    compiled, (g, c) = filter_probe
+    _assert_agree(compiled, g, c, ["lut16", "lut32", "lutu"])     # the tables themselves
+    _assert_agree(compiled, g, c, ["o16", "o32", "ou"])
+
+
+def test_unorm16_and_rgb10a2_stores_bit_exact(filter_probe):
+    """rgba16 and rgb10a2 stores are llvmpipe's codes (rgb10a2 truncates its 16-bit code:
+    0.6710101 is stored as 687, not rint(0.6710101 * 1023) = 686)."""
+    compiled, (g, c) = filter_probe
+    assert np.array_equal(g["s10"], c["s10"])
+    assert np.array_equal(g["s16"], c["s16"])
+    x = np.float32(0.6710101)
+    code16 = int((np.float32(x * np.float32(65535 / 65536)) + np.float32(128)).view(np.uint32)
+                 & 0xFFFF)
+    assert code16 >> 6 == 687
+
+
+# ---- per-pixel blend counts ------------------------------------------------------------------
+
+ADD = {"enabled": True, "rgb": ["add", "one", "one"], "alpha": ["add", "one", "one"],
+       "write_mask": [True] * 4}
+DISCARD_RIGHT = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
+                 "    if (in->pix.x >= 12) return false;\n"
+                 "    out->o_color = (float4)(0.1f);\n"
+                 "    return true;\n}\n")
+
+
+def test_blend_counts_count_blended_fragments_per_pixel():
+    """``last_blend_counts`` holds, per pixel, the fragments blended into a target during the
+    frame: overlapping triangles of one pass each count, fragments that are discarded or fail
+    the depth test do not, and passes without blending add nothing."""
+    W, H = 16, 8
+    left = quad(-1, -1, 0, 1, 0.5)       # columns 0..7, depth 0.75
+    all_ = quad(-1, -1, 1, 1, 0.0)       # every pixel, depth 0.5
+    back = quad(-1, -1, 1, 1, 0.8)       # every pixel, behind: fails "less" after all_
+    plan = make_plan(
+        [target("color", "rgba16f", clear_color=[0, 0, 0, 0]),
+         target("plain", "rgba8", clear_color=[0, 0, 0, 0]),
+         target("ds", "d24s8", clear_depth=1.0, clear_stencil=0)],
+        [make_pass("blend", writes=("color",), fragment=DISCARD_RIGHT, inputs=(), discard=True,
+                   depth_target="ds",
+                   state={"blend": {"color": ADD},
+                          "depth": {"func": "less", "write": True, "clamp": False}}),
+         make_pass("opaque", writes=("plain",), fragment=DISCARD_RIGHT.replace("color", "plain"),
+                   inputs=(), discard=True)])
+    pipe = CLPipeline(plan)
+    # in order: all_ passes and writes depth 0.5; left (0.75), back (0.9) and all_ again (0.5,
+    # not less) fail: every pixel not discarded counts once
+    scene = TriScene(W, H, all_ + left + back + all_)
+    pipe.render(scene)
+    counts = pipe.last_blend_counts
+    assert set(counts) == {"color"}
+    n = counts["color"]
+    assert n.shape == (H, W) and n.dtype == np.uint32
+    assert (n[:, :12] == 1).all() and (n[:, 12:] == 0).all()
+    # without depth test every covering triangle counts
+    plan["passes"][0]["state"]["depth"] = {"func": "always", "write": False, "clamp": False}
+    pipe = CLPipeline(plan)
+    pipe.render(scene)
+    n = pipe.last_blend_counts["color"]
+    assert (n[:, :8] == 4).all() and (n[:, 8:12] == 3).all() and (n[:, 12:] == 0).all()
+    # captures carry the counts so far
+    _, caps = pipe.render(scene, capture_passes=True)
+    assert np.array_equal(caps[0]["blend_counts"]["color"], n)
+
+
+def test_check_uses_per_pixel_blend_counts(gl_available):
+    """``pipegen check`` holds each pixel of a light accumulation target to 1 + P(x, y)
+    with P from the CL backend's blend counts."""
+    from pipegen.check import check
+    compiled = compile_file(ROOT / "pipelines/deferred.pipe")
+    scene = load_scene(ROOT / "examples/scenes/mixed_lights.toml").with_size(160, 90)
+    result = check(compiled, scene)
+    row = next(r for r in result.rows if r.name == "accum")
+    assert row.limit_map is not None and row.limit_map.shape == (90, 160)
+    assert row.limit_map.min() == 1 and row.limit_map.max() > 1
+    assert result.passed
