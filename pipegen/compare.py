@@ -74,8 +74,6 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
             limit_map = limits[np.searchsorted(values, p.astype(np.int64))]
     else:
         tol = tolerance or (Tolerance("exact", 0) if stencil else fmt.tolerance(int(p)))
-    if tol.units == "ulp" and a.dtype == np.float32:
-        tol = _range_floor(tol, a, b)
     limit = tol.limit if limit_map is None else limit_map
     err = channel_error(a, b, tol)
     if any(exact_channels) and err.ndim == 3:
@@ -93,22 +91,6 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
     return TargetComparison(name, fmt, tol, float(per_pixel.max()) if per_pixel.size else 0.0,
                             rmse, int((bad & ~admitted).sum()), int(admitted.sum()), bound,
                             per_pixel.astype(np.float64), limit_map)
-
-
-# Interpolated float32 values (positions, depths) carry an absolute error proportional to the
-# range of the attribute across the triangle, not to their own magnitude: two rasterisers that
-# order the barycentric arithmetic differently agree to ~2^-20 of the range (measured: 2.7e-5
-# on world positions up to 24.3, deferred on small.toml), which near zero is thousands of ulps.
-# So a float32 target's absolute floor is 2^-18 of its largest finite magnitude.
-RANGE_FLOOR = 2.0 ** -18
-
-
-def _range_floor(tol: Tolerance, a: np.ndarray, b: np.ndarray) -> Tolerance:
-    finite = np.concatenate([a[np.isfinite(a)], b[np.isfinite(b)]])
-    if finite.size == 0:
-        return tol
-    floor = float(np.abs(finite).max()) * RANGE_FLOOR
-    return Tolerance(tol.units, tol.limit, max(tol.abs_floor, floor))
 
 
 def channel_error(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:

@@ -168,7 +168,7 @@ class Format:
         if self.kind is Kind.FLOAT and max(self.bits) == 16:
             return Tolerance("ulp", 1 + p, abs_floor=2.0 ** -14)
         if self.kind is Kind.FLOAT:
-            return Tolerance("ulp", 64 + 4 * p, abs_floor=1e-6)
+            return Tolerance("ulp", 8 + 4 * p, abs_floor=1e-6)
         if self.kind is Kind.DEPTH_STENCIL:
             return Tolerance("code", 2)
         if self.kind is Kind.DEPTH:

@@ -18,10 +18,18 @@ from pipegen.scene import default_scene, load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes"]
+              "lidr_bitplanes", "light_prepass", "inferred", "deferred_calver"]
 SCENES = {
     "default": lambda: default_scene(),
     "stress_overlap": lambda: load_scene(ROOT / "examples/scenes/stress_overlap.toml"),
+}
+# Issue 4's scenes, at a test-friendly size: many lights, translucent layers, thin geometry.
+ISSUE4_TECHNIQUES = ["light_prepass", "inferred", "deferred_calver"]
+ISSUE4_SCENES = {
+    "many_lights": lambda: load_scene(ROOT / "examples/scenes/many_lights.toml").with_size(192, 108),
+    "translucent_layers": lambda: load_scene(ROOT / "examples/scenes/translucent_layers.toml"),
+    "edges": lambda: load_scene(ROOT / "examples/scenes/edges.toml"),
+    "mixed_lights": lambda: load_scene(ROOT / "examples/scenes/mixed_lights.toml"),
 }
 
 
@@ -32,6 +40,14 @@ def test_technique_passes_check(technique, scene_name, tmp_path):
     result = check(compiled, SCENES[scene_name](), tmp_path)
     assert result.passed, "\n" + result.table() + f"\nfirst divergence: {result.first_divergence}"
     assert (tmp_path / f"error_{compiled.technique.output}.png").exists()
+
+
+@pytest.mark.parametrize("scene_name", list(ISSUE4_SCENES))
+@pytest.mark.parametrize("technique", ISSUE4_TECHNIQUES)
+def test_issue4_technique_passes_check(technique, scene_name, tmp_path):
+    compiled = compile_file(ROOT / f"pipelines/{technique}.pipe")
+    result = check(compiled, ISSUE4_SCENES[scene_name](), tmp_path)
+    assert result.passed, "\n" + result.table() + f"\nfirst divergence: {result.first_divergence}"
 
 
 class Perturbed:
