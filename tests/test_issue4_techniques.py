@@ -17,7 +17,8 @@ Tolerances, per technique (rgba8 codes on pixels off silhouettes and creases):
   DSF, 13.2 / 12.2 with plain bilinear), asserted at RMSE <= 8 with DSF and DSF < 0.7 x
   bilinear.
 - Calver vs the shared equation: 2 codes.  Shaping and attenuation functions are 1024-texel
-  r16f tables sampled bilinearly; positions are packed to 16 bits over +-64 units.
+  r16f tables sampled bilinearly; screen-space positions are 16-bit x, y and a depth split
+  over two 16-bit channels (float32 precision); normals are 10-bit.
 """
 
 from pathlib import Path
