@@ -11,11 +11,16 @@ pipeline the GLSL backend describes, with the fixed-function stages written out.
 - the fragment function ``bool pg_fragment(const pg_in *in, pg_out *out)`` generated from the IR
   through ``OpenCLLanguage`` (false = discarded);
 - the kernels (``templates/cl_pass.cl.j2``): ``pg_vertex`` (one work-item per vertex: clip
-  position and the varyings the fragment function reads) and ``pg_raster`` (one work-item per
-  pixel, one work-group per 16x16 tile, walking the tile's triangles in submission order:
-  edge functions in 8-sub-pixel fixed point with the top-left rule, llvmpipe's
-  perspective-correct plane interpolation, early or late depth/stencil, the fragment
-  function, blending in registers, colour masks, stores in the target formats).
+  position and the varyings the fragment function reads) and ``pg_raster`` (one work-group
+  per 16x16 tile, one work-item per tile row holding the row's pixels in registers, walking
+  the tile's triangles in submission order and testing only the row's pixels inside each
+  triangle's bounding box: edge functions in 8-sub-pixel fixed point with the top-left
+  rule, llvmpipe's perspective-correct plane interpolation, early or late depth/stencil, the
+  fragment function, blending in registers, colour masks, stores in the target formats).
+  The prelude routes the OpenCL builtins the generated code calls most (fma, fmin, fmax,
+  min, max, clamp, sqrt, floor, fabs, copysign, sub_sat, vload_half*, vstore_half*_rtz) to
+  inline equivalents of PoCL's library functions (which LLVM does not inline here: every one
+  was a call); ``tests/test_cl_builtins.py`` checks them against the library.
 
 Clipping, viewport snapping, culling, polygon offset and binning run on the host between the two
 kernels (``pipegen/runtime/cl_setup.py``).  Conventions shared with the CL runtime:
@@ -585,6 +590,8 @@ def varying_slots(pass_: dict) -> list[dict]:
 
 def pass_program(plan: dict, pass_: dict, dynamic: bool = False, tile: int = TILE) -> str:
     """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument)."""
+    if not 1 <= int(tile) <= 64:       # pg_raster keeps a row's drawn pixels in a ulong mask
+        raise ValueError(f"tile size {tile}: the raster kernel supports 1 to 64")
     targets = {t["name"]: t for t in plan["targets"]}
     cl = pass_.get("cl") or {}
     writes = []

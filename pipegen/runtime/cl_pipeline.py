@@ -22,8 +22,9 @@ Targets live in device buffers in GL row order for the whole frame; clears write
 ``Format.quantize`` (the same the GL runtime clears with).  Passes of one ``repeat_group`` run
 once per light in turn (the group's passes for light 0, then for light 1, ...; a pass whose
 light filter or ``repeat_types`` excludes the light is skipped for it), the light index
-reaching the fragment function as ``in->light``; light draws instance the pass's light list (types, CPU-sorted
-``light_set`` via ``packing.sort_lights_into_slots``), ``scissor`` light draws clip each
+reaching the fragment function as ``in->light``; light draws instance the pass's light list
+(``light_table.light_list``: types, CPU-sorted ``light_set`` via
+``packing.sort_lights_into_slots``), ``scissor`` light draws clip each
 light's triangles to ``fixed_function.light_scissor_rect``, ``cull auto`` light draws keep
 each light's front or back faces as ``fixed_function.cull_runs`` chooses.  All as
 ``GLPipeline`` does.
@@ -33,15 +34,25 @@ that read them, and ``render``'s result, see the resolve llvmpipe's blit compute
 average of the samples stored like a fragment output; depth, stencil, integers: sample 0,
 d24 depth codes through llvmpipe's float round trip, ``d24_resolve``).
 
-Vertex outputs, set-up triangles and bins are cached per frame and shared by the passes that
-draw the same geometry under the same raster state (e.g. the passes of a repeat group).
+Set-up triangles are cached per frame and shared by the passes that draw the same geometry
+under the same raster state (``_geometry``): a scene draw is set up once for every pass of
+the plan drawing it under that state, with the union of their varyings (a pass reading fewer
+gets varying and plane buffers cut from the shared ones); a light draw sets up all lights of
+its light list at once, without culling, and each pass (each light of a repeat group) draws
+its lights' consecutive range of triangles with its own cull mode; the full-screen triangle
+is kept across frames.  Per-triangle results do not depend on which other triangles or
+varyings are set up with them, so sharing changes no value.  Bins are per pass (light
+draws cut them from the (triangle, tile) pairs of all their lights).  Raster kernels are
+queued without waiting (the host sets up the next pass meanwhile); target and blend-count
+buffers are reused from frame to frame (cleared as before).
 
 ``CLPipeline(..., dynamic_state=True)`` is for tests: every pass program reads its
 fixed-function state from a kernel argument instead of baked constants, so one compiled program
 serves all the states a parametrised test sweeps (production plans bake the state).
 ``last_timings`` holds per-pass times (ms) of the latest render: ``vertex``, ``setup``,
-``bin``, ``raster`` (kernel times from OpenCL profiling events, host stages from the clock;
-a pass that reused cached geometry has no vertex/setup/bin entries).  ``preset(name, codes)``
+``bin``, ``raster`` (kernel times from OpenCL profiling events, read at the end of the frame;
+host stages from the clock; a pass that reused cached geometry or bins has no
+vertex/setup or bin entry), ``triangles`` and ``tile_entries``.  ``preset(name, codes)``
 starts later renders with a target holding given codes (tests).
 
 """
@@ -57,8 +68,8 @@ from .. import formats as F
 from ..backends import opencl as clgen
 from ..ir import Size
 from . import cl_context
-from .light_table import check_light_capacity
-from .cl_setup import bin_triangles, setup_triangles
+from .light_table import check_light_capacity, light_filter, light_list, light_type
+from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
 
 __all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
 
@@ -128,12 +139,16 @@ class CLPipeline:
         self.last_blend_counts: dict[str, np.ndarray] = {}
         self._blend_counts: dict = {}
         self._geometry_cache: dict = {}
+        self._static_geometry: dict = {}   # full-screen draws: the same every frame
+        self._count_pool: dict = {}         # blend-count buffers, reused every frame
         self._presets: dict = {}
         self._scene = None
         self._scene_attrs: dict = {}
         self._light_sets: dict = {}
         self.dropped_lights: dict = {}   # per channel_slots pack, last scene
         self._dummy = self._buffer(np.zeros(4, np.int32))
+        self._zeros4 = self._buffer(np.zeros((1, 4), np.float32))
+        self._events: list = []
         self._kernels: dict = {}
         self._meshes: dict = {}
         for k in range(len(plan["passes"])):
@@ -212,9 +227,11 @@ class CLPipeline:
             codes = fmt.quantize(col[:fmt.channels])
         pixel = self._pack(t, np.asarray(codes).reshape(1, 1, -1) if fmt.channels > 1
                            else np.asarray(codes).reshape(1, 1))
-        pattern = np.ascontiguousarray(pixel).view(np.uint8)
-        data = np.tile(pattern.reshape(-1), n)
-        cl.enqueue_copy(self.queue, buf, data)
+        pattern = np.ascontiguousarray(pixel).view(np.uint8).reshape(-1)
+        if len(pattern) in (1, 2, 4, 8, 16, 32, 64, 128):     # clEnqueueFillBuffer's sizes
+            cl.enqueue_fill_buffer(self.queue, buf, pattern, 0, n * len(pattern))
+        else:
+            cl.enqueue_copy(self.queue, buf, np.tile(pattern, n))
 
     def _pack(self, t: _Target, codes: np.ndarray) -> np.ndarray:
         """Format codes (H, W[, C]) -> device layout."""
@@ -338,17 +355,25 @@ class CLPipeline:
         """Allocate and clear every target for a frame of ``scene``."""
         out_w, out_h = self.output_size(scene)
         self._out = (out_w, out_h)
+        last = getattr(self, "_targets", {})
         self._targets = {}
         for name, spec in self.targets_spec.items():
             w, h = self.target_size(name, out_w, out_h)
             t = _Target(spec, w, h)
-            t.buf = t.res = self._alloc(t, t.samples)
-            if t.fmt.kind is F.Kind.DEPTH_STENCIL:
-                t.stencil = t.res_stencil = self._buffer(np.zeros(w * h * t.samples, np.uint8))
-            if t.samples > 1:
-                t.res = self._alloc(t, 1)
-                if t.stencil is not None:
-                    t.res_stencil = self._buffer(np.zeros(w * h, np.uint8))
+            old = last.get(name)
+            if old is not None and (old.width, old.height) == (w, h):
+                # the last frame's buffers (its results were read back): cleared below
+                t.buf, t.stencil = old.buf, old.stencil
+                t.res, t.res_stencil = old.res, old.res_stencil
+            else:
+                t.buf = t.res = self._alloc(t, t.samples)
+                if t.fmt.kind is F.Kind.DEPTH_STENCIL:
+                    t.stencil = t.res_stencil = self._buffer(
+                        np.zeros(w * h * t.samples, np.uint8))
+                if t.samples > 1:
+                    t.res = self._alloc(t, 1)
+                    if t.stencil is not None:
+                        t.res_stencil = self._buffer(np.zeros(w * h, np.uint8))
             self._targets[name] = t
             self._clear_target(t, spec.get("clear_color"), spec.get("clear_depth"),
                                spec.get("clear_stencil"))
@@ -394,6 +419,7 @@ class CLPipeline:
         self.last_timings = []
         self._blend_counts = {}
         self._geometry_cache = {}
+        self._events = []
         self._frame_np = self._frame(scene)
         self._frame_buf = self._buffer(self._frame_np)
         captures: list[dict] = []
@@ -413,13 +439,13 @@ class CLPipeline:
             while end < len(passes) and passes[end].get("repeat_group") == group:
                 end += 1
             lists = {j: set(self._light_list(passes[j]["draw"])) for j in range(k, end)
-                     if _light_filter(passes[j]["draw"])}
+                     if light_filter(passes[j]["draw"])}
             for light in range(len(scene.lights)):
                 for j in range(k, end):
                     if j in lists and light not in lists[j]:
                         continue
                     types = passes[j].get("repeat_types") or []
-                    if types and _light_type(scene.lights[light]) not in types:
+                    if types and light_type(scene.lights[light]) not in types:
                         continue
                     self._run_pass(j, light)
                     if capture_passes:
@@ -430,6 +456,9 @@ class CLPipeline:
         result = self._read_all()
         self.last_blend_counts = self._read_blend_counts()
         self.queue.finish()
+        for timing, ev in self._events:          # raster kernels run while the host goes on
+            timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
+        self._events = []
         return (result, captures) if capture_passes else result
 
     def _check_params(self, params: Optional[dict]) -> None:
@@ -470,9 +499,15 @@ class CLPipeline:
         """The per-pixel count of fragments blended into colour target ``t`` this frame (a
         uint32 per pixel, zeroed at the first blended pass; the raster kernel adds its
         pixel's count at the end of every blended pass)."""
+        import pyopencl as cl
         buf = self._blend_counts.get(t.name)
         if buf is None:
-            buf = self._blend_counts[t.name] = self._buffer(np.zeros(t.pixels, np.uint32))
+            buf = self._count_pool.get((t.name, t.pixels))
+            if buf is None:
+                buf = self._count_pool[(t.name, t.pixels)] = cl.Buffer(
+                    self.ctx, cl.mem_flags.READ_WRITE, size=t.pixels * 4)
+            cl.enqueue_fill_buffer(self.queue, buf, np.uint32(0), 0, t.pixels * 4)
+            self._blend_counts[t.name] = buf
         return buf
 
     def _read_blend_counts(self) -> dict:
@@ -508,26 +543,25 @@ class CLPipeline:
         lights = None
         if draw["kind"] == "lights":
             if light is not None:
-                lights = [light] if (not _light_filter(draw)
+                lights = [light] if (not light_filter(draw)
                                      or light in self._light_list(draw)) else []
             else:
                 lights = self._light_list(draw)
             if not lights:
                 return
-        geo = self._draw_geometry(k, p, width, height, timing, lights)
-        if geo is None:
+        drawn = self._pass_triangles(k, p, width, height, timing, lights)
+        if drawn is None:
             return
-        tris, bins, bufs = geo
-        tile_start, tile_tris, tiles_x, tiles_y = bins
+        geo, tb = drawn
+        bufs = geo.bufs
         st = self._dummy
         if self.dynamic_state:
             st = self._buffer(np.asarray(clgen.state_words(p), np.int32))
-        args = [np.int32(width), np.int32(height), np.int32(tiles_x), bufs["tile_list"],
-                bufs["tile_start"], bufs["tile_tris"], bufs["a"], bufs["b"], bufs["c"],
-                bufs["z"], bufs["w"], bufs["coef"], np.int32(tris.coef.shape[1]),
-                bufs["zp"], bufs["zq"],
-                bufs["flat"], bufs["vtx"],
-                bufs["scissor"], bufs["vary"], np.int32(tris.nverts), self._frame_buf,
+        args = [np.int32(width), np.int32(height), np.int32(tb.tiles_x), tb.tile_list,
+                tb.tile_start, tb.tile_tris, bufs["a"], bufs["b"], bufs["c"],
+                bufs["z"], bufs["w"], bufs["coef"], np.int32(geo.ncoef),
+                bufs["zp"], bufs["zq"], bufs["flat"], bufs["vtx"], bufs["scissor"],
+                bufs["bbox"], bufs["vary"], np.int32(geo.tris.nverts), self._frame_buf,
                 self._lights_buf, st, np.uint32(light or 0)]
         for name in p.get("writes") or []:
             args.append(self._targets[name].buf)
@@ -549,37 +583,19 @@ class CLPipeline:
         kern = self._kernel(k, "pg_raster")
         kern.set_args(*args)
         T = self.tile
-        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (bufs["ntiles"] * T, T), (T, T))
-        ev.wait()
-        timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
+        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
+        self._events.append((timing, ev))
         for name in attached:
             if self._targets[name].samples > 1:
                 self._targets[name].dirty = True
-        timing["triangles"] = tris.count
-        timing["tile_entries"] = int(tile_start[-1])
+        timing["triangles"] = tb.triangles
+        timing["tile_entries"] = tb.entries
 
     # -- geometry ----------------------------------------------------------------------------------
     def _light_list(self, draw: dict) -> list[int]:
-        """The lights a light draw instances, in table order (GLPipeline._light_list)."""
-        lights = list(self._scene.lights)
-        idx = list(range(len(lights)))
-        types = draw.get("light_types") or []
-        if types:
-            idx = [i for i in idx if _light_type(lights[i]) in types]
-        light_set = draw.get("light_set")
-        if light_set:
-            pack, k = light_set[0], int(light_set[1])
-            if pack not in self._light_sets:
-                from ..packing import sort_lights_into_slots
-                slots = int((self.plan.get("light_sets") or {}).get(pack, 4))
-                centers = [tuple(getattr(l, "position", (0.0, 0.0, 0.0))) for l in lights]
-                radii = [float(getattr(l, "radius", 0.0)) for l in lights]
-                sets, dropped = sort_lights_into_slots(centers, radii, slots)
-                self._light_sets[pack] = [list(map(int, s)) for s in sets]
-                self.dropped_lights[pack] = [int(i) for i in dropped]
-            chosen = set(self._light_sets[pack][k]) if k < len(self._light_sets[pack]) else set()
-            idx = [i for i in idx if i in chosen]
-        return idx
+        """The lights a light draw instances, in table order (light_table.light_list)."""
+        return light_list(draw, list(self._scene.lights), self.plan, self._light_sets,
+                          self.dropped_lights)
 
     def _mesh(self, volume: str):
         if volume not in self._meshes:
@@ -608,28 +624,210 @@ class CLPipeline:
                 self._scene_attrs[material] = (n, attrs, flat)
         return self._scene_attrs[material]
 
-    def _draw_geometry(self, k: int, p: dict, width: int, height: int, timing: dict,
-                       lights: Optional[list]):
-        """Vertex kernel, setup and binning of a pass's draw (cached per frame: passes that
-        draw the same geometry under the same raster state share it)."""
+    def _pass_triangles(self, k: int, p: dict, width: int, height: int, timing: dict,
+                        lights: Optional[list]):
+        """(geometry, tile bins) a pass draws, or None when it draws no triangle.
+
+        Geometry (vertex kernel, clipping and setup, on the device) is cached per frame and
+        shared by the passes that draw the same triangles under the same raster state.  A
+        light draw sets up every light of its light list at once, with no culling, and each
+        pass draws the range of its light(s) (the instances are consecutive in submission
+        order), keeping the faces its cull mode keeps: inside a repeat group one set-up
+        serves all lights and every pass of the group with the same raster state.  Bins are
+        per pass (cached per frame too) and index the shared triangles; for light draws they
+        are cut from the (triangle, tile) pairs of all lights, found once."""
+        draw = p["draw"]
+        st = p.get("state") or {}
+        cull = st.get("cull") or "none"
+        static = draw["kind"] not in ("scene", "lights")
+        cache = self._static_geometry if static else self._geometry_cache
+        if draw["kind"] == "lights":
+            batch = tuple(self._light_list(draw))
+            if not set(lights) <= set(batch):
+                batch = tuple(lights)
+            geo = self._geometry(k, p, width, height, timing, batch)
+            if geo is None:
+                return None
+            if cull == "auto":
+                key = ("auto", id(geo), tuple(lights))
+                sub = cache.get(key)
+                if sub is None:
+                    tris = geo.tris
+                    if tuple(lights) != batch:
+                        tris = _select_triangles(tris, np.concatenate(
+                            [np.arange(*geo.ranges[int(l)]) for l in lights]))
+                    tris = self._cull_auto(tris, draw.get("volume") or "sphere", lights)
+                    sub = cache[key] = self._upload(tris, geo.bufs["vary"])
+                geo = sub
+            else:
+                key = ("bins", id(geo.tris), tuple(lights), cull, width, height)
+                tb = cache.get(key)
+                if tb is None:
+                    t0 = time.perf_counter()
+                    pairs = cache.get(("pairs", id(geo.tris), width, height))
+                    if pairs is None:
+                        pairs = cache[("pairs", id(geo.tris), width, height)] = bin_pairs(
+                            geo.tris, width, height, self.tile)
+                    tri, tile_id, tiles_x, tiles_y = pairs
+                    if tuple(lights) != batch:       # the pairs of these lights' triangles
+                        cut = [np.searchsorted(tri, geo.ranges[int(l)]) for l in lights]
+                        tri = np.concatenate([tri[a:b] for a, b in cut])
+                        tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
+                    if cull in ("back", "front"):
+                        keep = geo.front[tri] == (cull == "back")
+                        tri, tile_id = tri[keep], tile_id[keep]
+                    tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
+                    timing["bin"] = (time.perf_counter() - t0) * 1e3
+                    n = sum(b - a for a, b in (geo.ranges[int(l)] for l in lights))
+                    if cull in ("back", "front"):
+                        front = sum(int(np.count_nonzero(geo.front[a:b]))
+                                    for a, b in (geo.ranges[int(l)] for l in lights))
+                        n = front if cull == "back" else n - front
+                    tb = cache[key] = _Bins(self, tile_start, tile_tris, tiles_x, n)
+                return (geo, tb) if tb.ntiles else None
+        else:
+            geo = self._geometry(k, p, width, height, timing, None)
+            if geo is None:
+                return None
+        key = ("bins", id(geo.tris), cull, width, height)
+        tb = cache.get(key)
+        if tb is None:
+            t0 = time.perf_counter()
+            tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height, self.tile)
+            timing["bin"] = (time.perf_counter() - t0) * 1e3
+            tb = cache[key] = _Bins(self, tile_start, tile_tris, tiles_x, geo.tris.count)
+        if tb.ntiles == 0:
+            return None
+        return geo, tb
+
+    def _pass_size(self, p: dict) -> tuple[int, int]:
+        """The viewport of a pass: its first attachment's size, else the output size."""
+        attached = list(p.get("writes") or []) + (
+            [p["depth_target"]] if p.get("depth_target") else [])
+        if attached:
+            t = self._targets[attached[0]]
+            return t.width, t.height
+        return self._out
+
+    def _raster_key(self, p: dict, width: int, height: int) -> tuple:
+        """What the set-up triangles of a pass's draw depend on besides its varyings."""
+        draw = p["draw"]
+        st = p.get("state") or {}
+        depth_clamp = bool((st.get("depth") or {}).get("clamp"))
+        dfmt = p.get("depth_target") and self._targets[p["depth_target"]].fmt.name
+        # llvmpipe folds the pixel centre into the planes' a0 unless the pass is multisampled
+        center = 0.0 if self._pass_samples(p) > 1 else 0.5
+        if draw["kind"] == "lights":
+            # culling is per pass (light draws are set up without it)
+            return ("lights", draw.get("volume") or "sphere", bool(draw.get("scissor")),
+                    str(st.get("polygon_offset")), depth_clamp, width, height, dfmt, center)
+        return (draw["kind"], tuple(draw.get("material") or ()), st.get("cull") or "none",
+                str(st.get("polygon_offset")), depth_clamp, width, height, dfmt, center)
+
+    def _scene_group(self, key: tuple) -> tuple:
+        """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
+        with the union of their varyings (SCENE_VARYINGS order) and the 1/w plane if any of
+        them needs it.  Returns (names, flat flags, providers, w_plane); ``providers``: the
+        passes whose vertex kernels compute the union (k, [their varying names])."""
+        got = self._geometry_cache.get(("group", key))
+        if got is not None:
+            return got
+        members = []
+        for k, q in enumerate(self.plan["passes"]):
+            if q["draw"]["kind"] != "scene":
+                continue
+            if self._raster_key(q, *self._pass_size(q)) != key:
+                continue
+            members.append((k, clgen.varying_slots(q),
+                            "frag_coord" in ((q.get("cl") or {}).get("inputs") or ())))
+        union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
+        names = [n for n in clgen.SCENE_VARYINGS if n in union]
+        providers, missing = [], set(names)
+        for k, slots, _ in sorted(members, key=lambda m: -len(m[1])):
+            have = [v["name"] for v in slots]
+            if missing & set(have):
+                providers.append((k, have))
+                missing -= set(have)
+        got = (names, [union[n] for n in names], providers, any(m[2] for m in members))
+        self._geometry_cache[("group", key)] = got
+        return got
+
+    def _geometry(self, k: int, p: dict, width: int, height: int, timing: dict,
+                  lights: Optional[tuple]):
+        """Vertex kernel, clipping and setup of a pass's draw (``lights``: every light a light
+        draw sets up); cached per frame.  Scene draws are set up once for every pass drawing
+        them under the same raster state (``_scene_group``); a pass reading fewer varyings
+        gets its own varying and plane buffers cut from the shared ones."""
+        draw = p["draw"]
+        key = self._raster_key(p, width, height)
+        if draw["kind"] == "lights":
+            key = key + (lights,)
+        elif draw["kind"] == "scene":
+            names = [v["name"] for v in clgen.varying_slots(p)]
+            pkey = key + (tuple(names),)
+            if pkey in self._geometry_cache:
+                return self._geometry_cache[pkey]
+            base = self._geometry_cache.get(key, False)
+            if base is False:
+                base = self._set_up(k, p, width, height, timing, key, lights)
+            geo = base if base is None else self._cut(base, names)
+            self._geometry_cache[pkey] = geo
+            return geo
+        if key in self._geometry_cache:
+            return self._geometry_cache[key]
+        if draw["kind"] == "lights":
+            return self._set_up(k, p, width, height, timing, key, lights)
+        # the full-screen triangle depends on nothing of the frame: kept across frames
+        if key not in self._static_geometry:
+            self._static_geometry[key] = self._set_up(k, p, width, height, timing, key, lights)
+        geo = self._geometry_cache[key] = self._static_geometry[key]
+        return geo
+
+    def _cut(self, geo: "_Geo", names: list) -> "_Geo":
+        """The shared scene set-up ``geo`` as a pass reading varyings ``names`` sees it: its
+        varyings in slot order (only the flat ones are read from ``vary``) and the planes of
+        its smooth ones."""
+        if names == geo.names:
+            return geo
+        if not names:
+            return geo          # reads no varying: nothing indexes vary or coef
+        tris = geo.tris
+        flat = dict(zip(geo.names, geo.flats))
+        pos = {n: i for i, n in enumerate(geo.names)}
+        smooth_pos = {n: i for i, n in enumerate(n for n in geo.names if not flat[n])}
+        vary = np.zeros((len(names), tris.nverts, 4), np.float32)
+        for i, n in enumerate(names):
+            if flat[n]:
+                vary[i] = tris.vary[pos[n]]
+        coef = np.ascontiguousarray(tris.coef[:, [smooth_pos[n] for n in names if not flat[n]]])
+        cut = _Geo(tris, dict(geo.bufs, vary=self._buffer(vary), coef=self._buffer(coef)))
+        cut.ncoef = coef.shape[1]
+        cut.names = list(names)
+        return cut
+
+    def _set_up(self, k: int, p: dict, width: int, height: int, timing: dict, key: tuple,
+                lights: Optional[tuple]):
+        """Run the vertex kernel(s), read back clip positions and varyings, clip and set up
+        on the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
         import pyopencl as cl
         draw = p["draw"]
         st = p.get("state") or {}
         depth_clamp = bool((st.get("depth") or {}).get("clamp"))
         dfmt = p.get("depth_target") and self._targets[p["depth_target"]].fmt.name
-        slots = clgen.varying_slots(p)
-        # llvmpipe folds the pixel centre into the planes' a0 unless the pass is multisampled
         center = 0.0 if self._pass_samples(p) > 1 else 0.5
-        # the 1/w plane: for smooth varyings and frag_coord.w
-        w_plane = "frag_coord" in ((p.get("cl") or {}).get("inputs") or ())
-        key = (draw["kind"], tuple(draw.get("material") or ()), draw.get("volume"),
-               None if lights is None else tuple(lights), bool(draw.get("scissor")),
-               st.get("cull"), str(st.get("polygon_offset")), depth_clamp, width, height,
-               tuple((v["name"], v["flat"]) for v in slots), dfmt, center, w_plane)
-        if key in self._geometry_cache:
-            return self._geometry_cache[key]
+        names, flats, providers = [], [], [(k, [])]
+        if draw["kind"] == "scene":
+            names, flats, providers, w_plane = self._scene_group(key)
+            providers = providers or [(k, [])]
+            cull = st.get("cull") or "none"
+        else:
+            # light volumes and the full-screen triangle have no varyings; their 1/w plane
+            # (frag_coord.w) is set up always, so that every pass drawing them shares one
+            # set-up (light draws are culled per pass)
+            w_plane = True
+            cull = "none" if draw["kind"] == "lights" else st.get("cull") or "none"
         mesh_verts = 1
-        zeros = self._buffer(np.zeros((1, 4), np.float32))
+        zeros = self._zeros4
         attrs = [zeros] * 4
         inst = np.zeros(1, np.uint32)
         flat = None
@@ -651,52 +849,64 @@ class CLPipeline:
                 scissor = self._light_scissors(inst, width, height, mesh_verts // 3)
         else:
             nverts = 3
-        S = len(slots)
-        clip_buf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
-        vary_buf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
         inst_buf = self._buffer(inst)
-        kern = self._kernel(k, "pg_vertex")
-        kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf, self._frame_buf,
-                      self._lights_buf, clip_buf, vary_buf)
-        gsize = ((nverts + 63) // 64) * 64
-        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (gsize,), (64,))
-        clip = np.empty((nverts, 4), np.float32)
-        cl.enqueue_copy(self.queue, clip, clip_buf)
-        vary = None
-        if S:
-            vary = np.empty((S, nverts, 4), np.float32)
-            cl.enqueue_copy(self.queue, vary, vary_buf)
-        timing["vertex"] = (ev.profile.end - ev.profile.start) * 1e-6
+        clip = None
+        vary = np.empty((len(names), nverts, 4), np.float32) if names else None
+        vary_buf = None
+        vertex_ms = 0.0
+        for kp, have in providers:
+            S = len(have)
+            clip_buf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
+            vbuf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
+            kern = self._kernel(kp, "pg_vertex")
+            kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
+                          self._frame_buf, self._lights_buf, clip_buf, vbuf)
+            gsize = ((nverts + 63) // 64) * 64
+            ev = cl.enqueue_nd_range_kernel(self.queue, kern, (gsize,), (64,))
+            if clip is None:
+                clip = np.empty((nverts, 4), np.float32)
+                cl.enqueue_copy(self.queue, clip, clip_buf)
+            if S:
+                out = np.empty((S, nverts, 4), np.float32)
+                cl.enqueue_copy(self.queue, out, vbuf)
+                for i, n in enumerate(have):
+                    if n in names:
+                        vary[names.index(n)] = out[i]
+                if have == names:
+                    vary_buf = vbuf
+            ev.wait()
+            vertex_ms += (ev.profile.end - ev.profile.start) * 1e-6
+        timing["vertex"] = vertex_ms
         t0 = time.perf_counter()
-        cull = st.get("cull") or "none"
-        tris = setup_triangles(clip, width, height, cull="none" if cull == "auto" else cull,
+        tris = setup_triangles(clip, width, height, cull=cull,
                                polygon_offset=st.get("polygon_offset"), depth_clamp=depth_clamp,
                                depth_format=dfmt, flat=flat, vary=vary, scissor=scissor,
-                               smooth=[v["slot"] for v in slots if not v["flat"]],
+                               smooth=[i for i, f in enumerate(flats) if not f],
                                pixel_center=center, w_plane=w_plane)
-        if cull == "auto":
-            tris = self._cull_auto(tris, draw.get("volume") or "sphere", lights)
-        t1 = time.perf_counter()
-        bins = bin_triangles(tris, width, height, self.tile)
-        t2 = time.perf_counter()
-        timing["setup"] = (t1 - t0) * 1e3
-        timing["bin"] = (t2 - t1) * 1e3
+        timing["setup"] = (time.perf_counter() - t0) * 1e3
         if tris.count == 0:
             self._geometry_cache[key] = None
             return None
-        if tris.vary is not None and tris.vary.shape[1] != nverts:
-            vary_buf = self._buffer(tris.vary)
-        active = np.flatnonzero(np.diff(bins[0]) > 0).astype(np.int32)
-        bufs = {"tile_list": self._buffer(active), "ntiles": len(active),
-                "tile_start": self._buffer(bins[0]), "tile_tris": self._buffer(bins[1]),
-                "a": self._buffer(tris.a), "b": self._buffer(tris.b), "c": self._buffer(tris.c),
+        if vary_buf is None or tris.vary.shape[1] != nverts:
+            vary_buf = self._buffer(tris.vary) if tris.vary is not None else self._zeros4
+        geo = self._geometry_cache[key] = self._upload(tris, vary_buf)
+        geo.names, geo.flats = names, flats
+        if draw["kind"] == "lights":
+            light_of = tris.flat[:, 3]
+            lo = np.searchsorted(light_of, inst, "left")
+            hi = np.searchsorted(light_of, inst, "right")
+            geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(inst, lo, hi)}
+        return geo
+
+    def _upload(self, tris, vary_buf) -> "_Geo":
+        bufs = {"a": self._buffer(tris.a), "b": self._buffer(tris.b), "c": self._buffer(tris.c),
                 "z": self._buffer(tris.z), "w": self._buffer(tris.w),
                 "coef": self._buffer(tris.coef),
                 "zp": self._buffer(tris.zp), "zq": self._buffer(tris.zq),
                 "flat": self._buffer(tris.flat), "vtx": self._buffer(tris.vtx),
-                "scissor": self._buffer(tris.scissor), "vary": vary_buf}
-        self._geometry_cache[key] = (tris, bins, bufs)
-        return self._geometry_cache[key]
+                "scissor": self._buffer(tris.scissor), "bbox": self._buffer(tris.bbox),
+                "vary": vary_buf}
+        return _Geo(tris, bufs)
 
     def _pass_samples(self, p: dict) -> int:
         """Samples per pixel of a pass's attachments (as backends/opencl.pass_program)."""
@@ -735,6 +945,36 @@ class CLPipeline:
         return np.repeat(np.asarray(rects, np.int32).reshape(-1, 4), tris_per, axis=0)
 
 
+class _Geo:
+    """Set-up triangles of a draw, on the host (``tris``) and on the device (``bufs``, the
+    raster kernel's per-triangle arrays and the varyings); ``ranges``: light -> its
+    triangles ``[lo, hi)`` for a light draw; ``front``: the front-facing triangles."""
+
+    def __init__(self, tris, bufs: dict):
+        self.tris = tris
+        self.bufs = bufs
+        self.ranges: dict = {}
+        self.front = (tris.flat[:, 0] & 1).astype(bool)
+        self.ncoef = tris.coef.shape[1]
+        self.names: list = []        # scene draws: the varyings set up, in slot order
+        self.flats: list = []
+
+
+class _Bins:
+    """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
+    work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
+
+    def __init__(self, pipe: "CLPipeline", tile_start, tile_tris, tiles_x: int, triangles: int):
+        active = np.flatnonzero(np.diff(tile_start) > 0).astype(np.int32)
+        self.ntiles = len(active)
+        self.tiles_x = tiles_x
+        self.triangles = triangles
+        self.entries = int(tile_start[-1])
+        self.tile_list = pipe._buffer(active)
+        self.tile_start = pipe._buffer(tile_start)
+        self.tile_tris = pipe._buffer(tile_tris)
+
+
 def _select_triangles(tris, keep: np.ndarray):
     """The set-up triangles where ``keep`` holds, in their order (per-triangle arrays are
     indexed; the varyings, which the triangles index, are kept whole)."""
@@ -749,14 +989,3 @@ def _select_triangles(tris, keep: np.ndarray):
         if isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == n:
             changes[f.name] = v[idx]
     return dataclasses.replace(tris, **changes)
-
-
-def _light_filter(draw: dict) -> bool:
-    return bool(draw.get("light_types") or draw.get("light_set"))
-
-
-def _light_type(light) -> str:
-    t = getattr(light, "type", "point")
-    if isinstance(t, (int, np.integer)):
-        return {0: "point", 1: "spot", 2: "directional"}.get(int(t), str(t))
-    return str(t)

@@ -44,7 +44,14 @@ window depth follow llvmpipe (Mesa 22.3) operation for operation, so depth codes
 7. **binning**: tiles of ``tile`` x ``tile`` pixels; per tile the triangles whose bounding box
    (and, for large boxes, whose edge functions) reach it, in submission order (a stable sort),
    as CSR arrays ``tile_start`` / ``tile_tris``.  Boxes and tile tests use the pixel centres
-   with one sample per pixel (``samples=1``), any sample position otherwise.
+   with one sample per pixel (``samples=1``), any sample position otherwise.  The raster
+   kernel also reads the boxes (``bbox``): it tests a triangle only at the pixels inside.
+
+Every result is per triangle (per vertex for the window coordinates), whatever else is set
+up in the same call: the CL runtime sets up many lights' volumes, or the union of several
+passes' varyings, at once and hands each pass its part.  The arithmetic runs on (3, N)
+rows (vertex k of every triangle in row k); ``depth_plane``, ``attribute_planes`` and
+``window_coords`` give the same values in per-triangle layout.
 """
 
 from __future__ import annotations
@@ -83,10 +90,7 @@ class Triangles:
         return len(self.a)
 
 
-def fma32(a, b, c) -> np.ndarray:
-    """Correctly rounded float32 ``a * b + c`` (vectorised): the product of two float32 is
-    exact in float64; the sum is rounded to odd in float64 (TwoSum error term) so that the
-    final rounding to float32 is a single correct one."""
+def _fma32_exact(a, b, c) -> np.ndarray:
     a, b, c = (np.asarray(v, np.float32).astype(np.float64) for v in (a, b, c))
     p = a * b
     with np.errstate(invalid="ignore", over="ignore"):
@@ -98,6 +102,107 @@ def fma32(a, b, c) -> np.ndarray:
         toward = np.where(np.signbit(err) == np.signbit(s), 1, -1)
         s = np.where(fix, (bits + toward).view(np.float64), s)
         return s.astype(np.float32)
+
+
+def fma32(a, b, c) -> np.ndarray:
+    """Correctly rounded float32 ``a * b + c`` (vectorised).  The product of two float32 is
+    exact in float64, so rounding the float64 sum to float32 is correct unless that sum was
+    itself rounded and landed exactly on a float32 rounding boundary (a tie, which the
+    float64 rounding may have decided), or lies in the float32 subnormal range: those few
+    take the exact path (the sum rounded to odd in float64, from its TwoSum error term)."""
+    a, b, c = np.broadcast_arrays(*(np.asarray(v, np.float32) for v in (a, b, c)))
+    with np.errstate(invalid="ignore", over="ignore"):
+        p = a.astype(np.float64) * b
+        s = p + c
+        out = s.astype(np.float32)
+    bits = s.view(np.int64)
+    suspect = ((bits & 0x1FFFFFFF) == 0x10000000) | ~(np.abs(s) >= 2.0 ** -125)
+    if suspect.any():
+        idx = np.flatnonzero(suspect.reshape(-1))
+        ps, cs, ss = p.reshape(-1)[idx], c.reshape(-1)[idx].astype(np.float64), s.reshape(-1)[idx]
+        with np.errstate(invalid="ignore", over="ignore"):
+            # Fast2Sum: the rounding error of s is exactly (s - big) - small
+            big_p = np.abs(ps) >= np.abs(cs)
+            err = np.where(big_p, (ss - ps) - cs, (ss - cs) - ps)
+        idx = idx[(err != 0) | ~(np.abs(ss) >= 2.0 ** -125)]
+        if len(idx):
+            flat = out.reshape(-1)
+            flat[idx] = _fma32_exact(a.reshape(-1)[idx], b.reshape(-1)[idx], c.reshape(-1)[idx])
+            out = flat.reshape(out.shape)
+    return out
+
+
+class _Edges:
+    """The vertex-order-dependent terms of llvmpipe's setup (lp_state_setup.c, init_args) for
+    triangles given as (3, n) float32 rows of window x and y: the vertex order llvmpipe's
+    setup sees (v0 and v1 swapped where the GL-window ``area`` is positive, the provoking
+    vertex last), ``ooa = 1 / ((x0-x1)(y2-y0) - (y0-y1)(x2-x0))`` and ``dx01 * ooa`` etc.,
+    all float32 without contraction."""
+
+    def __init__(self, xw, yw, area):
+        f32 = np.float32
+        self.swap = np.asarray(area) > 0
+        sw = self.swap
+        x0, x1 = np.where(sw, xw[1], xw[0]), np.where(sw, xw[0], xw[1])
+        y0, y1 = np.where(sw, yw[1], yw[0]), np.where(sw, yw[0], yw[1])
+        x2, y2 = xw[2], yw[2]
+        self.x0, self.y0 = x0, y0
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            self.dx01, self.dy01 = x0 - x1, y0 - y1
+            self.dx20, self.dy20 = x2 - x0, y2 - y0
+            self.ooa = f32(1.0) / (self.dx01 * self.dy20 - self.dy01 * self.dx20)
+            self.dx01o, self.dy01o = self.dx01 * self.ooa, self.dy01 * self.ooa
+            self.dx20o, self.dy20o = self.dx20 * self.ooa, self.dy20 * self.ooa
+
+    def order(self, v):
+        """(3, n, ...) per-vertex values -> (v0, v1, v2) in llvmpipe's order."""
+        sw = self.swap.reshape(self.swap.shape + (1,) * (v.ndim - 2))
+        return np.where(sw, v[1], v[0]), np.where(sw, v[0], v[1]), v[2]
+
+    def planes(self, v, center):
+        """(a0, dadx, dady) of (3, n, C) float32 vertex values (calc_coef4): ``dadx =
+        (a0-a1) dy20_ooa - (a2-a0) dy01_ooa``, ``dady = (a2-a0) dx01_ooa - (a0-a1) dx20_ooa``,
+        ``a0' = a0 - (dadx (x0 - c) + dady (y0 - c))``."""
+        a0, a1, a2 = self.order(v)
+        ex = (slice(None),) + (None,) * (v.ndim - 2)
+        half = np.float32(center)
+        with np.errstate(invalid="ignore", over="ignore", under="ignore"):
+            da01, da20 = a0 - a1, a2 - a0
+            dadx = da01 * self.dy20o[ex] - da20 * self.dy01o[ex]
+            dady = da20 * self.dx01o[ex] - da01 * self.dx20o[ex]
+            return (a0 - (dadx * (self.x0 - half)[ex] + dady * (self.y0 - half)[ex]),
+                    dadx, dady)
+
+    def depth(self, zw, polygon_offset=None, depth_format=None, center=0.5):
+        """(a0, dadx, dady, offset, a0 for pixel centre 0) of the window-z plane (zw: (3, n))."""
+        f32 = np.float32
+        z0, z1, z2 = self.order(zw)
+        n = len(z0)
+        half = f32(center)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            dz01, dz20 = z0 - z1, z2 - z0
+            dadx = dz01 * self.dy20o - dz20 * self.dy01o
+            dady = dz20 * self.dx01o - dz01 * self.dx20o
+            a0 = z0 - (dadx * (self.x0 - half) + dady * (self.y0 - half))
+            a0_ms = z0 - (dadx * self.x0 + dady * self.y0)
+            off = np.zeros(n, f32)
+            if polygon_offset is not None and n:
+                factor, units = float(polygon_offset[0]), float(polygon_offset[1])
+                # lp_do_offset_tri: cross(e, f).xy * ooa, max of the absolute values, * factor
+                zx = np.abs((self.dy20 * dz01 - dz20 * self.dy01) * self.ooa)
+                zy = np.abs((dz20 * self.dx01 - self.dx20 * dz01) * self.ooa)
+                mult = np.where(zx > zy, zx, zy) * f32(factor)
+                if depth_format == "d32f":
+                    # units * 2^(exponent(max |z|) - 23), the exponent clamped at 2^-126.. 0
+                    zmax = np.maximum(np.maximum(np.abs(z0), np.abs(z1)), np.abs(z2))
+                    e = (zmax.view(np.int32) & np.int32(0xFF << 23)) - np.int32(23 << 23)
+                    bias = np.maximum(e, 0).astype(np.int32).view(f32) * f32(units)
+                    off = bias + mult
+                else:
+                    # lp_state_setup.c: pgon_offset_units = (float)(units * mrd * 2),
+                    # mrd = 1/(2^24-1)
+                    off = f32(units * (1.0 / 16777215.0) * 2.0) + mult
+        return a0, dadx, dady, np.asarray(off, f32), a0_ms
 
 
 def depth_plane(xw, yw, zw, area, polygon_offset=None, depth_format=None, center=0.5,
@@ -128,43 +233,12 @@ def depth_plane(xw, yw, zw, area, polygon_offset=None, depth_format=None, center
     """
     f32 = np.float32
     xw, yw, zw = (np.asarray(v, f32) for v in (xw, yw, zw))
-    n = len(xw)
-    swap = np.asarray(area) > 0
-    order = np.where(swap[:, None], np.array([1, 0, 2]), np.array([0, 1, 2]))
-    x = np.take_along_axis(xw, order, 1)
-    y = np.take_along_axis(yw, order, 1)
-    z = np.take_along_axis(zw, order, 1)
-    half = f32(center)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        x0c, y0c = x[:, 0] - half, y[:, 0] - half
-        dx01, dy01 = x[:, 0] - x[:, 1], y[:, 0] - y[:, 1]
-        dx20, dy20 = x[:, 2] - x[:, 0], y[:, 2] - y[:, 0]
-        ooa = f32(1.0) / (dx01 * dy20 - dy01 * dx20)
-        dz01, dz20 = z[:, 0] - z[:, 1], z[:, 2] - z[:, 0]
-        dadx = dz01 * (dy20 * ooa) - dz20 * (dy01 * ooa)
-        dady = dz20 * (dx01 * ooa) - dz01 * (dx20 * ooa)
-        a0 = z[:, 0] - (dadx * x0c + dady * y0c)
-        off = np.zeros(n, f32)
-        if polygon_offset is not None and n:
-            factor, units = float(polygon_offset[0]), float(polygon_offset[1])
-            # lp_do_offset_tri: cross(e, f).xy * ooa, max of the absolute values, * factor
-            zx = np.abs((dy20 * dz01 - dz20 * dy01) * ooa)
-            zy = np.abs((dz20 * dx01 - dx20 * dz01) * ooa)
-            mult = np.where(zx > zy, zx, zy) * f32(factor)
-            if depth_format == "d32f":
-                # units * 2^(exponent(max |z|) - 23), the exponent clamped at 2^-126.. 0
-                zmax = np.abs(z).max(axis=1)
-                e = (zmax.view(np.int32) & np.int32(0xFF << 23)) - np.int32(23 << 23)
-                bias = np.maximum(e, 0).astype(np.int32).view(f32) * f32(units)
-                off = bias + mult
-            else:
-                # lp_state_setup.c: pgon_offset_units = (float)(units * mrd * 2), mrd = 1/(2^24-1)
-                off = f32(units * (1.0 / 16777215.0) * 2.0) + mult
-        pz = np.stack([a0, dadx, dady], axis=1).astype(f32)
-        if with_ms_a0:
-            a0_ms = z[:, 0] - (dadx * x[:, 0] + dady * y[:, 0])
-            return pz, np.asarray(off, f32), a0_ms.astype(f32)
-        return pz, np.asarray(off, f32)
+    a0, dadx, dady, off, a0_ms = _Edges(xw.T, yw.T, area).depth(
+        zw.T, polygon_offset, depth_format, center)
+    pz = np.stack([a0, dadx, dady], axis=1).astype(f32)
+    if with_ms_a0:
+        return pz, off, a0_ms.astype(f32)
+    return pz, off
 
 
 def llvmpipe_order(area) -> np.ndarray:
@@ -191,27 +265,8 @@ def attribute_planes(xw, yw, area, attrs, center=0.5) -> np.ndarray:
     """
     f32 = np.float32
     xw, yw, attrs = (np.asarray(v, f32) for v in (xw, yw, attrs))
-    swap = (np.asarray(area) > 0)[:, None]
-    # llvmpipe's vertex order (llvmpipe_order): v0 and v1 swapped where the area is positive
-    x0, x1 = np.where(swap[:, 0], xw[:, 1], xw[:, 0]), np.where(swap[:, 0], xw[:, 0], xw[:, 1])
-    y0, y1 = np.where(swap[:, 0], yw[:, 1], yw[:, 0]), np.where(swap[:, 0], yw[:, 0], yw[:, 1])
-    x2, y2 = xw[:, 2], yw[:, 2]
-    a0, a1 = np.where(swap, attrs[:, 1], attrs[:, 0]), np.where(swap, attrs[:, 0], attrs[:, 1])
-    a2 = attrs[:, 2]
-    half = f32(center)
-    out = np.empty((len(xw), 3) + attrs.shape[2:], f32)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        dx01, dy01 = x0 - x1, y0 - y1
-        dx20, dy20 = x2 - x0, y2 - y0
-        ooa = f32(1.0) / (dx01 * dy20 - dy01 * dx20)
-        dx01o, dy01o = (dx01 * ooa)[:, None], (dy01 * ooa)[:, None]
-        dx20o, dy20o = (dx20 * ooa)[:, None], (dy20 * ooa)[:, None]
-        da01 = a0 - a1
-        da20 = a2 - a0
-        dadx = np.subtract(da01 * dy20o, da20 * dy01o, out=out[:, 1])
-        dady = np.subtract(da20 * dx01o, da01 * dx20o, out=out[:, 2])
-        np.subtract(a0, dadx * (x0 - half)[:, None] + dady * (y0 - half)[:, None], out=out[:, 0])
-    return out
+    a0, dadx, dady = _Edges(xw.T, yw.T, area).planes(np.moveaxis(attrs, 1, 0), center)
+    return np.stack([a0, dadx, dady], axis=1)
 
 
 # draw_pipe_clip.c's planes in its order (bit k of the vertex clip mask): x <= w, x >= -w,
@@ -222,16 +277,16 @@ _PLANE_SIGN = (-1, 1, -1, 1, 1, -1)
 
 
 def _clip_mask(clip: np.ndarray, depth_clamp: bool) -> np.ndarray:
-    """Per-vertex outside bits as draw's LLVM vertex path tests them (float32)."""
-    x, y, z, w = (clip[:, k] for k in range(4))
+    """Per-vertex outside bits (uint8) as draw's LLVM vertex path tests them (float32)."""
+    x, y, z, w = (np.ascontiguousarray(clip[:, k]) for k in range(4))
     zero = np.float32(0.0)
     with np.errstate(invalid="ignore", over="ignore"):
         bits = [x > w, zero > x + w, y > w, zero > y + w]
         if not depth_clamp:      # depth clamp disables depth clipping (draw->clip_z)
             bits += [zero > z + w, z > w]
-    m = np.zeros(len(clip), np.int64)
-    for k, b in enumerate(bits):
-        m |= b.astype(np.int64) << k
+    m = bits[0].view(np.uint8).copy()
+    for k, b in enumerate(bits[1:], 1):
+        m |= b.view(np.uint8) << np.uint8(k)
     return m
 
 
@@ -339,7 +394,7 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
         A = A.reshape(M, 3, S * 4)
     else:
         A = np.zeros((M, 3, 0), np.float32)
-    P, A, n, src = _clip_polygons(P, A, np.full(M, 3, np.int64), union[ct])
+    P, A, n, src = _clip_polygons(P, A, np.full(M, 3, np.int64), union[ct].astype(np.int64))
     # vertex table: original vertices keep their index, clipper-made ones are appended
     K = P.shape[1]
     slot = np.arange(K)[None, :]
@@ -366,24 +421,28 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
     return clip_out, vary_out, all_tri[order], parent[order]
 
 
+def _window_rows(clip: np.ndarray, width: int, height: int, n_orig: int) -> np.ndarray:
+    """``window_coords`` as (4, V) rows."""
+    f32 = np.float32
+    cols = np.ascontiguousarray(np.asarray(clip, f32).T)
+    out = np.empty((4, cols.shape[1]), f32)
+    scale = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
+    trans = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        oow = np.divide(f32(1.0), cols[3], out=out[0])
+        for k in range(3):
+            p = cols[k] * oow
+            out[k + 1, :n_orig] = fma32(p[:n_orig], scale[k], trans[k])
+            out[k + 1, n_orig:] = p[n_orig:] * scale[k] + trans[k]
+    return out
+
+
 def window_coords(clip: np.ndarray, width: int, height: int, n_orig: int) -> np.ndarray:
     """(V, 4) float32 ``1/w, x, y, z`` in window space, as llvmpipe's draw module computes
     them: vertices ``< n_orig`` (from the vertex shader) in the LLVM path, ``x * (1/w)`` then a
     fused multiply-add with the viewport scale and translation; vertices made by the clipper in
     C (draw_pipe_clip.c interp: ``x * oow * scale + trans``, separately rounded)."""
-    f32 = np.float32
-    clip = np.asarray(clip, f32)
-    out = np.empty((len(clip), 4), f32)
-    scale = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
-    trans = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        oow = f32(1.0) / clip[:, 3]
-        out[:, 0] = oow
-        for k in range(3):
-            p = clip[:, k] * oow
-            out[:n_orig, k + 1] = fma32(p[:n_orig], scale[k], trans[k])
-            out[n_orig:, k + 1] = p[n_orig:] * scale[k] + trans[k]
-    return out
+    return np.ascontiguousarray(_window_rows(clip, width, height, n_orig).T)
 
 
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "none",
@@ -406,14 +465,12 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     without smooth varyings (for ``frag_coord.w``; False leaves ``w`` zero).
     """
     clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp)
-    N = len(tri)
     W, H = int(width), int(height)
-    f32 = np.float32
-    win = window_coords(clip_v, W, H, len(clip))
-    iw, xw, yw, zw = (win[:, k][tri] for k in range(4))
+    # per-vertex rows (3, N) of 1/w and window x, y, z (vertex k of each triangle in row k)
+    iw, xw, yw, zw = _window_rows(clip_v, W, H, len(clip))[:, tri.T]
     X = np.rint(xw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     Y = np.rint(yw.astype(np.float64) * SUBPIXEL).astype(np.int64)
-    area = (X[:, 1] - X[:, 0]) * (Y[:, 2] - Y[:, 0]) - (X[:, 2] - X[:, 0]) * (Y[:, 1] - Y[:, 0])
+    area = (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0])
     keep = area != 0
     if cull == "back":
         keep &= area > 0
@@ -421,44 +478,52 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
         keep &= area < 0
     # bounding boxes: pixels with a sample position (the centre, 128/256, when ``samples`` is
     # 1; any of 1..255/256 otherwise) inside the box.  Clipping makes slivers along the
-    # viewport edges that cover samples but no pixel centre.
+    # viewport edges that cover samples but no pixel centre.  (>> 8: floor division by
+    # SUBPIXEL)
     lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
-    x0 = -((-(X.min(1) - lo)) // SUBPIXEL)
-    x1 = (X.max(1) - hi) // SUBPIXEL
-    y0 = -((-(Y.min(1) - lo)) // SUBPIXEL)
-    y1 = (Y.max(1) - hi) // SUBPIXEL
-    sc = np.tile(np.array([0, 0, W, H], np.int64), (N, 1))
+    x0 = -((lo - np.minimum(np.minimum(X[0], X[1]), X[2])) >> 8)
+    x1 = (np.maximum(np.maximum(X[0], X[1]), X[2]) - hi) >> 8
+    y0 = -((lo - np.minimum(np.minimum(Y[0], Y[1]), Y[2])) >> 8)
+    y1 = (np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - hi) >> 8
     if scissor is not None:
         s = np.asarray(scissor, np.int64)[parent]
         sc = np.stack([np.maximum(s[:, 0], 0), np.maximum(s[:, 1], 0),
                        np.minimum(s[:, 2], W), np.minimum(s[:, 3], H)], axis=1)
-    x0 = np.maximum(x0, sc[:, 0])
-    y0 = np.maximum(y0, sc[:, 1])
-    x1 = np.minimum(x1, sc[:, 2] - 1)
-    y1 = np.minimum(y1, sc[:, 3] - 1)
+        np.maximum(x0, sc[:, 0], out=x0)
+        np.maximum(y0, sc[:, 1], out=y0)
+        np.minimum(x1, sc[:, 2] - 1, out=x1)
+        np.minimum(y1, sc[:, 3] - 1, out=y1)
+    else:
+        sc = None
+        np.maximum(x0, 0, out=x0)
+        np.maximum(y0, 0, out=y0)
+        np.minimum(x1, W - 1, out=x1)
+        np.minimum(y1, H - 1, out=y1)
     keep &= (x0 <= x1) & (y0 <= y1)
-    idx = np.flatnonzero(keep)
-    X, Y, area, iw, zw, tri, parent = X[idx], Y[idx], area[idx], iw[idx], zw[idx], tri[idx], parent[idx]
-    xw_f, yw_f = xw[idx], yw[idx]
-    xw, yw = xw_f.astype(np.float64), yw_f.astype(np.float64)
-    x0, y0, x1, y1, sc = x0[idx], y0[idx], x1[idx], y1[idx], sc[idx]
-    n = len(idx)
+    if not keep.all():
+        idx = np.flatnonzero(keep)
+        X, Y, iw, xw, yw, zw = (v[:, idx] for v in (X, Y, iw, xw, yw, zw))
+        area, tri, parent, x0, y0, x1, y1 = (v[idx] for v in (area, tri, parent, x0, y0, x1, y1))
+        if sc is not None:
+            sc = sc[idx]
+    n = len(area)
     s = np.sign(area)
-    i1, i2 = [1, 2, 0], [2, 0, 1]
-    A = -(Y[:, i2] - Y[:, i1]) * s[:, None]
-    B = (X[:, i2] - X[:, i1]) * s[:, None]
-    C = -(A * X[:, i1] + B * Y[:, i1])
-    inclusive = (A > 0) | ((A == 0) & (B > 0))
-    bits = (inclusive * np.array([1, 2, 4])).sum(axis=1)
-
     tri_a = np.zeros((n, 4), np.int32)
-    tri_a[:, :3], tri_a[:, 3] = A, bits
     tri_b = np.zeros((n, 4), np.int32)
-    tri_b[:, :3] = B
     tri_c = np.zeros((n, 4), np.int64)
-    tri_c[:, :3] = C
+    bits = np.zeros(n, np.int64)
+    # edge k opposite vertex k, from vertex i1 = k+1 to i2 = k+2 (mod 3)
+    for k, (i1, i2) in enumerate(((1, 2), (2, 0), (0, 1))):
+        A = -(Y[i2] - Y[i1]) * s
+        B = (X[i2] - X[i1]) * s
+        tri_a[:, k] = A
+        tri_b[:, k] = B
+        tri_c[:, k] = -(A * X[i1] + B * Y[i1])
+        bits |= ((A > 0) | ((A == 0) & (B > 0))).astype(np.int64) << k
+    tri_a[:, 3] = bits
+    edges = _Edges(xw, yw, area)
     # 1/w plane (linear) and the smooth varyings' planes premultiplied by 1/w (perspective),
-    # set up together: (n, 3, 1 + 4K) attributes, 1/w first
+    # set up together: (3, n, 1 + 4K) attributes, 1/w first
     tri_w = np.zeros((n, 4), np.float32)
     S = 0 if vary_v is None else vary_v.shape[0]
     smooth = list(range(S)) if smooth is None else [int(k) for k in smooth]
@@ -466,34 +531,33 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     if (smooth or w_plane) and n:
         attrs = [iw[:, :, None]]
         if smooth:
-            va = np.asarray(vary_v, np.float32)[smooth][:, tri]            # (K, n, 3, 4)
-            va = np.transpose(va, (1, 2, 0, 3)).reshape(n, 3, -1)           # (n, 3, K*4)
+            va = np.asarray(vary_v, np.float32)[smooth][:, tri.T]          # (K, 3, n, 4)
+            va = np.transpose(va, (1, 2, 0, 3)).reshape(3, n, -1)          # (3, n, K*4)
             with np.errstate(invalid="ignore", over="ignore", under="ignore"):
                 attrs.append(va * iw[:, :, None])
-        planes = attribute_planes(xw_f, yw_f, area, np.concatenate(attrs, axis=2),
-                                  pixel_center)                          # (n, 3, 1 + 4K)
+        planes = np.stack(edges.planes(np.concatenate(attrs, axis=2), pixel_center),
+                          axis=1)                                          # (n, 3, 1 + 4K)
         tri_w[:, :3] = planes[:, :, 0]
         if smooth:
             tri_coef = np.ascontiguousarray(
                 np.transpose(planes[:, :, 1:].reshape(n, 3, len(smooth), 4), (0, 2, 1, 3)))
     # window z: llvmpipe's float32 plane (a0 at the window origin, see depth_plane)
-    pz, offset, a0_ms = depth_plane(xw_f, yw_f, zw, area, polygon_offset, depth_format,
-                                    with_ms_a0=True)
-    tri_z = np.zeros((n, 4), np.float32)
-    tri_z[:, :3], tri_z[:, 3] = pz, offset
+    za0, zdx, zdy, offset, a0_ms = edges.depth(zw, polygon_offset, depth_format)
+    tri_z = np.empty((n, 4), np.float32)
+    tri_z[:, 0], tri_z[:, 1], tri_z[:, 2], tri_z[:, 3] = za0, zdx, zdy, offset
     # zp: the exact plane in float64 (x0, y0, z0 + offset, dz/dx; for reference and tests);
     # zq: dz/dy, the polygon offset, and a0 with pixel centre 0 (multisampling; read by the
     # raster kernel only when PG_SAMPLES > 1)
-    ex, ey = xw[:, 1] - xw[:, 0], yw[:, 1] - yw[:, 0]
-    fx, fy = xw[:, 2] - xw[:, 0], yw[:, 2] - yw[:, 0]
+    xd, yd, z64 = xw.astype(np.float64), yw.astype(np.float64), zw.astype(np.float64)
+    ex, ey = xd[1] - xd[0], yd[1] - yd[0]
+    fx, fy = xd[2] - xd[0], yd[2] - yd[0]
     det = ex * fy - ey * fx
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = np.where(det != 0, 1.0 / det, 0.0)
-    z64 = zw.astype(np.float64)
-    dz1, dz2 = z64[:, 1] - z64[:, 0], z64[:, 2] - z64[:, 0]
-    tri_zp = np.zeros((n, 4), np.float64)
+    dz1, dz2 = z64[1] - z64[0], z64[2] - z64[0]
+    tri_zp = np.empty((n, 4), np.float64)
     tri_zq = np.zeros((n, 4), np.float64)
-    tri_zp[:, 0], tri_zp[:, 1], tri_zp[:, 2] = xw[:, 0], yw[:, 0], z64[:, 0] + offset
+    tri_zp[:, 0], tri_zp[:, 1], tri_zp[:, 2] = xd[0], yd[0], z64[0] + offset
     tri_zp[:, 3] = dz1 * (fy * inv) + dz2 * (-ey * inv)
     tri_zq[:, 0] = dz1 * (-fx * inv) + dz2 * (ex * inv)
     tri_zq[:, 1] = offset
@@ -501,64 +565,92 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     tri_flat = np.zeros((n, 4), np.uint32)
     if flat is not None:
         tri_flat[:] = np.asarray(flat, np.uint32)[parent]
-    tri_flat[:, 0] = (area > 0).astype(np.uint32)
+    tri_flat[:, 0] = area > 0
     tri_vtx = np.zeros((n, 4), np.int32)
     tri_vtx[:, :3] = tri
+    tri_sc = np.empty((n, 4), np.int32)
+    if sc is None:
+        tri_sc[:] = (0, 0, W, H)
+    else:
+        tri_sc[:] = sc
+    bbox = np.empty((n, 4), np.int32)
+    bbox[:, 0], bbox[:, 1], bbox[:, 2], bbox[:, 3] = x0, y0, x1, y1
     return Triangles(tri_a, tri_b, tri_c, tri_z, tri_w, tri_coef, tri_zp, tri_zq, tri_flat,
-                     tri_vtx,
-                     sc.astype(np.int32), np.stack([x0, y0, x1, y1], axis=1).astype(np.int32),
-                     vary_v, len(clip_v), samples)
+                     tri_vtx, tri_sc, bbox, vary_v, len(clip_v), samples)
 
 
-def bin_triangles(tris: Triangles, width: int, height: int, tile: int = 16,
-                  edge_test_tiles: int = 4):
-    """Per-tile triangle lists in submission order: (tile_start (ntiles+1,) int32,
-    tile_tris (M,) int32, tiles_x, tiles_y).  Triangles whose bounding box spans more than
-    ``edge_test_tiles`` tiles are additionally tested per tile against their edge functions
-    (a tile is skipped when one edge is negative at all four corners)."""
+def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
+              edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None):
+    """The (triangle, tile) pairs of binning, in triangle order: (tri (M,) int64 indices
+    into ``tris``, tile_id (M,) int64, tiles_x, tiles_y).  A triangle reaches the tiles its
+    bounding box covers; when that is more than ``edge_test_tiles`` tiles, only those where
+    no edge function is negative at all four corners.  ``subset``: only these triangles
+    (increasing indices)."""
     tx_n = (width + tile - 1) // tile
     ty_n = (height + tile - 1) // tile
-    n = tris.count
+    idx = None if subset is None else np.asarray(subset, np.int64)
+    n = tris.count if idx is None else len(idx)
     if n == 0:
-        return np.zeros(tx_n * ty_n + 1, np.int32), np.zeros(1, np.int32), tx_n, ty_n
-    bb = tris.bbox.astype(np.int64)
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), tx_n, ty_n
+    bb = (tris.bbox if idx is None else tris.bbox[idx]).astype(np.int64)
     tx0, ty0 = bb[:, 0] // tile, bb[:, 1] // tile
     tx1, ty1 = bb[:, 2] // tile, bb[:, 3] // tile
     wx = tx1 - tx0 + 1
     counts = wx * (ty1 - ty0 + 1)
     total = int(counts.sum())
-    rep = np.repeat(np.arange(n, dtype=np.int64), counts)
-    starts = np.cumsum(counts) - counts
-    off = np.arange(total, dtype=np.int64) - np.repeat(starts, counts)
-    tx = tx0[rep] + off % wx[rep]
-    ty = ty0[rep] + off // wx[rep]
-    big = counts[rep] > edge_test_tiles
-    if big.any():
-        sel = np.flatnonzero(big)
-        t = rep[sel]
-        # the tile corner that maximises each edge function (pixel-centre positions with one
-        # sample, else the extreme sample positions any pattern could use)
-        lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if tris.samples == 1 else (1, SUBPIXEL - 1)
-        xa = (tx[sel] * tile) * SUBPIXEL + lo
-        xb = (np.minimum(tx[sel] * tile + tile, width) - 1) * SUBPIXEL + hi
-        ya = (ty[sel] * tile) * SUBPIXEL + lo
-        yb = (np.minimum(ty[sel] * tile + tile, height) - 1) * SUBPIXEL + hi
-        ok = np.ones(len(sel), bool)
-        for k in range(3):
-            A = tris.a[t, k].astype(np.int64)
-            B = tris.b[t, k].astype(np.int64)
-            C = tris.c[t, k]
-            e = A * np.where(A > 0, xb, xa) + B * np.where(B > 0, yb, ya) + C
-            ok &= e >= 0
-        keep = np.ones(total, bool)
-        keep[sel] = ok
-        rep, tx, ty = rep[keep], tx[keep], ty[keep]
-    tile_id = ty * tx_n + tx
+    if total == n:                        # every box in one tile (common for small triangles)
+        rep = np.arange(n, dtype=np.int64)
+        tx, ty = tx0, ty0
+    else:
+        rep = np.repeat(np.arange(n, dtype=np.int64), counts)
+        starts = np.cumsum(counts) - counts
+        off = np.arange(total, dtype=np.int64) - np.repeat(starts, counts)
+        tx = tx0[rep] + off % wx[rep]
+        ty = ty0[rep] + off // wx[rep]
+        big = counts[rep] > edge_test_tiles
+        if big.any():
+            sel = np.flatnonzero(big)
+            t = rep[sel] if idx is None else idx[rep[sel]]
+            # the tile corner that maximises each edge function (pixel-centre positions with
+            # one sample, else the extreme sample positions any pattern could use)
+            lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if tris.samples == 1 else (1, SUBPIXEL - 1)
+            xa = (tx[sel] * tile) * SUBPIXEL + lo
+            xb = (np.minimum(tx[sel] * tile + tile, width) - 1) * SUBPIXEL + hi
+            ya = (ty[sel] * tile) * SUBPIXEL + lo
+            yb = (np.minimum(ty[sel] * tile + tile, height) - 1) * SUBPIXEL + hi
+            ok = np.ones(len(sel), bool)
+            for k in range(3):
+                A = tris.a[t, k].astype(np.int64)
+                B = tris.b[t, k].astype(np.int64)
+                C = tris.c[t, k]
+                e = A * np.where(A > 0, xb, xa) + B * np.where(B > 0, yb, ya) + C
+                ok &= e >= 0
+            keep = np.ones(total, bool)
+            keep[sel] = ok
+            rep, tx, ty = rep[keep], tx[keep], ty[keep]
+    return (rep if idx is None else idx[rep]), ty * tx_n + tx, tx_n, ty_n
+
+
+def bins_from_pairs(tri: np.ndarray, tile_id: np.ndarray, ntiles: int):
+    """CSR tile lists (tile_start (ntiles+1,) int32, tile_tris (M,) int32) from (triangle,
+    tile) pairs in triangle order: per tile, its triangles in submission order."""
     order = np.argsort(tile_id, kind="stable")
-    tile_tris = rep[order].astype(np.int32)
-    cnt = np.bincount(tile_id, minlength=tx_n * ty_n)
-    tile_start = np.zeros(tx_n * ty_n + 1, np.int32)
-    np.cumsum(cnt, out=tile_start[1:])
+    tile_tris = tri[order].astype(np.int32)
+    tile_start = np.zeros(ntiles + 1, np.int32)
+    np.cumsum(np.bincount(tile_id, minlength=ntiles), out=tile_start[1:])
     if len(tile_tris) == 0:
         tile_tris = np.zeros(1, np.int32)
+    return tile_start, tile_tris
+
+
+def bin_triangles(tris: Triangles, width: int, height: int, tile: int = 16,
+                  edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None):
+    """Per-tile triangle lists in submission order: (tile_start (ntiles+1,) int32,
+    tile_tris (M,) int32, tiles_x, tiles_y).  Triangles whose bounding box spans more than
+    ``edge_test_tiles`` tiles are additionally tested per tile against their edge functions
+    (a tile is skipped when one edge is negative at all four corners).  ``subset``: bin only
+    these triangles (indices into ``tris``, increasing); ``tile_tris`` still holds indices into
+    ``tris``."""
+    tri, tile_id, tx_n, ty_n = bin_pairs(tris, width, height, tile, edge_test_tiles, subset)
+    tile_start, tile_tris = bins_from_pairs(tri, tile_id, tx_n * ty_n)
     return tile_start, tile_tris, tx_n, ty_n

@@ -44,7 +44,7 @@ from .. import formats as F
 from ..reference.fixed_function import cull_runs, light_scissor_rect
 from . import gl_formats as GF
 from . import gl_state as GS
-from .light_table import check_light_capacity
+from .light_table import check_light_capacity, light_filter, light_list, light_type
 from .gl_context import GL, clear_stale_errors, get_context
 
 import moderngl
@@ -199,7 +199,7 @@ class _Pass:
             u.value = value
 
     def light_filter(self) -> bool:
-        return bool(self.draw.get("light_types") or self.draw.get("light_set"))
+        return light_filter(self.draw)
 
     def release(self) -> None:
         for vao in self.vaos.values():
@@ -359,25 +359,8 @@ class GLPipeline:
         return self._meshes[volume]
 
     def _light_list(self, p: _Pass) -> list[int]:
-        lights = list(self._scene.lights)
-        idx = list(range(len(lights)))
-        types = p.draw.get("light_types") or []
-        if types:
-            idx = [i for i in idx if _light_type(lights[i]) in types]
-        light_set = p.draw.get("light_set")
-        if light_set:
-            pack, k = light_set[0], int(light_set[1])
-            if pack not in self._light_sets:
-                from ..packing import sort_lights_into_slots
-                slots = int((self.plan.get("light_sets") or {}).get(pack, 4))
-                centers = [tuple(getattr(l, "position", (0.0, 0.0, 0.0))) for l in lights]
-                radii = [float(getattr(l, "radius", 0.0)) for l in lights]
-                sets, dropped = sort_lights_into_slots(centers, radii, slots)
-                self._light_sets[pack] = [list(map(int, s)) for s in sets]
-                self.dropped_lights[pack] = [int(i) for i in dropped]
-            chosen = set(self._light_sets[pack][k]) if k < len(self._light_sets[pack]) else set()
-            idx = [i for i in idx if i in chosen]
-        return idx
+        return light_list(p.draw, list(self._scene.lights), self.plan, self._light_sets,
+                          self.dropped_lights)
 
     def light_sets(self, scene) -> dict[str, list[list[int]]]:
         """The CPU-sorted light sets this pipeline draws for ``scene`` (for reports/tests)."""
@@ -464,7 +447,7 @@ class GLPipeline:
                 for q in group:
                     if q.name in lists and light not in lists[q.name]:
                         continue
-                    if q.repeat_types and _light_type(scene.lights[light]) not in q.repeat_types:
+                    if q.repeat_types and light_type(scene.lights[light]) not in q.repeat_types:
                         continue
                     self._run_pass(q, light)
                     if capture_passes:
@@ -580,11 +563,4 @@ class GLPipeline:
         for t in self.targets.values():
             out.update(t.read())
         return out
-
-
-def _light_type(light) -> str:
-    t = getattr(light, "type", "point")
-    if isinstance(t, (int, np.integer)):
-        return {0: "point", 1: "spot", 2: "directional"}.get(int(t), str(t))
-    return str(t)
 

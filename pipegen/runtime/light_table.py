@@ -1,6 +1,11 @@
-"""Checks on the scene's lights shared by both runtimes."""
+"""What both runtimes decide about the scene's lights: the capacity check and which lights a
+light draw instances."""
 
 from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
 
 from ..diagnostics import PipegenError
 
@@ -14,3 +19,46 @@ def check_light_capacity(lights: int, capacity: int, plan: dict) -> None:
                else "") + " or use a scene with fewer lights")
     raise PipegenError(None, f"the scene has {lights} lights but technique "
                              f"'{plan.get('technique', '?')}' holds {capacity}", hint=hint)
+
+
+def light_type(light) -> str:
+    """A scene light's type name (``point``, ``spot``, ``directional``; ints as the table
+    codes them)."""
+    t = getattr(light, "type", "point")
+    if isinstance(t, (int, np.integer)):
+        return {0: "point", 1: "spot", 2: "directional"}.get(int(t), str(t))
+    return str(t)
+
+
+def light_filter(draw: dict) -> bool:
+    """Whether a light draw instances only some lights (a type filter or a light set)."""
+    return bool(draw.get("light_types") or draw.get("light_set"))
+
+
+def light_list(draw: dict, lights: list, plan: dict, light_sets: dict,
+               dropped: Optional[dict] = None) -> list[int]:
+    """The lights (table indices, in table order) a light draw instances: all of them, those
+    of the draw's ``light_types``, and/or those of its CPU-sorted ``light_set`` ``(pack, k)``
+    (``packing.sort_lights_into_slots`` into ``plan["light_sets"][pack]`` slots, default 4).
+
+    ``light_sets`` caches the sorted sets per pack for the scene (the caller clears it when
+    the scene changes); ``dropped`` receives, per pack, the lights no set could take."""
+    idx = list(range(len(lights)))
+    types = draw.get("light_types") or []
+    if types:
+        idx = [i for i in idx if light_type(lights[i]) in types]
+    light_set = draw.get("light_set")
+    if light_set:
+        pack, k = light_set[0], int(light_set[1])
+        if pack not in light_sets:
+            from ..packing import sort_lights_into_slots
+            slots = int((plan.get("light_sets") or {}).get(pack, 4))
+            centers = [tuple(getattr(l, "position", (0.0, 0.0, 0.0))) for l in lights]
+            radii = [float(getattr(l, "radius", 0.0)) for l in lights]
+            sets, dropped_ = sort_lights_into_slots(centers, radii, slots)
+            light_sets[pack] = [list(map(int, s)) for s in sets]
+            if dropped is not None:
+                dropped[pack] = [int(i) for i in dropped_]
+        chosen = set(light_sets[pack][k]) if k < len(light_sets[pack]) else set()
+        idx = [i for i in idx if i in chosen]
+    return idx
