@@ -68,7 +68,8 @@ from .. import formats as F
 from ..backends import opencl as clgen
 from ..ir import Size
 from . import cl_context
-from .light_table import check_light_capacity, light_filter, light_list, light_type
+from .common import (check_light_capacity, check_param_overrides, light_filter, light_list,
+                     light_type)
 from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
 
 __all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
@@ -158,7 +159,6 @@ class CLPipeline:
     def _program(self, k: int):
         prog = self._programs.get(k)
         if prog is None:
-            p = self.plan["passes"][k]
             src = self.source(k)
             prog = cl_context.build_program(src)
             self._programs[k] = prog
@@ -188,8 +188,6 @@ class CLPipeline:
 
     def _clear_target(self, t: _Target, color=None, depth=None, stencil=None,
                       depth_given: bool = True, stencil_given: bool = True) -> None:
-        import pyopencl as cl
-        fmt = t.fmt
         n = t.pixels
         if t.samples > 1:          # keep the resolved plane current for a partial clear
             self._resolve(t)
@@ -411,7 +409,7 @@ class CLPipeline:
     def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
         """Render one frame: ``{target: codes}``, or ``(targets, captures)`` with
         ``capture_passes`` (see the module docstring)."""
-        self._check_params(params)
+        check_param_overrides(self.plan, params)
         self._use_scene(scene)
         self.prepare(scene)
         for name, (codes, stencil) in self._presets.items():
@@ -460,18 +458,6 @@ class CLPipeline:
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
         self._events = []
         return (result, captures) if capture_passes else result
-
-    def _check_params(self, params: Optional[dict]) -> None:
-        if not params:
-            return
-        compiled = self.plan.get("params") or {}
-        for name, value in params.items():
-            if name not in compiled:
-                raise ValueError(f"unknown parameter '{name}' (the technique has: "
-                                 f"{', '.join(compiled) or 'none'})")
-            if value != compiled[name]:
-                raise ValueError(f"parameter '{name}' was compiled in as {compiled[name]!r}; "
-                                 f"recompile with {name}={value!r} to change it")
 
     def _use_scene(self, scene) -> None:
         if self._scene is scene:

@@ -44,7 +44,8 @@ from .. import formats as F
 from ..reference.fixed_function import cull_runs, light_scissor_rect
 from . import gl_formats as GF
 from . import gl_state as GS
-from .light_table import check_light_capacity, light_filter, light_list, light_type
+from .common import (check_light_capacity, check_param_overrides, light_filter, light_list,
+                     light_type)
 from .gl_context import GL, clear_stale_errors, get_context
 
 import moderngl
@@ -419,7 +420,7 @@ class GLPipeline:
         clear_stale_errors()
         if self._released:
             raise RuntimeError("GLPipeline used after release()")
-        self._check_params(params)
+        check_param_overrides(self.plan, params)
         size = self.size or (int(scene.width), int(scene.height))
         if self._built_size != size:
             self._build(size)
@@ -455,21 +456,6 @@ class GLPipeline:
                                          "targets": self._read_all()})
             k += len(group)
         return captures
-
-    def _check_params(self, params: Optional[dict]) -> None:
-        if not params:
-            return
-        compiled = self.plan.get("params") or {}
-        for name, value in params.items():
-            if name not in compiled:
-                raise ValueError(f"unknown parameter '{name}' (the technique has: "
-                                 f"{', '.join(compiled) or 'none'})")
-            uniform = [p for p in self.passes if p.has("p_" + name)]
-            for p in uniform:
-                p.set_uniform("p_" + name, value)
-            if not uniform and value != compiled[name]:
-                raise ValueError(f"parameter '{name}' was compiled in as {compiled[name]!r}; "
-                                 f"recompile with {name}={value!r} to change it")
 
     def _frame_uniforms(self, scene, size) -> None:
         cam = scene.camera

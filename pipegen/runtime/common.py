@@ -1,5 +1,5 @@
-"""What both runtimes decide about the scene's lights: the capacity check and which lights a
-light draw instances."""
+"""What both runtimes decide the same way: the light-capacity check, which lights a light
+draw instances, and parameter overrides at render time."""
 
 from __future__ import annotations
 
@@ -62,3 +62,18 @@ def light_list(draw: dict, lights: list, plan: dict, light_sets: dict,
         chosen = set(light_sets[pack][k]) if k < len(light_sets[pack]) else set()
         idx = [i for i in idx if i in chosen]
     return idx
+
+
+def check_param_overrides(plan: dict, params) -> None:
+    """``render(scene, params)``: parameters are compile-time constants (the specialise phase
+    folds them into the shaders), so a value other than the compiled one needs a recompile."""
+    if not params:
+        return
+    compiled = plan.get("params") or {}
+    for name, value in params.items():
+        if name not in compiled:
+            raise ValueError(f"unknown parameter '{name}' (the technique has: "
+                             f"{', '.join(compiled) or 'none'})")
+        if value != compiled[name]:
+            raise ValueError(f"parameter '{name}' was compiled in as {compiled[name]!r}; "
+                             f"recompile with {name}={value!r} to change it")
