@@ -19,7 +19,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from pipegen.runtime import cl_setup as CS
-from pipegen.runtime.light_table import light_filter, light_list, light_type
+from pipegen.runtime.common import light_filter, light_list, light_type
 
 PER_TRIANGLE = ("a", "b", "c", "z", "w", "coef", "zp", "zq", "flat", "scissor", "bbox")
 
