@@ -539,6 +539,19 @@ class Draw:
     light_set: Optional[tuple[str, int]] = None  # LIGHTS: (channel_slots pack, slot k)
     scissor: bool = False               # LIGHTS: rasterise only inside the light's screen rect
 
+    def describe(self) -> str:
+        """The draw as the language spells it (for reports and shader header comments)."""
+        if self.kind is DrawKind.SCENE:
+            return "scene" + "".join("." + m for m in self.material)
+        if self.kind is DrawKind.LIGHTS:
+            text = f"lights as {(self.volume or Volume.SPHERE).value}"
+            if self.light_types:
+                text += " " + " ".join(self.light_types)
+            if self.light_set:
+                text += f" in {self.light_set[0]}[{self.light_set[1]}]"
+            return text + (" scissor" if self.scissor else "")
+        return "fullscreen"
+
 
 @dataclass(frozen=True)
 class Pass:

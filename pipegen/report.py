@@ -56,7 +56,7 @@ def pass_section(tech: ir.Technique) -> list[str]:
     for i, p in enumerate(tech.passes, 1):
         repeat = ("  [repeat per light" + "".join(" " + t for t in p.repeat_types) + "]"
                   if p.repeat_per_light else "")
-        out.append(f"  {i}. {p.name}: draw {_draw(p.draw)}{repeat}")
+        out.append(f"  {i}. {p.name}: draw {p.draw.describe()}{repeat}")
         if p.writes:
             out.append(f"       writes {', '.join(p.writes)}")
         if p.reads:
@@ -98,19 +98,6 @@ def state_lines(p: ir.Pass) -> list[str]:
     if s.polygon_offset:
         out.append(f"offset {s.polygon_offset.factor:g} {s.polygon_offset.units:g}")
     return out
-
-
-def _draw(d: ir.Draw) -> str:
-    if d.kind is ir.DrawKind.SCENE:
-        return "scene" + "".join("." + m for m in d.material)
-    if d.kind is ir.DrawKind.LIGHTS:
-        s = f"lights as {d.volume.value}"
-        if d.light_types:
-            s += " " + " ".join(d.light_types)
-        if d.light_set:
-            s += f" in {d.light_set[0]}[{d.light_set[1]}]"
-        return s + (" scissor" if d.scissor else "")
-    return "fullscreen"
 
 
 def _eq(e: ir.BlendEquation) -> str:

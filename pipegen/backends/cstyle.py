@@ -387,3 +387,9 @@ class CStyleLanguage:
     def render_output(self, target: str, value: str) -> str:
         """One or more complete statements writing ``value`` to colour target ``target``."""
         raise NotImplementedError
+
+
+def texel_select(t) -> str:
+    """The swizzle that takes a value of type ``t`` out of a texel (always 4 components):
+    ``""`` for vec4, ``".xyz"`` for vec3, ``".x"`` for scalars."""
+    return "" if t.size == 4 else "." + "xyzw"[:t.size]

@@ -40,7 +40,7 @@ from ..diagnostics import PipegenError
 from ..ir import DrawKind, Scalar, Type, Volume
 from . import plan as planlib
 from . import templating
-from .cstyle import FLT_MIN, CStyleLanguage
+from .cstyle import FLT_MIN, CStyleLanguage, texel_select
 
 # GLSL keywords, reserved words and the builtin functions this backend emits: user identifiers
 # with these names get a trailing "_" (a local named `texture` would hide texture()).
@@ -136,7 +136,7 @@ class GLSLLanguage(CStyleLanguage):
         return self.current_light
 
     def render_light_field(self, index: str, slot: int, t: Type) -> str:
-        texel = f"texelFetch(u_lights, ivec2({slot}, {index}), 0){_select(t)}"
+        texel = f"texelFetch(u_lights, ivec2({slot}, {index}), 0){texel_select(t)}"
         if t.scalar is Scalar.FLOAT:
             return texel
         return self.render_construct(t, [texel], [Type(Scalar.FLOAT, t.size)])
@@ -145,23 +145,18 @@ class GLSLLanguage(CStyleLanguage):
         if coord is None:
             coord = "ivec2(gl_FragCoord.xy)"
             if target in self.unclamped:
-                return f"texelFetch(t_{target}, {coord}, 0){_select(t)}"
+                return f"texelFetch(t_{target}, {coord}, 0){texel_select(t)}"
         coord = f"clamp({coord}, ivec2(0), textureSize(t_{target}, 0) - 1)"
-        return f"texelFetch(t_{target}, {coord}, 0){_select(t)}"
+        return f"texelFetch(t_{target}, {coord}, 0){texel_select(t)}"
 
     def render_sample(self, target: str, uv: str, t: Type) -> str:
-        return f"texture(t_{target}, {uv}){_select(t)}"
+        return f"texture(t_{target}, {uv}){texel_select(t)}"
 
     def render_target_size(self, target: str) -> str:
         return f"textureSize(t_{target}, 0)"
 
     def render_output(self, target: str, value: str) -> str:
         return f"o_{target} = {value};"
-
-
-def _select(t: Type) -> str:
-    """Swizzle taking a ``t`` out of a texel (vec4)."""
-    return "" if t.size == 4 else "." + "xyzw"[:t.size]
 
 
 def _render_size(tech: ir.Technique, p: ir.Pass) -> Optional[ir.Size]:
@@ -216,7 +211,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
     else:
         varyings, attributes = [], []
 
-    common = {"technique": tech.name, "pass_name": p.name, "draw": describe_draw(p.draw),
+    common = {"technique": tech.name, "pass_name": p.name, "draw": p.draw.describe(),
               "source": tech.source, "uniforms": _uniforms(p)}
     fragment = templating.render(
         "gl_fragment.glsl.j2", **common, stage="fragment", varyings=varyings,
@@ -247,19 +242,6 @@ def emit_vertex(tech: ir.Technique, p: ir.Pass, common: dict, varyings: list,
     name = "gl_vertex_scene.glsl.j2" if kind is DrawKind.SCENE else "gl_vertex_fullscreen.glsl.j2"
     return templating.render(name, **common, stage="vertex", varyings=varyings,
                              attributes=attributes)
-
-
-def describe_draw(d: ir.Draw) -> str:
-    if d.kind is DrawKind.SCENE:
-        return "scene" + "".join("." + m for m in d.material)
-    if d.kind is DrawKind.LIGHTS:
-        text = f"lights as {(d.volume or Volume.SPHERE).value}"
-        if d.light_types:
-            text += " " + " ".join(d.light_types)
-        if d.light_set:
-            text += f" in {d.light_set[0]}[{d.light_set[1]}]"
-        return text + (" scissor" if d.scissor else "")
-    return "fullscreen"
 
 
 def _varying(name: str, type_: str, flat: bool, value: str) -> dict:

@@ -73,7 +73,7 @@ from ..diagnostics import PipegenError
 from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from . import templating
-from .cstyle import ATOM, FLT_MIN, CStyleLanguage
+from .cstyle import ATOM, FLT_MIN, CStyleLanguage, texel_select
 
 TILE = 16
 
@@ -322,27 +322,23 @@ class OpenCLLanguage(CStyleLanguage):
         return "in->light"
 
     def render_light_field(self, index: str, slot: int, t: Type) -> str:
-        texel = f"in->lights[({index}) * PG_LIGHT_FIELDS + {slot}]{_select(t)}"
+        texel = f"in->lights[({index}) * PG_LIGHT_FIELDS + {slot}]{texel_select(t)}"
         if t.scalar is Scalar.FLOAT:
             return texel
         return self.render_construct(t, [texel], [Type(Scalar.FLOAT, t.size)])
 
     def render_load(self, target: str, coord: Optional[str], t: Type) -> str:
         coord = "in->pix" if coord is None else coord
-        return f"pg_load_{target}(in, {coord}){_select(t)}"
+        return f"pg_load_{target}(in, {coord}){texel_select(t)}"
 
     def render_sample(self, target: str, uv: str, t: Type) -> str:
-        return f"pg_sample_{target}(in, {uv}){_select(t)}"
+        return f"pg_sample_{target}(in, {uv}){texel_select(t)}"
 
     def render_target_size(self, target: str) -> str:
         return f"in->size_{target}"
 
     def render_output(self, target: str, value: str) -> str:
         return f"out->o_{target} = {value};"
-
-
-def _select(t: Type) -> str:
-    return "" if t.size == 4 else "." + "xyzw"[:t.size]
 
 
 # ---- formats on the device --------------------------------------------------------------------------
