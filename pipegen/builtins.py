@@ -176,6 +176,14 @@ LIGHT_FIELDS: dict[str, ir.Type] = {
 LIGHT_INDEX = "index"
 LIGHT_TYPES = ("point", "spot", "directional")
 
+# The light fields each light volume's vertex stage places the volume with: a pass drawing a
+# volume needs them in the light schema (both backends read this table).
+VOLUME_LIGHT_FIELDS: dict[str, tuple[str, ...]] = {
+    "sphere": ("position", "radius"),
+    "quad": ("position", "radius"),
+    "cone": ("position", "radius", "direction", "cos_outer"),
+}
+
 TYPE_NAMES = ("void", "float", "int", "uint", "bool", "vec2", "vec3", "vec4", "ivec2", "ivec3",
               "ivec4", "uvec2", "uvec3", "uvec4", "bvec2", "bvec3", "bvec4", "mat3", "mat4")
 

@@ -31,7 +31,8 @@ from typing import Callable, Iterable, Optional, Union
 
 from . import ast, ir, syntax
 from .builtins import (BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, LIGHT_TYPES, STAGE_INPUTS,
-                       TARGET_FUNCTIONS, TYPE_NAMES, Where, binary_type, describe_overloads,
+                       TARGET_FUNCTIONS, TYPE_NAMES, VOLUME_LIGHT_FIELDS, Where, binary_type,
+                       describe_overloads,
                        resolve_builtin, target_read_type, target_write_type, unary_type)
 from .diagnostics import PipegenError, Span
 from .formats import FORMATS, Format
@@ -1629,6 +1630,12 @@ class _PassLowerer:
             if w.value in types:
                 raise _err(w.span, f"light type '{w.value}' is listed twice", "list it once")
             types.append(w.value)
+        missing = [f for f in VOLUME_LIGHT_FIELDS[d.volume.value]
+                   if self.low.lights.field_type(f) is None]
+        if missing:
+            raise _err(d.volume.span, f"{d.volume.value} light volumes need the light "
+                       f"field(s) {', '.join(missing)}, which the lights schema lacks",
+                       "add them to `lights[N] { … }`")
         return ir.Draw(ir.DrawKind.LIGHTS, volume=ir.Volume(d.volume.value),
                        light_types=tuple(t for t in LIGHT_TYPES if t in types),
                        light_set=self._light_set(d), scissor=d.scissor)

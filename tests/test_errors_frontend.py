@@ -179,6 +179,9 @@ CASES = [
         "draw lights as sphere", "draw lights as sphere in s[0]"),
          "s[0]", ("channel_slots",), line_has="in s[0]"),
     # -- where things are available ------------------------------------------------------------
+    Case("cone_without_direction_fields",
+         fixture(body="    color = vec4(1.0);", draw="draw lights as cone",
+                 depth="depth ds gequal nowrite"), "cone", ("direction", "cos_outer")),
     Case("light_outside_light_pass", fixture(body="    color = vec4(light.color, 1.0);"),
          "light.color", ("light",)),
     Case("scene_input_in_fullscreen_pass", fullscreen("    color = vec4(albedo, 1.0);"),

@@ -15,7 +15,6 @@ from pipegen import ir
 from pipegen.backends import glsl
 from pipegen.backends.glsl import emit_gl, gl_module_source
 from pipegen.backends.templating import pyrepr
-from pipegen.diagnostics import PipegenError
 from pipegen.formats import get
 from pipegen.ir import (BOOL, FLOAT, INT, IVEC2, MAT4, UINT, UVEC4, VEC2, VEC3, VEC4, Binary,
                         Call, Clear, Const, Construct, Draw, DrawKind, LightField, Load, Pass,
@@ -357,28 +356,9 @@ def test_generated_module(plan):
 # ---- user errors -------------------------------------------------------------------------------------
 
 
-def test_scene_inputs_outside_scene_draws_are_an_error():
-    body = (ir.Output("color", Construct(VEC4, (inp("world_pos", VEC3), F(1.0)))),)
-    tech = _technique((Pass("p", Draw(DrawKind.FULLSCREEN), PassState(), ("color",), (), None,
-                            body),))
-    with pytest.raises(PipegenError, match="world_pos.*scene geometry"):
-        emit_gl(tech)
-
-
-def test_drawn_light_outside_light_passes_is_an_error():
-    body = (ir.Output("color", Construct(VEC4, (LightField(None, "color", VEC3), F(1.0)))),)
-    tech = _technique((Pass("p", Draw(DrawKind.SCENE), PassState(), ("color",), (), None,
-                            body),))
-    with pytest.raises(PipegenError, match="repeat per light"):
-        emit_gl(tech)
-
-
-def test_cone_needs_direction_and_angle():
-    lights = ir.LightTable((ir.LightAttr("position", VEC3), ir.LightAttr("radius", FLOAT)), 8)
-    tech = _technique((Pass("p", Draw(DrawKind.LIGHTS, volume=Volume.CONE), PassState(),
-                            ("color",), (), None, ()),), lights=lights)
-    with pytest.raises(PipegenError, match="direction, cos_outer"):
-        emit_gl(tech)
+# Scene inputs outside scene draws, `light` outside light passes and light volumes whose
+# schema lacks their fields are user errors found by the front end
+# (tests/test_errors_frontend.py); the backends only assert them.
 
 
 # ---- llvmpipe evaluates the guarded forms as documented ----------------------------------------------

@@ -480,7 +480,9 @@ pass g { draw lights as sphere in slots[3] scissor writes idx mask idx g
 # ---------------------------------------------------------------------------------------------
 
 def test_depth_stencil_blend_state():
-    tech = compile_ir(HEADER + """target acc : rgba16f
+    # a cone volume needs the spot fields in the light schema
+    tech = compile_ir(HEADER.replace("color: vec3 }", "color: vec3, direction: vec3, "
+                                     "cos_outer: float }") + """target acc : rgba16f
 target n : rgba8
 pass p {
   draw lights as cone spot point scissor

@@ -36,10 +36,10 @@ from __future__ import annotations
 from typing import Optional
 
 from .. import ir, irwalk
-from ..diagnostics import PipegenError
 from ..ir import DrawKind, Scalar, Type, Volume
 from . import plan as planlib
 from . import templating
+from ..builtins import VOLUME_LIGHT_FIELDS
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
 
 # GLSL keywords, reserved words and the builtin functions this backend emits: user identifiers
@@ -97,8 +97,6 @@ UNIFORMS = [("mat4", "u_view"), ("mat4", "u_proj"), ("mat4", "u_inv_view"),
             ("mat4", "u_inv_proj"), ("vec3", "u_camera_pos"), ("vec3", "u_ambient"),
             ("vec2", "u_output_size"), ("uint", "u_num_lights"), ("sampler2D", "u_lights")]
 
-VOLUME_FIELDS = {Volume.SPHERE: ("position", "radius"), Volume.QUAD: ("position", "radius"),
-                 Volume.CONE: ("position", "radius", "direction", "cos_outer")}
 
 
 class GLSLLanguage(CStyleLanguage):
@@ -182,16 +180,10 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
     kind = p.draw.kind
     scene_varyings = sorted({INPUTS[n][1] for n in inputs if n in INPUTS and INPUTS[n][1]},
                             key=list(SCENE_VARYINGS).index)
-    if scene_varyings and kind is not DrawKind.SCENE:
-        names = sorted(n for n in inputs if n in INPUTS and INPUTS[n][1])
-        raise PipegenError(p.span, f"pass '{p.name}' reads {', '.join(names)}, which only "
-                           "passes that draw scene geometry have",
-                           hint="reconstruct positions from a depth target in other passes")
+    # lower.py rejects scene inputs outside scene draws and `light` outside light passes
+    assert not scene_varyings or kind is DrawKind.SCENE, (p.name, scene_varyings)
     uses_light = bool(inputs & {"light", "light_index"})
-    if uses_light and kind is not DrawKind.LIGHTS and not p.repeat_per_light:
-        raise PipegenError(p.span, f"pass '{p.name}' reads the drawn light, but it neither draws "
-                           "lights nor repeats per light",
-                           hint="use 'draw lights as ...' or 'repeat per light'")
+    assert not uses_light or kind is DrawKind.LIGHTS or p.repeat_per_light, p.name
 
     written = {s.target for s in irwalk.walk_stmts(p.body) if isinstance(s, ir.Output)}
     assert written <= set(p.writes), f"pass {p.name} writes {written - set(p.writes)} undeclared"
@@ -230,12 +222,7 @@ def emit_vertex(tech: ir.Technique, p: ir.Pass, common: dict, varyings: list,
     if kind is DrawKind.LIGHTS:
         volume = p.draw.volume or Volume.SPHERE
         slots = {f.name: k for k, f in enumerate(tech.lights.fields)}
-        missing = [f for f in VOLUME_FIELDS[volume] if f not in slots]
-        if missing:
-            raise PipegenError(p.span or tech.lights.span,
-                               f"pass '{p.name}' draws {volume.value} light volumes, which need "
-                               f"the light field(s) {', '.join(missing)}",
-                               hint="add them to the lights { ... } schema")
+        assert all(f in slots for f in VOLUME_LIGHT_FIELDS[volume.value]), p.name   # lower.py
         return templating.render("gl_vertex_lights.glsl.j2", **common, stage="vertex",
                                  varyings=varyings, attributes=attributes, volume=volume.value,
                                  slots=slots, flt_min=GLSLLanguage().render_float(FLT_MIN))

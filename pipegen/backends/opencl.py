@@ -69,10 +69,10 @@ import numpy as np
 
 from .. import formats as F
 from .. import ir, irwalk
-from ..diagnostics import PipegenError
 from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from . import templating
+from ..builtins import VOLUME_LIGHT_FIELDS
 from .cstyle import ATOM, FLT_MIN, CStyleLanguage, texel_select
 
 TILE = 16
@@ -149,8 +149,6 @@ FLAT_VARYINGS = frozenset({"albedo", "specular", "shininess", "alpha"})
 # flat scene inputs -> component of the per-triangle ``tri_flat`` (x is the facing bit; w holds
 # the light index in light draws and the stipple layer in scene draws)
 SCENE_FLAT = {"object_id": "y", "normal_group": "z", "layer": "w"}
-VOLUME_FIELDS = {"sphere": ("position", "radius"), "quad": ("position", "radius"),
-                 "cone": ("position", "radius", "direction", "cos_outer")}
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -651,23 +649,14 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass) -> dict:
     inputs = planlib.stage_inputs(p.body, functions)
     kind = p.draw.kind
     scene_only = sorted(n for n in inputs if n in SCENE_VARYINGS or n in SCENE_FLAT)
-    if scene_only and kind is not DrawKind.SCENE:
-        raise PipegenError(p.span, f"pass '{p.name}' reads {', '.join(scene_only)}, which only "
-                           "passes that draw scene geometry have",
-                           hint="reconstruct positions from a depth target in other passes")
-    if inputs & {"light", "light_index"} and kind is not DrawKind.LIGHTS and not p.repeat_per_light:
-        raise PipegenError(p.span, f"pass '{p.name}' reads the drawn light, but it neither draws "
-                           "lights nor repeats per light",
-                           hint="use 'draw lights as ...' or 'repeat per light'")
+    # lower.py rejects these programs: here they are invariants
+    assert not scene_only or kind is DrawKind.SCENE, (p.name, scene_only)
+    assert not (inputs & {"light", "light_index"}) or kind is DrawKind.LIGHTS \
+        or p.repeat_per_light, p.name
     if kind is DrawKind.LIGHTS:
-        volume = (p.draw.volume or ir.Volume.SPHERE).value
         names = {f.name for f in tech.lights.fields}
-        missing = [f for f in VOLUME_FIELDS[volume] if f not in names]
-        if missing:
-            raise PipegenError(p.span or tech.lights.span,
-                               f"pass '{p.name}' draws {volume} light volumes, which need the "
-                               f"light field(s) {', '.join(missing)}",
-                               hint="add them to the lights { ... } schema")
+        assert all(f in names for f in
+                   VOLUME_LIGHT_FIELDS[(p.draw.volume or ir.Volume.SPHERE).value]), p.name
     sampled = sorted(planlib.sampled_targets(p.body, functions))
     discard = any(isinstance(s, ir.Discard) for s in irwalk.walk_stmts(p.body)) or any(
         isinstance(s, ir.Discard) for f in functions for s in irwalk.walk_stmts(f.body))
