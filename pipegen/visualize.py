@@ -638,10 +638,10 @@ def compose(panels: list[Panel], box: Optional[tuple[int, int]] = None):
 
 
 def panels_image(panels: list[Panel]):
-    """The PNG picture of a target: the bare image when one panel has nothing to explain,
-    else :func:`compose` at the target's own pixel size."""
+    """The PNG picture of a target: the bare image (the target's pixels) when it is one panel
+    without a legend, else :func:`compose` at the target's own pixel size."""
     from PIL import Image
-    if len(panels) == 1 and not panels[0].legend and not panels[0].title:
+    if len(panels) == 1 and not panels[0].legend:
         return Image.fromarray(np.ascontiguousarray(panels[0].rgb[::-1]))
     return compose(panels)
 
