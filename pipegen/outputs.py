@@ -1,15 +1,17 @@
-"""Write a render's targets as PNG pictures and raw ``.npy`` arrays, atomically."""
+"""Write a render's targets as PNG pictures and raw ``.npy`` arrays (``pipegen run``,
+``pipegen.save_pngs``) into an output folder pipegen owns (``outdir.py``)."""
 
 from __future__ import annotations
 
-import shutil
-import tempfile
+import os
 from pathlib import Path
+from typing import Union
 
 import numpy as np
 
 from . import formats, ir, irwalk
-from .visualize import save_png, to_rgb8
+from .outdir import OutputDir, as_output_dir, safe_name
+from .visualize import save_png, to_rgb8, write_pictures
 
 _INDEX_SCHEMES = ("bitplanes", "max_pairs", "channel_slots", "bitfield")
 
@@ -68,25 +70,44 @@ def _calls_packing(e: ir.Expr, prefixes: tuple[str, ...]) -> bool:
                for x in irwalk.walk_exprs([ir.ExprStmt(e)]))
 
 
-def write_render(compiled, scene, targets: dict[str, np.ndarray], out: Path) -> Path:
+def write_render(compiled, scene, targets: dict[str, np.ndarray],
+                 out: Union[str, os.PathLike, OutputDir], npy: bool = True) -> Path:
+    """Write every target as ``TARGET.png`` (visualised per kind of content, top row first) and,
+    with ``npy``, its raw codes as ``TARGET.npy`` (row 0 at the bottom) into ``out``, through
+    ``outdir.OutputDir``: a folder holding files pipegen did not write is refused (pass an
+    ``OutputDir(..., force=True)`` to write into it anyway), the previous outputs are replaced
+    only when everything was written.  Returns the folder."""
+    out = as_output_dir(out, "run")
     tech = compiled.technique
     hints = target_hints(tech)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with out.staging() as tmp:
         for name, codes in targets.items():
             base, _, aspect = name.partition(".")
             fmt = tech.target(base).format
             hint = "stencil" if aspect == "stencil" else hints.get(name, "auto")
             if aspect == "stencil":
                 fmt = formats.get("r8")
-            np.save(tmp / f"{name}.npy", codes)
-            save_png(tmp / f"{name}.png", to_rgb8(codes, fmt, hint, scene.camera.near,
-                                                   scene.camera.far))
-        if out.exists():
-            shutil.rmtree(out)
-        tmp.rename(out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+            if npy:
+                np.save(tmp / file_name(name, ".npy"), codes)
+            save_png(tmp / file_name(name, ".png"), to_rgb8(codes, fmt, hint, scene.camera.near,
+                                                            scene.camera.far))
+        write_pictures(tmp, compiled, scene, targets, file_name)
+    return out.path
+
+
+def save_pngs(compiled, scene, targets: dict[str, np.ndarray],
+              folder: Union[str, os.PathLike], *, npy: bool = False,
+              force: bool = False) -> dict[str, Path]:
+    """Save the targets a pipeline rendered as PNG pictures, one per target, in ``folder``, as
+    ``pipegen run`` does (``npy=True`` also writes the raw ``.npy`` arrays).  ``folder`` is
+    created if missing; a folder holding files pipegen did not write is refused with a
+    ``PipegenError`` unless ``force`` (and even then those files are kept).  Returns
+    ``{target: path of its PNG}``."""
+    out = write_render(compiled, scene, targets, OutputDir(folder, "save_pngs", force), npy)
+    return {name: out / file_name(name, ".png") for name in targets}
+
+
+def file_name(target: str, suffix: str) -> str:
+    """The file a target is written to: ``TARGET.png``, ``ds.stencil.npy``; very long target
+    names are shortened (``outdir.safe_name``)."""
+    return safe_name(target, suffix)
