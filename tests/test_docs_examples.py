@@ -114,3 +114,27 @@ def test_scene_docs_list_every_key_the_loader_accepts():
     assert accepted, "no check_keys calls found in pipegen/scene.py"
     assert accepted <= documented | {"camera", "objects", "lights"}, \
         sorted(accepted - documented)
+
+
+def _anchors(markdown: str) -> set[str]:
+    """GitHub's heading anchors: lower case, punctuation dropped, spaces to hyphens."""
+    out = set()
+    for title in re.findall(r"^#+\s+(.*?)\s*$", markdown, re.M):
+        out.add(re.sub(r"\s", "-", re.sub(r"[^\w\s-]", "", title.lower())))
+    return out
+
+
+def test_relative_links_in_the_docs_resolve():
+    bad = []
+    for path in DOCS:
+        text = FENCE.sub("", path.read_text())
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"[a-z]+:", target):
+                continue
+            file, _, anchor = target.partition("#")
+            dest = (path.parent / file).resolve() if file else path
+            if not dest.exists():
+                bad.append(f"{path.name}: {target} (no such file)")
+            elif anchor and dest.suffix == ".md" and anchor not in _anchors(dest.read_text()):
+                bad.append(f"{path.name}: {target} (no such heading)")
+    assert not bad, bad
