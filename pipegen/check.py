@@ -134,10 +134,13 @@ def error_image(row: TargetComparison) -> np.ndarray:
     return img
 
 
-def write_error_images(rows: list[TargetComparison], out_dir: Path) -> None:
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for r in rows:
-        save_png(out_dir / f"error_{r.name}.png", error_image(r))
+def write_error_images(rows: list[TargetComparison], out_dir) -> None:
+    """``error_<target>.png`` per row into ``out_dir`` (a path or an ``outdir.OutputDir``):
+    replaces only the files pipegen wrote there, refuses a folder holding others."""
+    from .outdir import as_output_dir, safe_name
+    with as_output_dir(out_dir, "check").staging() as tmp:
+        for r in rows:
+            save_png(tmp / safe_name(f"error_{r.name}", ".png"), error_image(r))
 
 
 def main_check(compiled, scene, out_dir: Path) -> int:

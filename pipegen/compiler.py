@@ -69,23 +69,19 @@ class Compiled:
         from .report import render_report
         return render_report(self, output_size)
 
-    def write(self, out_dir: str | os.PathLike, backends: tuple[str, ...] = ("gl", "cl")) -> Path:
-        """Write shaders, pipeline modules and the report to ``out_dir`` atomically: everything
-        is generated into a sibling temporary folder first, so a failure leaves nothing behind
-        (and an existing folder untouched)."""
+    def write(self, out_dir, backends: tuple[str, ...] = ("gl", "cl"),
+              output_size: Optional[tuple[int, int]] = None, force: bool = False) -> Path:
+        """Write shaders, pipeline modules and the report (targets sized for ``output_size``,
+        default ``pipegen.DEFAULT_SIZE``) into ``out_dir`` (a path or an ``outdir.OutputDir``).
+        Everything is generated into a staging folder first, so a failure leaves the previous
+        outputs untouched; only files pipegen wrote there before are replaced or removed, and a
+        folder holding other files is refused unless ``force`` (``outdir.py``)."""
         from .emit_files import write_outputs
-        out = Path(out_dir)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-        try:
-            write_outputs(self, tmp, backends)
-            if out.exists():
-                shutil.rmtree(out)
-            tmp.rename(out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return out
+        from .outdir import as_output_dir
+        out = as_output_dir(out_dir, "compile", force)
+        with out.staging() as tmp:
+            write_outputs(self, tmp, backends, output_size)
+        return out.path
 
 
 def compile_source(text: str, filename: str = "<string>", params: Optional[dict] = None,
