@@ -19,6 +19,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from . import formats
+from .backends.plan import plan_from_dict
 from .compare import TargetComparison, compare_target
 from .outputs import packed_channels, target_hints
 from .visualize import save_png
@@ -44,13 +45,12 @@ class CheckResult:
         return "\n".join(lines)
 
 
-def blend_steps(plan: dict, target: str, lights: int) -> int:
+def blend_steps(plan, target: str, lights: int) -> int:
     """How many times per frame a target is blended into (repeat groups: once per light)."""
     n = 0
-    for p in plan["passes"]:
-        b = p["state"].get("blend", {}).get(target)
-        if target in p["writes"] and b and b.get("enabled"):
-            n += lights if p.get("repeat_group") is not None else 1
+    for p in plan_from_dict(plan).passes:
+        if target in p.writes and p.state.blend_for(target).enabled:
+            n += lights if p.repeat_group is not None else 1
     return n
 
 

@@ -19,6 +19,8 @@ from typing import Callable, Optional
 
 from . import ir, lower, syntax, verify
 from .diagnostics import PipegenError
+from .backends import registry
+from .backends.plan import Plan
 from .passes import opt_fold_constants, opt_unused_functions, specialise_params
 
 Phase = tuple[str, Callable[[ir.Technique], ir.Technique]]
@@ -43,27 +45,15 @@ class Compiled:
     def name(self) -> str:
         return self.technique.name
 
-    def plan(self, backend: str) -> dict:
+    def plan(self, backend: str) -> Plan:
+        """The typed plan for ``backend`` (a name in ``backends.registry.BACKENDS``)."""
         if backend not in self._plans:
-            if backend == "gl":
-                from .backends.glsl import emit_gl
-                self._plans[backend] = emit_gl(self.technique)
-            elif backend == "cl":
-                from .backends.opencl import emit_cl
-                self._plans[backend] = emit_cl(self.technique)
-            else:
-                raise ValueError(f"unknown backend {backend!r} (expected 'gl' or 'cl')")
+            self._plans[backend] = registry.get(backend).emit(self.technique)
         return self._plans[backend]
 
     def pipeline(self, backend: str = "gl", size: Optional[tuple[int, int]] = None):
         """A runnable pipeline: ``.render(scene) -> {target: numpy array}``."""
-        if backend == "gl":
-            from .runtime.gl_pipeline import GLPipeline
-            return GLPipeline(self.plan("gl"), size)
-        if backend == "cl":
-            from .runtime.cl_pipeline import CLPipeline
-            return CLPipeline(self.plan("cl"), size)
-        raise ValueError(f"unknown backend {backend!r} (expected 'gl' or 'cl')")
+        return registry.get(backend).runtime_class()(self.plan(backend), size)
 
     def report(self, output_size: tuple[int, int] = (1280, 720)) -> str:
         from .report import render_report

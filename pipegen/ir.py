@@ -76,7 +76,7 @@ class CullMode(enum.Enum):
     FRONT = "front"
     # Light-volume draws only: per light, cull front faces (draw the back faces) when the
     # camera may be inside the light's volume or its near plane may cut it, else cull back
-    # faces (``reference.fixed_function.light_volume_cull`` decides on the host).
+    # faces (``runtime.draws.volume_cull`` decides on the host).
     AUTO = "auto"
 
 

@@ -92,12 +92,12 @@ pass a {
 
 def test_emit_cl_plan():
     plan = emit_cl(compile_source(SOURCE).technique)
-    assert plan["backend"] == "cl"
-    p = plan["passes"][0]
-    assert p["cl"]["discard"] and p["cl"]["inputs"] == ["albedo"]
-    assert "static inline float f(const pg_in *in, float x)" in p["cl"]["fragment"]
-    assert "return false;" in p["cl"]["fragment"]          # discard
-    src = p["kernel"]
+    assert plan.backend == "cl"
+    p = plan.passes[0]
+    assert p.code.discard and p.code.inputs == ("albedo",)
+    assert "static inline float f(const pg_in *in, float x)" in p.code.fragment
+    assert "return false;" in p.code.fragment          # discard
+    src = p.code.kernel
     assert "void pg_raster(" in src and "__kernel void pg_vertex(" in src
     assert "#define S_ST_FUNC_F 2" in src and "#define S_BCONST_R 0.25f" in src
     assert "late depth/stencil" in src                    # discard: tests after the fragment

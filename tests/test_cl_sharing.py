@@ -19,7 +19,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from pipegen.runtime import cl_setup as CS
-from pipegen.runtime.common import light_filter, light_list, light_type
+from pipegen.backends.plan import draw_from_dict, plan_from_dict
+from pipegen.runtime.draws import LightSelection, light_filter, light_type
 
 PER_TRIANGLE = ("a", "b", "c", "z", "w", "coef", "zp", "zq", "flat", "scissor", "bbox")
 
@@ -115,12 +116,19 @@ def test_light_list_types_and_sets():
     lights = [_light((0, 0, 0), 1.0), _light((5, 0, 0), 1.0, "spot"), _light((0.5, 0, 0), 1.0),
               _light((9, 9, 9), 0.0, 2)]
     assert [light_type(l) for l in lights] == ["point", "spot", "point", "directional"]
-    plan = {"light_sets": {"slots": 1}}
-    assert light_list({}, lights, plan, {}) == [0, 1, 2, 3]
-    assert light_list({"light_types": ["point"]}, lights, plan, {}) == [0, 2]
-    assert not light_filter({}) and light_filter({"light_types": ["spot"]})
-    sets, dropped = {}, {}
-    chosen = [light_list({"light_set": ["slots", k]}, lights, plan, sets, dropped)
+    plan = plan_from_dict({"light_sets": {"slots": 1}})
+
+    def light_list(draw, lights, plan, selection=None):
+        return (selection or LightSelection(plan, lights)).of(draw_from_dict(
+            {"kind": "lights", **draw}))
+
+    assert light_list({}, lights, plan) == [0, 1, 2, 3]
+    assert light_list({"light_types": ["point"]}, lights, plan) == [0, 2]
+    assert not light_filter(draw_from_dict({"kind": "lights"}))
+    assert light_filter(draw_from_dict({"kind": "lights", "light_types": ["spot"]}))
+    selection = LightSelection(plan, lights)
+    sets, dropped = selection.sets, selection.dropped
+    chosen = [light_list({"light_set": ["slots", k]}, lights, plan, selection)
               for k in range(3)]
     flat = sorted(i for c in chosen for i in c)
     assert sorted(flat + dropped["slots"]) == [0, 1, 2, 3] and "slots" in sets

@@ -40,18 +40,17 @@ def scene():
     return load_scene(ROOT / "examples/scenes/small.toml")
 
 
-def blended_passes(plan: dict, target: str, lights: int) -> int:
+def blended_passes(plan, target: str, lights: int) -> int:
     """How many blend steps a target sees per frame (repeat groups blend once per light)."""
     n = 0
-    for p in plan["passes"]:
-        b = (p["state"].get("blend") or {}).get(target)
-        if target in p["writes"] and b and b.get("enabled"):
-            n += lights if p.get("repeat_group") is not None else 1
+    for p in plan.passes:
+        if target in p.writes and p.state.blend_for(target).enabled:
+            n += lights if p.repeat_group is not None else 1
     return n
 
 
-def compare_all(plan: dict, gl: dict, cl: dict, lights: int, skip=()) -> list:
-    formats = {t["name"]: F.get(t["format"]) for t in plan["targets"]}
+def compare_all(plan, gl: dict, cl: dict, lights: int, skip=()) -> list:
+    formats = {t.name: t.format for t in plan.targets}
     rows = []
     assert set(gl) == set(cl)
     for key in gl:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,12 +19,28 @@ from pipegen import formats as F
 from pipegen.compare import compare_target
 from pipegen.compiler import compile_source
 from pipegen.diagnostics import PipegenError
-from pipegen.ir import CompareFunc, CullMode
+from pipegen.ir import CompareFunc, CullMode, Volume
 from pipegen.meshes import light_volume
-from pipegen.reference import fixed_function as ff
+from pipegen.runtime import draws
 from pipegen.scene import Light, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def cull_runs(cull: str, volume: str, lights, indices, eye, proj) -> list:
+    """``draws.light_runs`` as (cull mode, [light, …]) pairs."""
+    return [(r.cull.value, list(r.lights)) for r in
+            draws.light_runs(CullMode(cull), Volume(volume), lights, indices, eye, proj)]
+
+
+def volume_cull(volume, position, radius, eye, proj, cos_outer=-2.0,
+                direction=(0.0, 0.0, -1.0)) -> str:
+    """``draws.volume_cull`` as "front" / "back" for a light given by its fields."""
+    light = SimpleNamespace(position=position, radius=radius, cos_outer=cos_outer,
+                            direction=direction)
+    return draws.volume_cull(volume, light, eye, draws.near_plane_reach(proj)).value
+
+
 FULL_SCHEMA = ("lights[8] { position: vec3, radius: float, color: vec3, type: uint, "
                "direction: vec3, cos_inner: float, cos_outer: float }")
 
@@ -57,11 +74,11 @@ def error_of(body: str, **kw) -> str:
 def test_layer_is_a_flat_uint_scene_input():
     c = compiles("""pass g { draw scene writes color
         fragment { color = vec4(float(layer) / 3.0, float(object_id), 0.0, 1.0); } }""")
-    gl = c.plan("gl")["passes"][0]
+    gl = c.plan("gl").to_dict()["passes"][0]
     assert "a_layer" in gl["attributes"]
     assert "layout(location = 5) in float a_layer;" in gl["vertex"]
     assert "flat out uint v_layer;" in gl["vertex"] and "flat in uint v_layer;" in gl["fragment"]
-    cl = c.plan("cl")["passes"][0]
+    cl = c.plan("cl").to_dict()["passes"][0]
     assert "in.layer = flat.w;" in cl["kernel"] and "in.object_id = flat.y;" in cl["kernel"]
 
 
@@ -88,14 +105,14 @@ def test_cull_auto_on_light_volumes():
     assert a.state.depth.inside is CompareFunc.ALWAYS and b.state.depth.inside is None
     assert a.state.depth.clamp and a.state.depth.func is CompareFunc.LEQUAL
     for backend in ("gl", "cl"):
-        pa, pb = c.plan(backend)["passes"]
+        pa, pb = c.plan(backend).to_dict()["passes"]
         assert pa["state"]["cull"] == "auto"
         assert pa["state"]["depth"] == {"func": "lequal", "write": False, "clamp": True,
                                         "inside": "always"}
         assert "inside" not in pb["state"]["depth"]
-    kernel = c.plan("cl")["passes"][0]["kernel"]
+    kernel = c.plan("cl").to_dict()["passes"][0]["kernel"]
     assert "#define S_DEPTH_FUNC (pg_inside ? S_DEPTH_FUNC_IN : 3)" in kernel
-    assert "pg_inside" not in c.plan("cl")["passes"][1]["kernel"]
+    assert "pg_inside" not in c.plan("cl").to_dict()["passes"][1]["kernel"]
 
 
 @pytest.mark.parametrize("draw, what", [("draw scene", "scene geometry"),
@@ -133,7 +150,7 @@ def test_repeat_per_light_with_types():
     assert m.repeat_types == s.repeat_types == ("point", "spot")      # canonical order
     assert m.repeat_group == s.repeat_group != d.repeat_group
     assert a.repeat_types == ()
-    plan = c.plan("gl")
+    plan = c.plan("gl").to_dict()
     assert [p["repeat_types"] for p in plan["passes"]] == [["directional"], ["point", "spot"],
                                                            ["point", "spot"], []]
 
@@ -172,30 +189,30 @@ def test_near_plane_reach(mixed):
     P = cam.projection(mixed.aspect)
     ty = np.tan(np.radians(cam.fov_y_deg) / 2)
     expect = cam.near * np.sqrt(1 + ty ** 2 + (ty * mixed.aspect) ** 2)
-    assert ff.near_plane_reach(P) == pytest.approx(expect, rel=1e-12)
+    assert draws.near_plane_reach(P) == pytest.approx(expect, rel=1e-12)
     P_inf = P.copy()
     P_inf[2, 2], P_inf[2, 3] = -1.0, -2.0 * cam.near          # infinite far plane
-    assert ff.near_plane_reach(P_inf) == pytest.approx(expect, rel=1e-12)
+    assert draws.near_plane_reach(P_inf) == pytest.approx(expect, rel=1e-12)
 
 
 def test_light_volume_bound_contains_the_mesh():
     m = light_volume("sphere").astype(np.float64)
     R = np.sqrt((m * m).sum(1)).max()
     assert 1.0 < R < 1.05
-    assert ff.light_volume_bound("sphere", 3.0) == pytest.approx(3.0 * R)
+    assert draws.volume_bound("sphere", 3.0) == pytest.approx(3.0 * R)
     with pytest.raises(ValueError):
-        ff.light_volume_bound("quad", 1.0)
+        draws.volume_bound("quad", 1.0)
 
 
 def test_sphere_rule(mixed):
     P = mixed.camera.projection(mixed.aspect)
-    reach = ff.near_plane_reach(P)
-    R = ff.light_volume_bound("sphere", 1.0)
+    reach = draws.near_plane_reach(P)
+    R = draws.volume_bound("sphere", 1.0)
     centre = np.zeros(3)
     for d, expect in ((0.0, "front"), (2.0 * R + 0.99 * reach, "front"),
                       (2.0 * R + reach * 1.01 + 0.01, "back"), (100.0, "back")):
         eye = centre + np.array([0.0, 0.0, d])
-        assert ff.light_volume_cull("sphere", centre, 2.0, eye, P) == expect, d
+        assert volume_cull("sphere", centre, 2.0, eye, P) == expect, d
 
 
 def _mesh_world(volume: str, light: Light) -> np.ndarray:
@@ -231,7 +248,7 @@ def test_rule_is_conservative(mixed):
     plane's reach of the eye (so the near plane cannot cut the front faces)."""
     rng = np.random.default_rng(4)
     P = mixed.camera.projection(mixed.aspect)
-    reach = ff.near_plane_reach(P)
+    reach = draws.near_plane_reach(P)
     eye = np.asarray(mixed.camera.position, np.float64)
     seen = set()
     for _ in range(300):
@@ -240,13 +257,13 @@ def test_rule_is_conservative(mixed):
         light = Light("spot", (1, 1, 1), position=tuple(pos), radius=float(rng.uniform(0.5, 5)),
                       direction=tuple(rng.normal(size=3)), inner_deg=10.0,
                       outer_deg=float(rng.uniform(11, 70)))
-        mode = ff.light_volume_cull(volume, light.position, light.radius, eye, P,
+        mode = volume_cull(volume, light.position, light.radius, eye, P,
                                     light.cos_outer, light.direction)
         seen.add(mode)
         if mode == "back":
             pts = _surface_points(_mesh_world(volume, light))
             assert np.linalg.norm(pts - eye, axis=1).min() > reach
-        if ff.light_volume_clearance(volume, light.position, light.radius, eye,
+        if draws.volume_clearance(volume, light.position, light.radius, eye,
                                      light.cos_outer, light.direction) <= 0:
             assert mode == "front"
     assert seen == {"front", "back"}
@@ -258,16 +275,16 @@ def test_cull_runs_keep_light_order(mixed):
     near = Light("point", (1, 1, 1), position=tuple(eye), radius=2.0)
     far = Light("point", (1, 1, 1), position=tuple(eye + [0, 0, -20]), radius=2.0)
     lights = [far, far, near, far, near, near]
-    assert ff.cull_runs("auto", "sphere", lights, range(6), eye, P) == [
+    assert cull_runs("auto", "sphere", lights, range(6), eye, P) == [
         ("back", [0, 1]), ("front", [2]), ("back", [3]), ("front", [4, 5])]
-    assert ff.cull_runs("back", "sphere", lights, [3, 1], eye, P) == [("back", [3, 1])]
-    assert ff.cull_runs("auto", "sphere", lights, [], eye, P) == []
+    assert cull_runs("back", "sphere", lights, [3, 1], eye, P) == [("back", [3, 1])]
+    assert cull_runs("auto", "sphere", lights, [], eye, P) == []
 
 
 def test_scissor_rect_of_a_directional_light(mixed):
     P = mixed.camera.projection(mixed.aspect)
     V = mixed.camera.view_matrix()
-    assert ff.light_scissor_rect((0, 0, 0), 0.0, V, P, 160, 90) == (0, 0, 160, 90)
+    assert draws.scissor_rect(SimpleNamespace(position=(0, 0, 0), radius=0.0), V, P, 160, 90) == (0, 0, 160, 90)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -292,7 +309,7 @@ def render_both(compiled, scene, **kw):
 
 
 def assert_agree(plan, gl, cl, names, blended=0):
-    formats = {t["name"]: F.get(t["format"]) for t in plan["targets"]}
+    formats = {t.name: t.format for t in plan.targets}
     for n in names:
         row = compare_target(n, formats[n.split(".")[0]], gl[n], cl[n], blended,
                              stencil=n.endswith(".stencil"))
@@ -377,7 +394,7 @@ def test_cull_auto_camera_inside(mixed, backends):
     for volume, light in (("sphere point", point), ("cone spot", spot)):
         s = dataclasses.replace(scene, lights=(light,))
         shape = volume.split()[0]
-        assert ff.cull_runs("auto", shape, s.lights, [0], eye, P) == [("front", [0])]
+        assert cull_runs("auto", shape, s.lights, [0], eye, P) == [("front", [0])]
         assert np.all(count_image(s, volume, "auto") == 1), volume
         assert np.all(count_image(s, volume, "back") == 0), volume
         assert np.all(count_image(s, volume, "auto", clamp=False) == 0), volume
@@ -391,7 +408,7 @@ def test_cull_auto_camera_outside(mixed, backends):
     for volume, kind in (("sphere point", "point"), ("cone spot", "spot")):
         lights = tuple(l for l in scene.lights if l.type == kind)
         shape = volume.split()[0]
-        runs = ff.cull_runs("auto", shape, lights, range(len(lights)), scene.camera.position, P)
+        runs = cull_runs("auto", shape, lights, range(len(lights)), scene.camera.position, P)
         assert runs == [("back", list(range(len(lights))))]
         for light in lights:
             s = dataclasses.replace(scene, lights=(light,))
@@ -429,7 +446,7 @@ def test_cull_auto_runs_in_light_order(mixed, backends, depth, scissor):
               Light("point", (1, 1, 1), position=(0.3, 0.7, -0.5), radius=2.0))
     scene = dataclasses.replace(mixed, lights=lights)
     P = scene.camera.projection(scene.aspect)
-    runs = ff.cull_runs("auto", "sphere", lights, range(5), eye, P)
+    runs = cull_runs("auto", "sphere", lights, range(5), eye, P)
     assert [m for m, _ in runs] == ["back", "front", "back", "front", "back"]
     c = compiles(CALVER.replace("DEPTH", depth).replace("sphere point", "sphere point" + scissor))
     gl, cl = render_both(c, scene)

@@ -15,11 +15,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from pipegen.ir import Size
 from pipegen.reference import fixed_function as FF
+from pipegen.runtime import draws
 
 try:
     from pipegen.runtime.gl_context import get_context
-    from pipegen.runtime.gl_pipeline import GLPipeline, target_size
+    from pipegen.runtime.gl_pipeline import GLPipeline
     _CTX = get_context()
     _ERR = None
 except Exception as e:  # pragma: no cover - machines without EGL
@@ -378,8 +380,7 @@ def test_scissor_light_draws():
     cam = scene.camera
     rects = np.zeros((16, 16), int)
     for l in scene.lights:
-        x, y, w, h = FF.light_scissor_rect(l.position, l.radius, cam.view_matrix(),
-                                           cam.projection(1.0), 16, 16)
+        x, y, w, h = draws.scissor_rect(l, cam.view_matrix(), cam.projection(1.0), 16, 16)
         rects[y:y + h, x:x + w] += 1
     assert (clipped <= rects).all() and (clipped < free).any()
     assert clipped.sum() > 0
@@ -469,7 +470,7 @@ def test_relative_and_absolute_target_sizes():
     assert out["full"].shape == (7, 13) and out["half"].shape == (4, 7)
     assert out["fixed"].shape == (5, 3)
     assert (out["half"] == 13).all()
-    assert target_size({"scale": 0.625, "width": 0, "height": 0}, 1280, 720) == (800, 450)
+    assert Size(0.625).resolve(1280, 720) == (800, 450)
     # an explicit pipeline size overrides the scene's
     out = render(p, FakeScene(width=13, height=7), size=(8, 6))
     assert out["full"].shape == (6, 8) and (out["half"] == 8).all()

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from pipegen import formats as F
+from pipegen.backends.plan import state_from_dict
 from pipegen.reference import fixed_function as FF
 
 try:
@@ -146,7 +147,9 @@ class Rig:
     def _bind(self, state):
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.fbo)
         GL.glViewport(0, 0, W, H)
-        GS.apply_state(state, ["c"] if self.color else [], depth_format=self.depth)
+        writes = ["c"] if self.color else []
+        GS.apply_state(state_from_dict(state, writes), writes,
+                       depth_format=F.get(self.depth) if self.depth else None)
 
     def fullscreen(self, state, src, z=None, discard=False):
         """Every pixel gets ``src[y, x]`` (and ``gl_FragDepth = z[y, x]`` when given); with

@@ -1,5 +1,5 @@
 """The GLSL 330 core backend: a ``CStyleLanguage`` dialect (data plus a few hooks) and
-``emit_gl(tech) -> PLAN dict`` with one vertex and one fragment shader per pass.
+``emit_gl(tech) -> Plan`` with one vertex and one fragment shader per pass.
 
 Conventions shared with the GL runtime are in docs/internals.md ("GLSL conventions").  Choices
 made here that the runtime (and the OpenCL backend, which must agree) rely on:
@@ -26,7 +26,7 @@ made here that the runtime (and the OpenCL backend, which must agree) rely on:
   at the depth of its nearest point; full screen at the near plane when the box reaches
   in front of the near plane, or when the light's radius is <= 0 (directional lights).
   ``cull auto`` (sphere and cone only) is a host-side choice per light
-  (``reference.fixed_function.cull_runs``); the shaders do not see it.
+  (``runtime.draws.light_runs``); the shaders do not see it.
 - Full-screen draws: one triangle from ``gl_VertexID`` (3 vertices, no attributes) at the far
   plane (window depth 1.0), so ``depth greater`` selects covered pixels and ``equal`` the sky.
 """
@@ -38,6 +38,7 @@ from typing import Optional
 from .. import ir, irwalk
 from ..ir import DrawKind, Scalar, Type, Volume
 from . import plan as planlib
+from .plan import GLPassCode, Plan
 from . import templating
 from ..builtins import VOLUME_LIGHT_FIELDS
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
@@ -165,12 +166,12 @@ def _render_size(tech: ir.Technique, p: ir.Pass) -> Optional[ir.Size]:
 # ---- emission -----------------------------------------------------------------------------------
 
 
-def emit_gl(tech: ir.Technique) -> dict:
-    """The PLAN dict of docs/internals.md with GLSL ``vertex``/``fragment`` per pass."""
-    plan = planlib.technique_plan(tech, "gl")
-    for p, pd in zip(tech.passes, plan["passes"]):
-        pd.update(emit_pass(tech, p))
-    return plan
+def emit_gl(tech: ir.Technique) -> Plan:
+    """The plan of ``tech`` with GLSL (``GLPassCode``: vertex and fragment shader) per pass."""
+    parts = [emit_pass(tech, p) for p in tech.passes]
+    return planlib.technique_plan(
+        tech, "gl", [GLPassCode(d["vertex"], d["fragment"], tuple(d["attributes"])) for d in parts],
+        [tuple(d["sampled"]) for d in parts])
 
 
 def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
@@ -244,14 +245,3 @@ def _output(t: ir.Target) -> dict:
 def _uniforms(p: ir.Pass) -> list[dict]:
     extra = [("uint", "u_light")] if p.repeat_per_light else []
     return [{"type": t, "name": n} for t, n in UNIFORMS + extra]
-
-
-# ---- the generated Python module ------------------------------------------------------------------
-
-
-def gl_module_source(plan: dict) -> str:
-    """Source of the generated ``pipeline_gl.py`` holding ``plan``."""
-    def safe(s: str) -> str:
-        return s.replace("\\", "/").replace('"""', "'''")
-    return templating.render("pipeline_gl.py.j2", plan=plan, title=safe(plan["title"]),
-                             source=safe(plan.get("source") or "<string>"))

@@ -1,5 +1,5 @@
 """The OpenCL C backend: a ``CStyleLanguage`` dialect (data plus a few hooks) and
-``emit_cl(tech) -> PLAN dict`` with one OpenCL program per pass.
+``emit_cl(tech) -> Plan`` with one OpenCL program per pass.
 
 The program of a pass (``pass["kernel"]``) is the software reference of that pass: the same
 pipeline the GLSL backend describes, with the fixed-function stages written out.  It holds
@@ -63,6 +63,7 @@ scaled down (rgb ``>> 6``), varyings interpolated with llvmpipe's float32 planes
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from typing import Optional
 
 import numpy as np
@@ -71,6 +72,7 @@ from .. import formats as F
 from .. import ir, irwalk
 from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
+from .plan import CLPassCode, PassPlan, Plan
 from . import templating
 from ..builtins import VOLUME_LIGHT_FIELDS
 from .cstyle import ATOM, FLT_MIN, CStyleLanguage, texel_select
@@ -440,87 +442,58 @@ def _read_expr(f: dict) -> str:
 # ---- state macros ---------------------------------------------------------------------------------
 
 
-def _ival(x) -> int:
-    return int(x)
-
-
-def state_values(pass_: dict) -> list[tuple[str, str, object]]:
+def state_values(pass_: PassPlan) -> list[tuple[str, str, object]]:
     """The pass state as (macro name, kind "i"/"f", value) rows, in the dynamic-state order."""
-    st = pass_.get("state") or {}
-    depth = {"func": "always", "write": False, "clamp": False, **(st.get("depth") or {})}
-    has_depth = pass_.get("depth_target") is not None
-    enabled = has_depth and (depth["func"] != "always" or bool(depth["write"]))
+    st = pass_.state
+    depth = st.depth
+    has_depth = pass_.depth_target is not None
+    enabled = has_depth and depth.enabled
     rows: list[tuple[str, str, object]] = [
         ("S_DEPTH_TEST", "i", int(enabled)),
-        ("S_DEPTH_FUNC", "i", COMPARE[_v(depth["func"])] if enabled else COMPARE["always"]),
-        ("S_DEPTH_WRITE", "i", int(enabled and bool(depth["write"]))),
+        ("S_DEPTH_FUNC", "i", COMPARE[depth.func.value] if enabled else COMPARE["always"]),
+        ("S_DEPTH_WRITE", "i", int(enabled and depth.write)),
     ]
-    stencil = st.get("stencil") or {}
-    noop = {"func": "always", "ref": 0, "read_mask": 255, "write_mask": 255, "fail": "keep",
-            "zfail": "keep", "zpass": "keep"}
-    faces = []
-    for face in ("front", "back"):
-        f = {**noop, **(stencil.get(face) or {})}
-        faces.append(f)
-    st_on = any(_v(f["func"]) != "always" or any(_v(f[k]) != "keep" for k in ("fail", "zfail", "zpass"))
-                for f in faces)
-    rows.append(("S_STENCIL", "i", int(st_on)))
+    faces = [st.stencil.front, st.stencil.back]
+    rows.append(("S_STENCIL", "i", int(st.stencil.enabled)))
     for tag, f in zip("FB", faces):
-        rows += [(f"S_ST_FUNC_{tag}", "i", COMPARE[_v(f["func"])]),
-                 (f"S_ST_REF_{tag}", "i", min(max(_ival(f["ref"]), 0), 255)),
-                 (f"S_ST_RMASK_{tag}", "i", _ival(f["read_mask"]) & 255),
-                 (f"S_ST_WMASK_{tag}", "i", _ival(f["write_mask"]) & 255),
-                 (f"S_ST_FAIL_{tag}", "i", STENCIL_OP[_v(f["fail"])]),
-                 (f"S_ST_ZFAIL_{tag}", "i", STENCIL_OP[_v(f["zfail"])]),
-                 (f"S_ST_ZPASS_{tag}", "i", STENCIL_OP[_v(f["zpass"])])]
-    const = list(st.get("blend_constant") or [0.0, 0.0, 0.0, 0.0])
-    rows += [(f"S_BCONST_{c}", "f", float(v)) for c, v in zip("RGBA", const)]
-    blend = st.get("blend") or {}
-    for k, name in enumerate(pass_.get("writes") or []):
-        b = {"enabled": False, "rgb": ["add", "one", "zero"], "alpha": ["add", "one", "zero"],
-             "write_mask": [True] * 4, **(blend.get(name) or {})}
-        rgb, alpha = _eq3(b["rgb"]), _eq3(b["alpha"])
-        mask = sum(1 << i for i, m in enumerate(b["write_mask"]) if m)
-        rows += [(f"S_BLEND_{k}", "i", int(bool(b["enabled"]))),
-                 (f"S_RGB_OP_{k}", "i", BLEND_OP[rgb[0]]),
-                 (f"S_RGB_SRC_{k}", "i", BLEND_FACTOR[rgb[1]]),
-                 (f"S_RGB_DST_{k}", "i", BLEND_FACTOR[rgb[2]]),
-                 (f"S_A_OP_{k}", "i", BLEND_OP[alpha[0]]),
-                 (f"S_A_SRC_{k}", "i", BLEND_FACTOR[alpha[1]]),
-                 (f"S_A_DST_{k}", "i", BLEND_FACTOR[alpha[2]]),
+        rows += [(f"S_ST_FUNC_{tag}", "i", COMPARE[f.func.value]),
+                 (f"S_ST_REF_{tag}", "i", min(max(int(f.ref), 0), 255)),
+                 (f"S_ST_RMASK_{tag}", "i", int(f.read_mask) & 255),
+                 (f"S_ST_WMASK_{tag}", "i", int(f.write_mask) & 255),
+                 (f"S_ST_FAIL_{tag}", "i", STENCIL_OP[f.fail.value]),
+                 (f"S_ST_ZFAIL_{tag}", "i", STENCIL_OP[f.zfail.value]),
+                 (f"S_ST_ZPASS_{tag}", "i", STENCIL_OP[f.zpass.value])]
+    rows += [(f"S_BCONST_{c}", "f", float(v)) for c, v in zip("RGBA", st.blend_constant)]
+    for k, name in enumerate(pass_.writes):
+        b = st.blend_for(name)
+        mask = sum(1 << i for i, m in enumerate(b.write_mask) if m)
+        rows += [(f"S_BLEND_{k}", "i", int(b.enabled)),
+                 (f"S_RGB_OP_{k}", "i", BLEND_OP[b.rgb.op.value]),
+                 (f"S_RGB_SRC_{k}", "i", BLEND_FACTOR[b.rgb.src.value]),
+                 (f"S_RGB_DST_{k}", "i", BLEND_FACTOR[b.rgb.dst.value]),
+                 (f"S_A_OP_{k}", "i", BLEND_OP[b.alpha.op.value]),
+                 (f"S_A_SRC_{k}", "i", BLEND_FACTOR[b.alpha.src.value]),
+                 (f"S_A_DST_{k}", "i", BLEND_FACTOR[b.alpha.dst.value]),
                  (f"S_WMASK_{k}", "i", mask)]
     inside = _inside_func(pass_)
     if inside is not None:
         # `cull auto` + `depth … inside FUNC`: the test of the triangles of lights drawn with
         # their back faces (the runtime sets bit 1 of their tri_flat.x, `pg_inside`)
-        on = has_depth and (inside != "always" or bool(depth["write"]))
+        on = has_depth and (inside is not ir.CompareFunc.ALWAYS or depth.write)
         rows += [("S_DEPTH_TEST_IN", "i", int(on)),
-                 ("S_DEPTH_FUNC_IN", "i", COMPARE[inside] if on else COMPARE["always"]),
-                 ("S_DEPTH_WRITE_IN", "i", int(on and bool(depth["write"])))]
+                 ("S_DEPTH_FUNC_IN", "i", COMPARE[inside.value] if on else COMPARE["always"]),
+                 ("S_DEPTH_WRITE_IN", "i", int(on and depth.write))]
     return rows
 
 
-def _inside_func(pass_: dict) -> Optional[str]:
+def _inside_func(pass_: PassPlan) -> Optional[ir.CompareFunc]:
     """The `inside FUNC` depth test of a `cull auto` pass (None when it has none)."""
-    st = pass_.get("state") or {}
-    inside = (st.get("depth") or {}).get("inside")
-    if inside is None or _v(st.get("cull")) != "auto" or not pass_.get("depth_target"):
+    if not pass_.cull_auto or not pass_.depth_target:
         return None
-    return _v(inside)
+    return pass_.state.depth.inside
 
 
-def _v(x):
-    return getattr(x, "value", x)
-
-
-def _eq3(e) -> tuple[str, str, str]:
-    e = [_v(x) for x in e]
-    if len(e) == 1:
-        return e[0], "one", "one"
-    return e[0], e[1], e[2]
-
-
-def state_words(pass_: dict) -> list[int]:
+def state_words(pass_: PassPlan) -> list[int]:
     """The dynamic-state argument (int32 words) matching ``state_values`` order."""
     import struct
     out = []
@@ -532,7 +505,7 @@ def state_words(pass_: dict) -> list[int]:
     return out
 
 
-def _state_defines(pass_: dict, dynamic: bool) -> list[tuple[str, str]]:
+def _state_defines(pass_: PassPlan, dynamic: bool) -> list[tuple[str, str]]:
     lang = OpenCLLanguage()
     out = []
     for k, (name, kind, value) in enumerate(state_values(pass_)):
@@ -564,13 +537,13 @@ def sample_positions(samples: int) -> tuple[list[int], list[int]]:
 # ---- per-pass program --------------------------------------------------------------------------------
 
 
-def varying_slots(pass_: dict) -> list[dict]:
+def varying_slots(pass_: PassPlan) -> list[dict]:
     """Varyings of a pass, in slot order: name, OpenCL type, vertex-kernel value, ``flat``
     (the provoking vertex's value) and, for the others, ``coef``: the index of the slot's
     perspective plane among the smooth slots (``Triangles.coef``)."""
-    inputs = set((pass_.get("cl") or {}).get("inputs") or [])
-    if pass_["draw"]["kind"] != "scene":
+    if pass_.draw.kind is not DrawKind.SCENE:
         return []
+    inputs = set(pass_.code.inputs if pass_.code is not None else ())
     out = []
     smooth = 0
     for k, n in enumerate(n for n in SCENE_VARYINGS if n in inputs):
@@ -582,64 +555,62 @@ def varying_slots(pass_: dict) -> list[dict]:
     return out
 
 
-def pass_program(plan: dict, pass_: dict, dynamic: bool = False, tile: int = TILE) -> str:
+def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int = TILE) -> str:
     """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument)."""
     if not 1 <= int(tile) <= 64:       # pg_raster keeps a row's drawn pixels in a ulong mask
         raise ValueError(f"tile size {tile}: the raster kernel supports 1 to 64")
-    targets = {t["name"]: t for t in plan["targets"]}
-    cl = pass_.get("cl") or {}
+    code = pass_.code if pass_.code is not None else CLPassCode("", None)
     writes = []
-    for k, name in enumerate(pass_.get("writes") or []):
-        f = cl_format(targets[name]["format"])
+    for k, name in enumerate(pass_.writes):
+        f = cl_format(plan.target(name).format.name)
         writes.append({**f, "k": k, "name": name, "format": f["name"]})
     depth = None
     stencil = False
-    if pass_.get("depth_target"):
-        fmt = F.get(targets[pass_["depth_target"]]["format"])
+    if pass_.depth_target:
+        fmt = plan.target(pass_.depth_target).format
         depth = cl_format(fmt.name)
         stencil = fmt.has_stencil
     reads = []
-    for name in pass_.get("reads") or []:
-        f = cl_format(targets[name]["format"])
+    for name in pass_.reads:
+        f = cl_format(plan.target(name).format.name)
         reads.append({**f, "name": name, "format": f["name"], "decoded": _read_expr(f),
                       "integer": f["cls"] == "uint",
                       "linear": f["cls"] in ("unorm8", "unorm", "half", "float"),
-                      "sampled": name in (cl.get("sampled") or [])})
-    inputs = set(cl.get("inputs") or [])
-    draw = pass_["draw"]
-    fields = [f[0] for f in plan["lights"]["fields"]]
-    volume = draw.get("volume") or "sphere"
+                      "sampled": name in code.sampled})
+    inputs = set(code.inputs)
+    draw = pass_.draw
+    fields = [f[0] for f in plan.lights.fields]
+    volume = (draw.volume or ir.Volume.SPHERE).value
     slots = {f: k for k, f in enumerate(fields)}
     prelude = templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines())
-    attached = list(pass_.get("writes") or []) + (
-        [pass_["depth_target"]] if pass_.get("depth_target") else [])
-    samples = max([int(targets[n].get("samples") or 1) for n in attached] or [1])
+    samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
     return templating.render(
         "cl_pass.cl.j2",
-        technique=plan.get("technique", ""), pass_name=pass_["name"], prelude=prelude,
+        technique=plan.technique, pass_name=pass_.name, prelude=prelude,
         dynamic=dynamic, state=_state_defines(pass_, dynamic),
-        kind=draw["kind"], volume=volume, slots=slots, light_fields=len(fields),
+        kind=draw.kind.value, volume=volume, slots=slots, light_fields=len(fields),
         varyings=varying_slots(pass_),
         flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
         writes=writes, depth=depth, stencil=stencil, reads=reads,
-        fragment=cl.get("fragment"), discard=bool(cl.get("discard")),
+        fragment=code.fragment, discard=code.discard,
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
-        scissor=bool(draw.get("scissor")), samples=samples, sample_x=sx, sample_y=sy,
+        scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=_inside_func(pass_) is not None)
 
 
 # ---- emission from the IR -----------------------------------------------------------------------------
 
 
-def emit_cl(tech: ir.Technique) -> dict:
-    """The PLAN dict of docs/internals.md with one OpenCL program (``"kernel"``) per pass."""
-    plan = planlib.technique_plan(tech, "cl")
-    for p, pd in zip(tech.passes, plan["passes"]):
-        pd["cl"] = emit_fragment(tech, p)
-        pd["sampled"] = [r for r in p.reads if r in pd["cl"]["sampled"]]
-        pd["kernel"] = pass_program(plan, pd)
-    return plan
+def emit_cl(tech: ir.Technique) -> Plan:
+    """The plan of ``tech`` with one OpenCL program (``CLPassCode.kernel``) per pass."""
+    frags = [emit_fragment(tech, p) for p in tech.passes]
+    codes = [CLPassCode("", f["fragment"], tuple(f["inputs"]), f["discard"], tuple(f["sampled"]))
+             for f in frags]
+    sampled = [tuple(r for r in p.reads if r in f["sampled"]) for p, f in zip(tech.passes, frags)]
+    plan = planlib.technique_plan(tech, "cl", codes, sampled)
+    return replace(plan, passes=tuple(
+        replace(p, code=replace(p.code, kernel=pass_program(plan, p))) for p in plan.passes))
 
 
 def emit_fragment(tech: ir.Technique, p: ir.Pass) -> dict:
@@ -672,14 +643,3 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass) -> dict:
                       "    return true;", "}"])
     text = "\n\n".join(code + [main]) + "\n"
     return {"fragment": text, "inputs": sorted(inputs), "discard": discard, "sampled": sampled}
-
-
-# ---- the generated Python module -------------------------------------------------------------------
-
-
-def cl_module_source(plan: dict) -> str:
-    """Source of the generated ``pipeline_cl.py`` holding ``plan``."""
-    def safe(s: str) -> str:
-        return s.replace("\\", "/").replace('"""', "'''")
-    return templating.render("pipeline_cl.py.j2", plan=plan, title=safe(plan["title"]),
-                             source=safe(plan.get("source") or "<string>"))

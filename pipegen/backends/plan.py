@@ -1,51 +1,191 @@
-"""The backend-neutral part of a compiled plan (docs/internals.md, "Compiled plan"), and the IR
-queries every code generator needs per pass (which functions, stage inputs and target reads a
-pass's shader uses).  Backends add their code (``vertex``/``fragment`` or kernels) to each pass.
+"""The compiled plan: what a runtime needs to execute a technique, as frozen dataclasses.
 
-All enum values are the IR enums' ``.value`` strings; containers are lists, so that the plan is
-plain data a generated module can hold as a literal.
+The compiler builds a ``Plan`` once per backend (``technique_plan``); the backend adds its code
+to each pass (``PassPlan.code``: ``GLPassCode`` or ``CLPassCode``).  A plan carries IR enums and
+``formats.Format`` objects, never backend constants: per-backend enum tables (GL enums, CL
+macros) live in the backend or runtime that needs them.
+
+A plan also has a plain-data spelling (``Plan.to_dict`` / ``plan_from_dict``, documented in
+docs/internals.md) for generated pipeline modules, which hold it as a literal, and for tests
+that write small plans by hand.  ``plan_from_dict`` is the one place where a missing key takes
+its default.
+
+The second half of this module holds the IR queries every code generator needs per pass
+(which functions, stage inputs and target reads a pass's shader uses).
 """
 
 from __future__ import annotations
 
-from typing import Iterator
+from dataclasses import dataclass, field, replace
+from typing import Any, Iterator, Mapping, Optional, Union
 
+from .. import formats as F
 from .. import ir, irwalk
 
 
-def technique_plan(tech: ir.Technique, backend: str) -> dict:
+# ---- the typed plan ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LightTablePlan:
+    capacity: int
+    fields: tuple[tuple[str, str], ...]      # (name, type) in table-column order
+
+
+@dataclass(frozen=True)
+class TargetPlan:
+    name: str
+    format: F.Format
+    size: ir.Size
+    samples: int = 1
+    clear: ir.Clear = ir.Clear()
+
+    def resolve(self, out_w: int, out_h: int) -> tuple[int, int]:
+        """The target's size in pixels for an output of ``out_w`` x ``out_h``."""
+        return self.size.resolve(out_w, out_h)
+
+
+@dataclass(frozen=True)
+class GLPassCode:
+    """GLSL of one pass: ``fragment`` is None for depth/stencil-only passes."""
+    vertex: str
+    fragment: Optional[str]
+    attributes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class CLPassCode:
+    """OpenCL C of one pass: ``kernel`` the whole program; ``fragment`` the fragment function
+    alone (None: no body) with the stage ``inputs`` it reads, whether it may ``discard`` and
+    the targets it ``sampled`` (bilinear) — enough to rebuild ``kernel`` with other options."""
+    kernel: str
+    fragment: Optional[str]
+    inputs: tuple[str, ...] = ()
+    discard: bool = False
+    sampled: tuple[str, ...] = ()
+
+
+PassCode = Union[GLPassCode, CLPassCode, None]
+
+
+@dataclass(frozen=True)
+class PassPlan:
+    name: str
+    draw: ir.Draw
+    state: ir.PassState
+    writes: tuple[str, ...] = ()
+    reads: tuple[str, ...] = ()
+    depth_target: Optional[str] = None
+    clears: tuple[tuple[str, ir.Clear], ...] = ()
+    repeat_group: Optional[int] = None
+    repeat_types: tuple[str, ...] = ()
+    sampled: tuple[str, ...] = ()            # reads filtered bilinearly (``sample()``)
+    code: PassCode = None
+
+    @property
+    def attached(self) -> tuple[str, ...]:
+        """The targets the pass's framebuffer holds: colour writes, then the depth target."""
+        return self.writes + ((self.depth_target,) if self.depth_target else ())
+
+    @property
+    def cull_auto(self) -> bool:
+        return self.state.cull is ir.CullMode.AUTO
+
+
+@dataclass(frozen=True)
+class Plan:
+    technique: str
+    title: str
+    backend: str
+    source: str
+    params: Mapping[str, Any]
+    lights: LightTablePlan
+    output: str
+    targets: tuple[TargetPlan, ...]
+    passes: tuple[PassPlan, ...]
+    light_sets: Mapping[str, int] = field(default_factory=dict)   # channel_slots: slots
+
+    def target(self, name: str) -> TargetPlan:
+        for t in self.targets:
+            if t.name == name:
+                return t
+        raise KeyError(name)
+
+    def pass_samples(self, p: PassPlan) -> int:
+        """Samples per pixel of a pass's attachments."""
+        return max([self.target(n).samples for n in p.attached] or [1])
+
+    def to_dict(self) -> dict:
+        return plan_to_dict(self)
+
+
+# ---- built from the IR ---------------------------------------------------------------------
+
+
+def technique_plan(tech: ir.Technique, backend: str,
+                   codes: Optional[list[PassCode]] = None,
+                   sampled: Optional[list[tuple[str, ...]]] = None) -> Plan:
+    """The plan of ``tech`` for ``backend``, with each pass's code and sampled reads."""
+    codes = codes or [None] * len(tech.passes)
+    sampled = sampled or [()] * len(tech.passes)
+    return Plan(
+        technique=tech.name, title=tech.title, backend=backend, source=tech.source,
+        params={p.name: p.default for p in tech.params},
+        lights=LightTablePlan(tech.lights.capacity,
+                              tuple((f.name, str(f.type)) for f in tech.lights.fields)),
+        output=tech.output,
+        targets=tuple(target_plan(t) for t in tech.targets),
+        passes=tuple(pass_plan(p, code, s) for p, code, s in zip(tech.passes, codes, sampled)),
+        light_sets={p.name: int(dict(p.options).get("slots", 4))
+                    for p in tech.packings if p.scheme == "channel_slots"})
+
+
+def target_plan(t: ir.Target) -> TargetPlan:
+    clear = t.clear
+    if t.format.is_color and clear.color is None:   # "a target without clear is cleared to 0"
+        clear = replace(clear, color=(0, 0, 0, 0))
+    return TargetPlan(t.name, t.format, t.size, t.samples, clear)
+
+
+def pass_plan(p: ir.Pass, code: PassCode = None, sampled: tuple[str, ...] = ()) -> PassPlan:
+    # the plan keeps blend state for the written targets only, in write order
+    state = replace(p.state, blend=tuple((t, p.state.blend_for(t)) for t in p.writes))
+    return PassPlan(p.name, p.draw, state, tuple(p.writes), tuple(p.reads), p.depth_target,
+                    tuple(p.clears), p.repeat_group, tuple(p.repeat_types), tuple(sampled), code)
+
+
+# ---- the plain-data spelling ---------------------------------------------------------------
+
+
+def plan_to_dict(plan: Plan) -> dict:
+    """The plan as plain data (docs/internals.md, "Compiled plan"): IR enums as their
+    ``.value`` strings, formats by name, containers as lists."""
     return {
-        "technique": tech.name,
-        "title": tech.title,
-        "backend": backend,
-        "source": tech.source,
-        "params": {p.name: p.default for p in tech.params},
-        "lights": {"capacity": tech.lights.capacity,
-                   "fields": [[f.name, str(f.type)] for f in tech.lights.fields]},
-        "output": tech.output,
-        "targets": [target_plan(t) for t in tech.targets],
-        "passes": [pass_plan(p) for p in tech.passes],
-        "light_sets": {p.name: int(dict(p.options).get("slots", 4))
-                       for p in tech.packings if p.scheme == "channel_slots"},
+        "technique": plan.technique, "title": plan.title, "backend": plan.backend,
+        "source": plan.source, "params": dict(plan.params),
+        "lights": {"capacity": plan.lights.capacity,
+                   "fields": [list(f) for f in plan.lights.fields]},
+        "output": plan.output,
+        "targets": [_target_to_dict(t) for t in plan.targets],
+        "passes": [_pass_to_dict(p) for p in plan.passes],
+        "light_sets": dict(plan.light_sets),
     }
 
 
-def _clear(c: ir.Clear) -> dict:
+def _clear_to_dict(c: ir.Clear) -> dict:
     return {"clear_color": None if c.color is None else list(c.color),
             "clear_depth": c.depth, "clear_stencil": c.stencil}
 
 
-def target_plan(t: ir.Target) -> dict:
-    clear = _clear(t.clear)
-    if t.format.is_color and clear["clear_color"] is None:
-        clear["clear_color"] = [0, 0, 0, 0]      # "a target without clear is cleared to zero"
+def _target_to_dict(t: TargetPlan) -> dict:
     return {"name": t.name, "format": t.format.name, "scale": t.size.scale,
-            "width": t.size.width, "height": t.size.height, "samples": t.samples, **clear}
+            "width": t.size.width, "height": t.size.height, "samples": t.samples,
+            **_clear_to_dict(t.clear)}
 
 
-def pass_plan(p: ir.Pass) -> dict:
+def _pass_to_dict(p: PassPlan) -> dict:
     d = p.draw
-    return {
+    out = {
         "name": p.name,
         "draw": {"kind": d.kind.value, "material": list(d.material),
                  "volume": None if d.volume is None else d.volume.value,
@@ -54,42 +194,159 @@ def pass_plan(p: ir.Pass) -> dict:
                  "scissor": d.scissor},
         "repeat_group": p.repeat_group,
         "repeat_types": list(p.repeat_types),
-        "clears": [{"target": name, **_clear(c)} for name, c in p.clears],
+        "clears": [{"target": name, **_clear_to_dict(c)} for name, c in p.clears],
         "writes": list(p.writes),
         "reads": list(p.reads),
         "depth_target": p.depth_target,
-        "state": state_plan(p.state, p.writes),
+        "state": state_to_dict(p.state, p.writes),
     }
+    if isinstance(p.code, GLPassCode):
+        out.update(vertex=p.code.vertex, fragment=p.code.fragment, sampled=list(p.sampled),
+                   attributes=list(p.code.attributes))
+    elif isinstance(p.code, CLPassCode):
+        out["cl"] = {"fragment": p.code.fragment, "inputs": list(p.code.inputs),
+                     "discard": p.code.discard, "sampled": list(p.code.sampled)}
+        out["sampled"] = list(p.sampled)
+        out["kernel"] = p.code.kernel
+    return out
 
 
-def _face(f: ir.StencilFace) -> dict:
+def _face_to_dict(f: ir.StencilFace) -> dict:
     return {"func": f.func.value, "ref": f.ref, "read_mask": f.read_mask,
             "write_mask": f.write_mask, "fail": f.fail.value, "zfail": f.zfail.value,
             "zpass": f.zpass.value}
 
 
-def _eq(e: ir.BlendEquation) -> list:
+def _eq_to_list(e: ir.BlendEquation) -> list:
     return [e.op.value, e.src.value, e.dst.value]
 
 
-def state_plan(s: ir.PassState, writes: tuple[str, ...]) -> dict:
+def state_to_dict(s: ir.PassState, writes: tuple[str, ...]) -> dict:
     blend = {}
     for t in writes:
         b = s.blend_for(t)
-        blend[t] = {"enabled": b.enabled, "rgb": _eq(b.rgb), "alpha": _eq(b.alpha),
-                    "write_mask": list(b.write_mask)}
+        blend[t] = {"enabled": b.enabled, "rgb": _eq_to_list(b.rgb),
+                    "alpha": _eq_to_list(b.alpha), "write_mask": list(b.write_mask)}
     depth = {"func": s.depth.func.value, "write": s.depth.write, "clamp": s.depth.clamp}
     if s.depth.inside is not None:      # `cull auto` passes: the back-face lights' test
         depth["inside"] = s.depth.inside.value
     return {
         "depth": depth,
-        "stencil": {"front": _face(s.stencil.front), "back": _face(s.stencil.back)},
+        "stencil": {"front": _face_to_dict(s.stencil.front),
+                    "back": _face_to_dict(s.stencil.back)},
         "blend": blend,
         "blend_constant": list(s.blend_constant),
         "cull": s.cull.value,
         "polygon_offset": None if s.polygon_offset is None else
         [s.polygon_offset.factor, s.polygon_offset.units],
     }
+
+
+def plan_from_dict(d: Union[Mapping, Plan]) -> Plan:
+    """A ``Plan`` from its plain-data spelling; missing keys take their defaults (a plan
+    written by hand may leave out whatever it does not use).  A ``Plan`` is returned as is."""
+    if isinstance(d, Plan):
+        return d
+    lights = d.get("lights") or {}
+    return Plan(
+        technique=d.get("technique", ""), title=d.get("title", ""),
+        backend=d.get("backend") or "", source=d.get("source") or "",
+        params=dict(d.get("params") or {}),
+        lights=LightTablePlan(int(lights.get("capacity") or 0),
+                              tuple((str(n), str(t)) for n, t in lights.get("fields") or [])),
+        output=d.get("output", ""),
+        targets=tuple(_target_from_dict(t) for t in d.get("targets") or []),
+        passes=tuple(_pass_from_dict(p) for p in d.get("passes") or []),
+        light_sets={k: int(v) for k, v in (d.get("light_sets") or {}).items()})
+
+
+def _clear_from_dict(c: Mapping) -> ir.Clear:
+    color = c.get("clear_color")
+    return ir.Clear(None if color is None else tuple(color), c.get("clear_depth"),
+                    c.get("clear_stencil"))
+
+
+def _target_from_dict(t: Mapping) -> TargetPlan:
+    size = ir.Size(float(t.get("scale") or 1.0), int(t.get("width") or 0),
+                   int(t.get("height") or 0))
+    return TargetPlan(t["name"], F.get(t["format"]), size,
+                      max(1, int(t.get("samples") or 1)), _clear_from_dict(t))
+
+
+def draw_from_dict(d: Optional[Mapping]) -> ir.Draw:
+    d = d or {"kind": "fullscreen"}
+    light_set = d.get("light_set")
+    return ir.Draw(ir.DrawKind(d.get("kind", "fullscreen")), tuple(d.get("material") or ()),
+                   None if d.get("volume") is None else ir.Volume(d["volume"]),
+                   tuple(d.get("light_types") or ()),
+                   None if not light_set else (str(light_set[0]), int(light_set[1])),
+                   bool(d.get("scissor")))
+
+
+def _pass_from_dict(p: Mapping) -> PassPlan:
+    writes = tuple(p.get("writes") or ())
+    code: PassCode = None
+    if "kernel" in p or "cl" in p:
+        cl = p.get("cl") or {}
+        code = CLPassCode(p.get("kernel") or "", cl.get("fragment"), tuple(cl.get("inputs") or ()),
+                          bool(cl.get("discard")), tuple(cl.get("sampled") or ()))
+    elif "vertex" in p:
+        code = GLPassCode(p["vertex"], p.get("fragment") or None,
+                          tuple(p.get("attributes") or ()))
+    return PassPlan(
+        name=p["name"], draw=draw_from_dict(p.get("draw")),
+        state=state_from_dict(p.get("state") or {}, writes), writes=writes,
+        reads=tuple(p.get("reads") or ()), depth_target=p.get("depth_target"),
+        clears=tuple((c["target"], _clear_from_dict(c)) for c in p.get("clears") or []),
+        repeat_group=p.get("repeat_group"), repeat_types=tuple(p.get("repeat_types") or ()),
+        sampled=tuple(p.get("sampled") or ()), code=code)
+
+
+def _face_from_dict(f: Mapping) -> ir.StencilFace:
+    base = ir.StencilFace()
+    return ir.StencilFace(
+        ir.CompareFunc(f.get("func", base.func.value)), int(f.get("ref", base.ref)),
+        int(f.get("read_mask", base.read_mask)), int(f.get("write_mask", base.write_mask)),
+        ir.StencilOp(f.get("fail", "keep")), ir.StencilOp(f.get("zfail", "keep")),
+        ir.StencilOp(f.get("zpass", "keep")))
+
+
+def _eq_from_list(e) -> ir.BlendEquation:
+    if not e:
+        return ir.BlendEquation()
+    if len(e) == 1:                   # min / max take no factors
+        return ir.BlendEquation(ir.BlendOp(e[0]), ir.BlendFactor.ONE, ir.BlendFactor.ONE)
+    return ir.BlendEquation(ir.BlendOp(e[0]), ir.BlendFactor(e[1]), ir.BlendFactor(e[2]))
+
+
+def state_from_dict(s: Mapping, writes: tuple[str, ...] = ()) -> ir.PassState:
+    """An ``ir.PassState`` from the plain-data state (missing keys: the IR defaults, which are
+    GL's: depth and stencil tests off, blending off, no culling)."""
+    depth = s.get("depth") or {}
+    inside = depth.get("inside")
+    stencil = s.get("stencil") or {}
+    blend = s.get("blend") or {}
+    names = list(writes) + [n for n in blend if n not in writes]
+    targets = []
+    for name in names:
+        b = blend.get(name)
+        if b is None:
+            continue
+        targets.append((name, ir.TargetBlend(
+            bool(b.get("enabled")), _eq_from_list(b.get("rgb")), _eq_from_list(b.get("alpha")),
+            tuple(bool(m) for m in b.get("write_mask", (True,) * 4)))))
+    offset = s.get("polygon_offset")
+    return ir.PassState(
+        depth=ir.DepthState(ir.CompareFunc(depth.get("func", "always")),
+                            bool(depth.get("write", False)), bool(depth.get("clamp", False)),
+                            None if inside is None else ir.CompareFunc(inside)),
+        stencil=ir.StencilState(_face_from_dict(stencil.get("front") or {}),
+                                _face_from_dict(stencil.get("back") or {})),
+        blend=tuple(targets),
+        blend_constant=tuple(float(c) for c in s.get("blend_constant") or (0.0,) * 4),
+        cull=ir.CullMode(s.get("cull") or "none"),
+        polygon_offset=None if offset is None else ir.PolygonOffset(float(offset[0]),
+                                                                    float(offset[1])))
 
 
 # ---- per-pass code queries -------------------------------------------------------------------

@@ -23,11 +23,11 @@ Targets live in device buffers in GL row order for the whole frame; clears write
 once per light in turn (the group's passes for light 0, then for light 1, ...; a pass whose
 light filter or ``repeat_types`` excludes the light is skipped for it), the light index
 reaching the fragment function as ``in->light``; light draws instance the pass's light list
-(``light_table.light_list``: types, CPU-sorted ``light_set`` via
+(``draws.LightSelection``: types, CPU-sorted ``light_set`` via
 ``packing.sort_lights_into_slots``), ``scissor`` light draws clip each
-light's triangles to ``fixed_function.light_scissor_rect``, ``cull auto`` light draws keep
-each light's front or back faces as ``fixed_function.cull_runs`` chooses.  All as
-``GLPipeline`` does.
+light's triangles to ``draws.scissor_rect``, ``cull auto`` light draws keep
+each light's front or back faces as ``draws.light_runs`` chooses.  All as ``GLPipeline`` does
+(``draws.schedule`` orders the passes of both).
 
 Multisampled targets (4 samples, llvmpipe's positions) keep one plane per sample; the passes
 that read them, and ``render``'s result, see the resolve llvmpipe's blit computes (colour: the
@@ -59,18 +59,18 @@ starts later renders with a target holding given codes (tests).
 
 from __future__ import annotations
 
-import time
+from dataclasses import replace
 from typing import Optional
 
 import numpy as np
 
 from .. import formats as F
+from .. import ir
 from ..backends import opencl as clgen
-from ..ir import Size
-from . import cl_context
-from .common import (check_light_capacity, check_param_overrides, light_filter, light_list,
-                     light_type)
-from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
+from ..backends.plan import CLPassCode, PassPlan, Plan, TargetPlan, plan_from_dict
+from . import cl_context, draws
+from .common import check_light_capacity, check_param_overrides
+from .cl_geometry import DrawGeometry
 
 __all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
 
@@ -97,21 +97,14 @@ def _colmajor(m: np.ndarray) -> np.ndarray:
     return np.asarray(m, np.float64).astype(np.float32).T.reshape(16)
 
 
-def _f4(a: np.ndarray) -> np.ndarray:
-    a = np.asarray(a, np.float32)
-    out = np.zeros((len(a), 4), np.float32)
-    out[:, :a.shape[1]] = a
-    return out
-
-
 class _Target:
-    def __init__(self, spec: dict, width: int, height: int):
+    def __init__(self, spec: TargetPlan, width: int, height: int):
         self.spec = spec
-        self.name = spec["name"]
-        self.fmt = F.get(spec["format"])
+        self.name = spec.name
+        self.fmt = spec.format
         self.cl = clgen.cl_format(self.fmt.name)
         self.width, self.height = width, height
-        self.samples = max(1, int(spec.get("samples") or 1))
+        self.samples = spec.samples
         self.buf = None           # colour or depth codes, one plane per sample
         self.stencil = None       # d24s8 stencil, one plane per sample
         self.res = None           # the resolved (single-sample) planes: reads and readback
@@ -124,35 +117,35 @@ class _Target:
 
 
 class CLPipeline:
-    def __init__(self, plan: dict, size: Optional[tuple[int, int]] = None,
+    def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None,
                  cache_dir: Optional[str] = None, dynamic_state: bool = False,
                  tile: int = clgen.TILE):
-        assert plan.get("backend") in ("cl", None), "CLPipeline needs a plan from emit_cl"
-        self.plan = plan
+        plan = plan_from_dict(plan)
+        assert plan.backend in ("cl", ""), "CLPipeline needs a plan from emit_cl"
+        # a pass without code (a plan written by hand) has no fragment function
+        self.plan = plan = replace(plan, passes=tuple(
+            p if p.code is not None else replace(p, code=CLPassCode("", None))
+            for p in plan.passes))
         self.size = size
         self.dynamic_state = dynamic_state
         self.tile = tile
         self.ctx, self.queue = cl_context.get_context(
-            cache_dir, key=f"{plan.get('technique', '')}:{plan.get('source', '')}")
-        self.targets_spec = {t["name"]: t for t in plan["targets"]}
+            cache_dir, key=f"{plan.technique}:{plan.source}")
+        self.targets_spec = {t.name: t for t in plan.targets}
         self._programs: dict[int, object] = {}
         self.last_timings: list[dict] = []
         self.last_blend_counts: dict[str, np.ndarray] = {}
         self._blend_counts: dict = {}
-        self._geometry_cache: dict = {}
-        self._static_geometry: dict = {}   # full-screen draws: the same every frame
+        self.geometry = DrawGeometry(self)
         self._count_pool: dict = {}         # blend-count buffers, reused every frame
         self._presets: dict = {}
         self._scene = None
-        self._scene_attrs: dict = {}
-        self._light_sets: dict = {}
-        self.dropped_lights: dict = {}   # per channel_slots pack, last scene
+        self._selection: Optional[draws.LightSelection] = None
         self._dummy = self._buffer(np.zeros(4, np.int32))
         self._zeros4 = self._buffer(np.zeros((1, 4), np.float32))
         self._events: list = []
         self._kernels: dict = {}
-        self._meshes: dict = {}
-        for k in range(len(plan["passes"])):
+        for k in range(len(plan.passes)):
             self._program(k)
 
     # -- programs ---------------------------------------------------------------------------------
@@ -172,11 +165,16 @@ class CLPipeline:
             kern = self._kernels[(k, name)] = cl.Kernel(self._program(k), name)
         return kern
 
+    @property
+    def dropped_lights(self) -> dict[str, list[int]]:
+        """Per channel_slots pack, the lights of the last scene no light set could take."""
+        return self._selection.dropped if self._selection else {}
+
     def source(self, k: int) -> str:
-        p = self.plan["passes"][k]
-        if self.dynamic_state or not p.get("kernel") or self.tile != clgen.TILE:
+        p = self.plan.passes[k]
+        if self.dynamic_state or p.code is None or not p.code.kernel or self.tile != clgen.TILE:
             return clgen.pass_program(self.plan, p, dynamic=self.dynamic_state, tile=self.tile)
-        return p["kernel"]
+        return p.code.kernel
 
     # -- buffers ----------------------------------------------------------------------------------
     def _buffer(self, array: np.ndarray):
@@ -345,9 +343,7 @@ class CLPipeline:
         return int(scene.width), int(scene.height)
 
     def target_size(self, name: str, out_w: int, out_h: int) -> tuple[int, int]:
-        t = self.targets_spec[name]
-        return Size(float(t.get("scale") or 1.0), int(t.get("width") or 0),
-                    int(t.get("height") or 0)).resolve(out_w, out_h)
+        return self.targets_spec[name].resolve(out_w, out_h)
 
     def prepare(self, scene) -> None:
         """Allocate and clear every target for a frame of ``scene``."""
@@ -373,8 +369,7 @@ class CLPipeline:
                     if t.stencil is not None:
                         t.res_stencil = self._buffer(np.zeros(w * h, np.uint8))
             self._targets[name] = t
-            self._clear_target(t, spec.get("clear_color"), spec.get("clear_depth"),
-                               spec.get("clear_stencil"))
+            self._clear_target(t, spec.clear.color, spec.clear.depth, spec.clear.stencil)
 
     def _alloc(self, t: _Target, planes: int):
         import pyopencl as cl
@@ -402,7 +397,7 @@ class CLPipeline:
         fr["num_lights"] = len(scene.lights)
         self._view, self._proj = view, proj
         fr["light"] = light
-        fr["light_fields"] = len(self.plan["lights"]["fields"])
+        fr["light_fields"] = len(self.plan.lights.fields)
         return fr
 
     # -- rendering ----------------------------------------------------------------------------------
@@ -416,41 +411,17 @@ class CLPipeline:
             self.write_target(name, codes, stencil)
         self.last_timings = []
         self._blend_counts = {}
-        self._geometry_cache = {}
+        self.geometry.begin_frame()
         self._events = []
         self._frame_np = self._frame(scene)
         self._frame_buf = self._buffer(self._frame_np)
         captures: list[dict] = []
-        passes = self.plan["passes"]
-        k = 0
-        while k < len(passes):
-            group = passes[k].get("repeat_group")
-            if group is None:
-                self._run_pass(k, None)
-                if capture_passes:
-                    captures.append({"pass": passes[k]["name"], "light": None,
-                                     "targets": self._read_all(),
-                                     "blend_counts": self._read_blend_counts()})
-                k += 1
-                continue
-            end = k
-            while end < len(passes) and passes[end].get("repeat_group") == group:
-                end += 1
-            lists = {j: set(self._light_list(passes[j]["draw"])) for j in range(k, end)
-                     if light_filter(passes[j]["draw"])}
-            for light in range(len(scene.lights)):
-                for j in range(k, end):
-                    if j in lists and light not in lists[j]:
-                        continue
-                    types = passes[j].get("repeat_types") or []
-                    if types and light_type(scene.lights[light]) not in types:
-                        continue
-                    self._run_pass(j, light)
-                    if capture_passes:
-                        captures.append({"pass": passes[j]["name"], "light": light,
-                                         "targets": self._read_all(),
-                                         "blend_counts": self._read_blend_counts()})
-            k = end
+        for k, light in draws.schedule(self.plan, self._selection):
+            self._run_pass(k, light)
+            if capture_passes:
+                captures.append({"pass": self.plan.passes[k].name, "light": light,
+                                 "targets": self._read_all(),
+                                 "blend_counts": self._read_blend_counts()})
         result = self._read_all()
         self.last_blend_counts = self._read_blend_counts()
         self.queue.finish()
@@ -463,13 +434,11 @@ class CLPipeline:
         if self._scene is scene:
             return
         self._scene = scene
-        self._light_sets = {}
-        self.dropped_lights = {}
-        self._scene_attrs = {}
-        capacity = max(1, int(self.plan["lights"]["capacity"]))
-        if self.plan["lights"]["fields"]:
-            check_light_capacity(len(scene.lights), capacity, self.plan)
-        fields = [list(f) for f in self.plan["lights"]["fields"]]
+        self._selection = draws.LightSelection(self.plan, list(scene.lights))
+        self.geometry.use_scene()
+        capacity = max(1, self.plan.lights.capacity)
+        check_light_capacity(len(scene.lights), self.plan)
+        fields = [list(f) for f in self.plan.lights.fields]
         table = (np.asarray(scene.light_table(fields, capacity), np.float32) if fields
                  else np.zeros((0, 4), np.float32))
         self._lights_buf = self._buffer(table.reshape(-1, 4) if table.size
@@ -508,34 +477,23 @@ class CLPipeline:
 
     def _run_pass(self, k: int, light: Optional[int]) -> None:
         import pyopencl as cl
-        p = self.plan["passes"][k]
-        for c in p.get("clears") or []:
-            t = self._targets[c["target"]]
+        p = self.plan.passes[k]
+        for name, c in p.clears:
+            t = self._targets[name]
             partial = t.fmt.kind is F.Kind.DEPTH_STENCIL and (
-                (c.get("clear_depth") is None) != (c.get("clear_stencil") is None))
-            self._clear_target(t, c.get("clear_color"), c.get("clear_depth"),
-                               c.get("clear_stencil"),
-                               depth_given=not partial or c.get("clear_depth") is not None,
-                               stencil_given=not partial or c.get("clear_stencil") is not None)
-        attached = list(p.get("writes") or []) + ([p["depth_target"]] if p.get("depth_target") else [])
-        if attached:
-            first = self._targets[attached[0]]
-            width, height = first.width, first.height
-        else:
-            width, height = self._out
-        timing = {"pass": p["name"], "light": light}
+                (c.depth is None) != (c.stencil is None))
+            self._clear_target(t, c.color, c.depth, c.stencil,
+                               depth_given=not partial or c.depth is not None,
+                               stencil_given=not partial or c.stencil is not None)
+        width, height = self._pass_size(p)
+        timing = {"pass": p.name, "light": light}
         self.last_timings.append(timing)
-        draw = p["draw"]
         lights = None
-        if draw["kind"] == "lights":
-            if light is not None:
-                lights = [light] if (not light_filter(draw)
-                                     or light in self._light_list(draw)) else []
-            else:
-                lights = self._light_list(draw)
+        if p.draw.kind is ir.DrawKind.LIGHTS:
+            lights = self._selection.instance(p, light)
             if not lights:
                 return
-        drawn = self._pass_triangles(k, p, width, height, timing, lights)
+        drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights)
         if drawn is None:
             return
         geo, tb = drawn
@@ -549,20 +507,19 @@ class CLPipeline:
                 bufs["zp"], bufs["zq"], bufs["flat"], bufs["vtx"], bufs["scissor"],
                 bufs["bbox"], bufs["vary"], np.int32(geo.tris.nverts), self._frame_buf,
                 self._lights_buf, st, np.uint32(light or 0)]
-        for name in p.get("writes") or []:
+        for name in p.writes:
             args.append(self._targets[name].buf)
-        blend = (p.get("state") or {}).get("blend") or {}
-        for name in p.get("writes") or []:
+        for name in p.writes:
             t = self._targets[name]
-            if t.cl["cls"] != "uint":
-                on = bool((blend.get(name) or {}).get("enabled"))
+            if not t.fmt.is_integer:
+                on = p.state.blend_for(name).enabled
                 args.append(self._blend_count_buffer(t) if on else self._dummy)
-        if p.get("depth_target"):
-            dt = self._targets[p["depth_target"]]
+        if p.depth_target:
+            dt = self._targets[p.depth_target]
             args.append(dt.buf)
             if dt.stencil is not None:
                 args.append(dt.stencil)
-        for name in p.get("reads") or []:
+        for name in p.reads:
             rt = self._targets[name]
             self._resolve(rt)                     # reads see the resolved texture, like GL
             args += [rt.res, cl.cltypes.make_int2(rt.width, rt.height)]
@@ -571,407 +528,15 @@ class CLPipeline:
         T = self.tile
         ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
         self._events.append((timing, ev))
-        for name in attached:
+        for name in p.attached:
             if self._targets[name].samples > 1:
                 self._targets[name].dirty = True
         timing["triangles"] = tb.triangles
         timing["tile_entries"] = tb.entries
 
-    # -- geometry ----------------------------------------------------------------------------------
-    def _light_list(self, draw: dict) -> list[int]:
-        """The lights a light draw instances, in table order (light_table.light_list)."""
-        return light_list(draw, list(self._scene.lights), self.plan, self._light_sets,
-                          self.dropped_lights)
-
-    def _mesh(self, volume: str):
-        if volume not in self._meshes:
-            from ..meshes import light_volume
-            mesh = light_volume(volume)
-            self._meshes[volume] = (len(mesh), self._buffer(_f4(mesh)))
-        return self._meshes[volume]
-
-    def _attributes(self, material: tuple) -> tuple:
-        if material not in self._scene_attrs:
-            g = self._scene.geometry(material)
-            n = g.vertex_count
-            if n == 0:
-                self._scene_attrs[material] = None
-            else:
-                ids = np.floor(np.asarray(g.ids, np.float32)[2::3].astype(np.float64)
-                               + 0.5).astype(np.uint32)            # uvec2(a_ids + 0.5), flat
-                flat = np.zeros((n // 3, 4), np.uint32)
-                flat[:, 1:3] = ids
-                layer = getattr(g, "layer", None)          # uint(a_layer + 0.5), flat
-                if layer is not None:
-                    flat[:, 3] = np.floor(np.asarray(layer, np.float32)[2::3].astype(np.float64)
-                                          + 0.5).astype(np.uint32)
-                attrs = [self._buffer(_f4(a)) for a in (g.positions, g.normals, g.albedo,
-                                                         g.material)]
-                self._scene_attrs[material] = (n, attrs, flat)
-        return self._scene_attrs[material]
-
-    def _pass_triangles(self, k: int, p: dict, width: int, height: int, timing: dict,
-                        lights: Optional[list]):
-        """(geometry, tile bins) a pass draws, or None when it draws no triangle.
-
-        Geometry (vertex kernel, clipping and setup, on the device) is cached per frame and
-        shared by the passes that draw the same triangles under the same raster state.  A
-        light draw sets up every light of its light list at once, with no culling, and each
-        pass draws the range of its light(s) (the instances are consecutive in submission
-        order), keeping the faces its cull mode keeps: inside a repeat group one set-up
-        serves all lights and every pass of the group with the same raster state.  Bins are
-        per pass (cached per frame too) and index the shared triangles; for light draws they
-        are cut from the (triangle, tile) pairs of all lights, found once."""
-        draw = p["draw"]
-        st = p.get("state") or {}
-        cull = st.get("cull") or "none"
-        static = draw["kind"] not in ("scene", "lights")
-        cache = self._static_geometry if static else self._geometry_cache
-        if draw["kind"] == "lights":
-            batch = tuple(self._light_list(draw))
-            if not set(lights) <= set(batch):
-                batch = tuple(lights)
-            geo = self._geometry(k, p, width, height, timing, batch)
-            if geo is None:
-                return None
-            if cull == "auto":
-                key = ("auto", id(geo), tuple(lights))
-                sub = cache.get(key)
-                if sub is None:
-                    tris = geo.tris
-                    if tuple(lights) != batch:
-                        tris = _select_triangles(tris, np.concatenate(
-                            [np.arange(*geo.ranges[int(l)]) for l in lights]))
-                    tris = self._cull_auto(tris, draw.get("volume") or "sphere", lights)
-                    sub = cache[key] = self._upload(tris, geo.bufs["vary"])
-                geo = sub
-            else:
-                key = ("bins", id(geo.tris), tuple(lights), cull, width, height)
-                tb = cache.get(key)
-                if tb is None:
-                    t0 = time.perf_counter()
-                    pairs = cache.get(("pairs", id(geo.tris), width, height))
-                    if pairs is None:
-                        pairs = cache[("pairs", id(geo.tris), width, height)] = bin_pairs(
-                            geo.tris, width, height, self.tile)
-                    tri, tile_id, tiles_x, tiles_y = pairs
-                    if tuple(lights) != batch:       # the pairs of these lights' triangles
-                        cut = [np.searchsorted(tri, geo.ranges[int(l)]) for l in lights]
-                        tri = np.concatenate([tri[a:b] for a, b in cut])
-                        tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
-                    if cull in ("back", "front"):
-                        keep = geo.front[tri] == (cull == "back")
-                        tri, tile_id = tri[keep], tile_id[keep]
-                    tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
-                    timing["bin"] = (time.perf_counter() - t0) * 1e3
-                    n = sum(b - a for a, b in (geo.ranges[int(l)] for l in lights))
-                    if cull in ("back", "front"):
-                        front = sum(int(np.count_nonzero(geo.front[a:b]))
-                                    for a, b in (geo.ranges[int(l)] for l in lights))
-                        n = front if cull == "back" else n - front
-                    tb = cache[key] = _Bins(self, tile_start, tile_tris, tiles_x, n)
-                return (geo, tb) if tb.ntiles else None
-        else:
-            geo = self._geometry(k, p, width, height, timing, None)
-            if geo is None:
-                return None
-        key = ("bins", id(geo.tris), cull, width, height)
-        tb = cache.get(key)
-        if tb is None:
-            t0 = time.perf_counter()
-            tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height, self.tile)
-            timing["bin"] = (time.perf_counter() - t0) * 1e3
-            tb = cache[key] = _Bins(self, tile_start, tile_tris, tiles_x, geo.tris.count)
-        if tb.ntiles == 0:
-            return None
-        return geo, tb
-
-    def _pass_size(self, p: dict) -> tuple[int, int]:
+    def _pass_size(self, p: PassPlan) -> tuple[int, int]:
         """The viewport of a pass: its first attachment's size, else the output size."""
-        attached = list(p.get("writes") or []) + (
-            [p["depth_target"]] if p.get("depth_target") else [])
-        if attached:
-            t = self._targets[attached[0]]
+        if p.attached:
+            t = self._targets[p.attached[0]]
             return t.width, t.height
         return self._out
-
-    def _raster_key(self, p: dict, width: int, height: int) -> tuple:
-        """What the set-up triangles of a pass's draw depend on besides its varyings."""
-        draw = p["draw"]
-        st = p.get("state") or {}
-        depth_clamp = bool((st.get("depth") or {}).get("clamp"))
-        dfmt = p.get("depth_target") and self._targets[p["depth_target"]].fmt.name
-        # llvmpipe folds the pixel centre into the planes' a0 unless the pass is multisampled
-        center = 0.0 if self._pass_samples(p) > 1 else 0.5
-        if draw["kind"] == "lights":
-            # culling is per pass (light draws are set up without it)
-            return ("lights", draw.get("volume") or "sphere", bool(draw.get("scissor")),
-                    str(st.get("polygon_offset")), depth_clamp, width, height, dfmt, center)
-        return (draw["kind"], tuple(draw.get("material") or ()), st.get("cull") or "none",
-                str(st.get("polygon_offset")), depth_clamp, width, height, dfmt, center)
-
-    def _scene_group(self, key: tuple) -> tuple:
-        """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
-        with the union of their varyings (SCENE_VARYINGS order) and the 1/w plane if any of
-        them needs it.  Returns (names, flat flags, providers, w_plane); ``providers``: the
-        passes whose vertex kernels compute the union (k, [their varying names])."""
-        got = self._geometry_cache.get(("group", key))
-        if got is not None:
-            return got
-        members = []
-        for k, q in enumerate(self.plan["passes"]):
-            if q["draw"]["kind"] != "scene":
-                continue
-            if self._raster_key(q, *self._pass_size(q)) != key:
-                continue
-            members.append((k, clgen.varying_slots(q),
-                            "frag_coord" in ((q.get("cl") or {}).get("inputs") or ())))
-        union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
-        names = [n for n in clgen.SCENE_VARYINGS if n in union]
-        providers, missing = [], set(names)
-        for k, slots, _ in sorted(members, key=lambda m: -len(m[1])):
-            have = [v["name"] for v in slots]
-            if missing & set(have):
-                providers.append((k, have))
-                missing -= set(have)
-        got = (names, [union[n] for n in names], providers, any(m[2] for m in members))
-        self._geometry_cache[("group", key)] = got
-        return got
-
-    def _geometry(self, k: int, p: dict, width: int, height: int, timing: dict,
-                  lights: Optional[tuple]):
-        """Vertex kernel, clipping and setup of a pass's draw (``lights``: every light a light
-        draw sets up); cached per frame.  Scene draws are set up once for every pass drawing
-        them under the same raster state (``_scene_group``); a pass reading fewer varyings
-        gets its own varying and plane buffers cut from the shared ones."""
-        draw = p["draw"]
-        key = self._raster_key(p, width, height)
-        if draw["kind"] == "lights":
-            key = key + (lights,)
-        elif draw["kind"] == "scene":
-            names = [v["name"] for v in clgen.varying_slots(p)]
-            pkey = key + (tuple(names),)
-            if pkey in self._geometry_cache:
-                return self._geometry_cache[pkey]
-            base = self._geometry_cache.get(key, False)
-            if base is False:
-                base = self._set_up(k, p, width, height, timing, key, lights)
-            geo = base if base is None else self._cut(base, names)
-            self._geometry_cache[pkey] = geo
-            return geo
-        if key in self._geometry_cache:
-            return self._geometry_cache[key]
-        if draw["kind"] == "lights":
-            return self._set_up(k, p, width, height, timing, key, lights)
-        # the full-screen triangle depends on nothing of the frame: kept across frames
-        if key not in self._static_geometry:
-            self._static_geometry[key] = self._set_up(k, p, width, height, timing, key, lights)
-        geo = self._geometry_cache[key] = self._static_geometry[key]
-        return geo
-
-    def _cut(self, geo: "_Geo", names: list) -> "_Geo":
-        """The shared scene set-up ``geo`` as a pass reading varyings ``names`` sees it: its
-        varyings in slot order (only the flat ones are read from ``vary``) and the planes of
-        its smooth ones."""
-        if names == geo.names:
-            return geo
-        if not names:
-            return geo          # reads no varying: nothing indexes vary or coef
-        tris = geo.tris
-        flat = dict(zip(geo.names, geo.flats))
-        pos = {n: i for i, n in enumerate(geo.names)}
-        smooth_pos = {n: i for i, n in enumerate(n for n in geo.names if not flat[n])}
-        vary = np.zeros((len(names), tris.nverts, 4), np.float32)
-        for i, n in enumerate(names):
-            if flat[n]:
-                vary[i] = tris.vary[pos[n]]
-        coef = np.ascontiguousarray(tris.coef[:, [smooth_pos[n] for n in names if not flat[n]]])
-        cut = _Geo(tris, dict(geo.bufs, vary=self._buffer(vary), coef=self._buffer(coef)))
-        cut.ncoef = coef.shape[1]
-        cut.names = list(names)
-        return cut
-
-    def _set_up(self, k: int, p: dict, width: int, height: int, timing: dict, key: tuple,
-                lights: Optional[tuple]):
-        """Run the vertex kernel(s), read back clip positions and varyings, clip and set up
-        on the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
-        import pyopencl as cl
-        draw = p["draw"]
-        st = p.get("state") or {}
-        depth_clamp = bool((st.get("depth") or {}).get("clamp"))
-        dfmt = p.get("depth_target") and self._targets[p["depth_target"]].fmt.name
-        center = 0.0 if self._pass_samples(p) > 1 else 0.5
-        names, flats, providers = [], [], [(k, [])]
-        if draw["kind"] == "scene":
-            names, flats, providers, w_plane = self._scene_group(key)
-            providers = providers or [(k, [])]
-            cull = st.get("cull") or "none"
-        else:
-            # light volumes and the full-screen triangle have no varyings; their 1/w plane
-            # (frag_coord.w) is set up always, so that every pass drawing them shares one
-            # set-up (light draws are culled per pass)
-            w_plane = True
-            cull = "none" if draw["kind"] == "lights" else st.get("cull") or "none"
-        mesh_verts = 1
-        zeros = self._zeros4
-        attrs = [zeros] * 4
-        inst = np.zeros(1, np.uint32)
-        flat = None
-        scissor = None
-        if draw["kind"] == "scene":
-            got = self._attributes(tuple(draw.get("material") or ()))
-            if got is None:
-                self._geometry_cache[key] = None
-                return None
-            nverts, attrs, flat = got
-        elif draw["kind"] == "lights":
-            mesh_verts, mesh_buf = self._mesh(draw.get("volume") or "sphere")
-            nverts = mesh_verts * len(lights)
-            attrs = [mesh_buf] + [zeros] * 3
-            inst = np.asarray(lights, np.uint32)
-            flat = np.zeros((nverts // 3, 4), np.uint32)
-            flat[:, 3] = np.repeat(inst, mesh_verts // 3)
-            if draw.get("scissor"):
-                scissor = self._light_scissors(inst, width, height, mesh_verts // 3)
-        else:
-            nverts = 3
-        inst_buf = self._buffer(inst)
-        clip = None
-        vary = np.empty((len(names), nverts, 4), np.float32) if names else None
-        vary_buf = None
-        vertex_ms = 0.0
-        for kp, have in providers:
-            S = len(have)
-            clip_buf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
-            vbuf = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
-            kern = self._kernel(kp, "pg_vertex")
-            kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
-                          self._frame_buf, self._lights_buf, clip_buf, vbuf)
-            gsize = ((nverts + 63) // 64) * 64
-            ev = cl.enqueue_nd_range_kernel(self.queue, kern, (gsize,), (64,))
-            if clip is None:
-                clip = np.empty((nverts, 4), np.float32)
-                cl.enqueue_copy(self.queue, clip, clip_buf)
-            if S:
-                out = np.empty((S, nverts, 4), np.float32)
-                cl.enqueue_copy(self.queue, out, vbuf)
-                for i, n in enumerate(have):
-                    if n in names:
-                        vary[names.index(n)] = out[i]
-                if have == names:
-                    vary_buf = vbuf
-            ev.wait()
-            vertex_ms += (ev.profile.end - ev.profile.start) * 1e-6
-        timing["vertex"] = vertex_ms
-        t0 = time.perf_counter()
-        tris = setup_triangles(clip, width, height, cull=cull,
-                               polygon_offset=st.get("polygon_offset"), depth_clamp=depth_clamp,
-                               depth_format=dfmt, flat=flat, vary=vary, scissor=scissor,
-                               smooth=[i for i, f in enumerate(flats) if not f],
-                               pixel_center=center, w_plane=w_plane)
-        timing["setup"] = (time.perf_counter() - t0) * 1e3
-        if tris.count == 0:
-            self._geometry_cache[key] = None
-            return None
-        if vary_buf is None or tris.vary.shape[1] != nverts:
-            vary_buf = self._buffer(tris.vary) if tris.vary is not None else self._zeros4
-        geo = self._geometry_cache[key] = self._upload(tris, vary_buf)
-        geo.names, geo.flats = names, flats
-        if draw["kind"] == "lights":
-            light_of = tris.flat[:, 3]
-            lo = np.searchsorted(light_of, inst, "left")
-            hi = np.searchsorted(light_of, inst, "right")
-            geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(inst, lo, hi)}
-        return geo
-
-    def _upload(self, tris, vary_buf) -> "_Geo":
-        bufs = {"a": self._buffer(tris.a), "b": self._buffer(tris.b), "c": self._buffer(tris.c),
-                "z": self._buffer(tris.z), "w": self._buffer(tris.w),
-                "coef": self._buffer(tris.coef),
-                "zp": self._buffer(tris.zp), "zq": self._buffer(tris.zq),
-                "flat": self._buffer(tris.flat), "vtx": self._buffer(tris.vtx),
-                "scissor": self._buffer(tris.scissor), "bbox": self._buffer(tris.bbox),
-                "vary": vary_buf}
-        return _Geo(tris, bufs)
-
-    def _pass_samples(self, p: dict) -> int:
-        """Samples per pixel of a pass's attachments (as backends/opencl.pass_program)."""
-        attached = list(p.get("writes") or []) + (
-            [p["depth_target"]] if p.get("depth_target") else [])
-        return max([int(self.targets_spec[n].get("samples") or 1) for n in attached] or [1])
-
-    def _cull_auto(self, tris, volume: str, lights: list):
-        """``cull auto``: keep each light's front faces or back faces as
-        ``fixed_function.cull_runs`` chooses (the GL runtime draws the same runs).  Filtering
-        the set-up triangles keeps their submission order, so per pixel the lights still
-        arrive in light order."""
-        from ..reference.fixed_function import cull_runs
-        runs = cull_runs("auto", volume, list(self._scene.lights), lights,
-                         self._scene.camera.position, self._proj)
-        draw_front = np.zeros(max(lights) + 1, bool)
-        for mode, run in runs:
-            draw_front[run] = mode == "back"          # culling back faces draws front faces
-        front = (tris.flat[:, 0] & 1).astype(bool)
-        by_front = draw_front[tris.flat[:, 3]]
-        tris = _select_triangles(tris, front == by_front)
-        # bit 1 of flat.x: a light drawn with its back faces (`pg_inside`, `depth … inside`)
-        tris.flat[:, 0] |= np.where(by_front[front == by_front], 0, 2).astype(np.uint32)
-        return tris
-
-    def _light_scissors(self, lights: np.ndarray, width: int, height: int, tris_per: int):
-        """Per-triangle scissor rectangles (x0, y0, x1, y1) of each light's screen rectangle."""
-        from ..reference.fixed_function import light_scissor_rect
-        view, proj = self._view, self._proj
-        rects = []
-        for i in lights:
-            light = self._scene.lights[int(i)]
-            x, y, w, h = light_scissor_rect(light.position, light.radius, view, proj, width,
-                                            height)
-            rects.append((x, y, x + w, y + h))
-        return np.repeat(np.asarray(rects, np.int32).reshape(-1, 4), tris_per, axis=0)
-
-
-class _Geo:
-    """Set-up triangles of a draw, on the host (``tris``) and on the device (``bufs``, the
-    raster kernel's per-triangle arrays and the varyings); ``ranges``: light -> its
-    triangles ``[lo, hi)`` for a light draw; ``front``: the front-facing triangles."""
-
-    def __init__(self, tris, bufs: dict):
-        self.tris = tris
-        self.bufs = bufs
-        self.ranges: dict = {}
-        self.front = (tris.flat[:, 0] & 1).astype(bool)
-        self.ncoef = tris.coef.shape[1]
-        self.names: list = []        # scene draws: the varyings set up, in slot order
-        self.flats: list = []
-
-
-class _Bins:
-    """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
-    work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
-
-    def __init__(self, pipe: "CLPipeline", tile_start, tile_tris, tiles_x: int, triangles: int):
-        active = np.flatnonzero(np.diff(tile_start) > 0).astype(np.int32)
-        self.ntiles = len(active)
-        self.tiles_x = tiles_x
-        self.triangles = triangles
-        self.entries = int(tile_start[-1])
-        self.tile_list = pipe._buffer(active)
-        self.tile_start = pipe._buffer(tile_start)
-        self.tile_tris = pipe._buffer(tile_tris)
-
-
-def _select_triangles(tris, keep: np.ndarray):
-    """The set-up triangles where ``keep`` holds, in their order (per-triangle arrays are
-    indexed; the varyings, which the triangles index, are kept whole)."""
-    import dataclasses
-    n = tris.count
-    idx = np.flatnonzero(keep)
-    changes = {}
-    for f in dataclasses.fields(tris):
-        if f.name in ("vary", "nverts"):
-            continue
-        v = getattr(tris, f.name)
-        if isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == n:
-            changes[f.name] = v[idx]
-    return dataclasses.replace(tris, **changes)

@@ -17,7 +17,7 @@ clear value, then runs the passes in order:
   light volumes instanced over the light list
   with a per-instance ``a_light`` (all lights, the pass's ``light_types``, or the CPU-sorted
   set ``light_sets[pack][k]`` from ``packing.sort_lights_into_slots``); ``scissor`` light draws
-  go one light at a time under ``reference.fixed_function.light_scissor_rect``; full-screen
+  go one light at a time under ``draws.scissor_rect``; full-screen
   draws are one 3-vertex triangle.
 
 Consecutive passes with the same ``repeat_group`` run as a group once per light (``u_light`` set;
@@ -25,7 +25,7 @@ a light draw inside the group draws only that light, and a pass whose light filt
 ``repeat_types`` excludes the light is skipped for it, clears included).
 
 ``cull auto`` light draws are split into consecutive runs of lights (in light order) that
-``reference.fixed_function.cull_runs`` gives the same face (back faces where the camera may be
+``draws.light_runs`` gives the same face (back faces where the camera may be
 inside the volume, front faces elsewhere), each run drawn under its own cull state.
 
 Results are in GL row order (row 0 = window y 0, the bottom row), as codes (``gl_formats``); a
@@ -36,43 +36,37 @@ d24s8 target ``ds`` yields ``"ds"`` (uint32 24-bit depth codes) and ``"ds.stenci
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, Optional, Sequence
 
 import numpy as np
 
 from .. import formats as F
-from ..reference.fixed_function import cull_runs, light_scissor_rect
+from .. import ir
+from ..backends.plan import PassPlan, Plan, TargetPlan, plan_from_dict
+from . import draws
 from . import gl_formats as GF
 from . import gl_state as GS
-from .common import (check_light_capacity, check_param_overrides, light_filter, light_list,
-                     light_type)
+from .common import check_light_capacity, check_param_overrides
 from .gl_context import GL, clear_stale_errors, get_context
 
 import moderngl
 
-__all__ = ["GLPipeline", "target_size"]
+__all__ = ["GLPipeline"]
 
 SCENE_ATTRIBUTES = [("a_position", 3), ("a_normal", 3), ("a_albedo", 3), ("a_material", 3),
                     ("a_ids", 2), ("a_layer", 1)]
 SCENE_STRIDE = 4 * sum(n for _, n in SCENE_ATTRIBUTES)    # bytes per vertex (15 floats)
 
 
-def target_size(t: dict, out_w: int, out_h: int) -> tuple[int, int]:
-    """A PLAN target's size for an output of ``out_w`` x ``out_h`` (``ir.Size.resolve``)."""
-    if t.get("width"):
-        return int(t["width"]), int(t["height"])
-    s = float(t.get("scale", 1.0))
-    return max(1, int(out_w * s + 0.5)), max(1, int(out_h * s + 0.5))
-
-
 class _Target:
-    def __init__(self, spec: dict, size: tuple[int, int]):
-        self.name = spec["name"]
+    def __init__(self, spec: TargetPlan, size: tuple[int, int]):
+        self.name = spec.name
         self.spec = spec
-        self.format = spec["format"]
-        self.fmt = F.get(self.format)
+        self.fmt = spec.format
+        self.format = spec.format.name
         self.size = size
-        self.samples = max(1, int(spec.get("samples") or 1))
+        self.samples = spec.samples
         self.tex = GF.create_texture(self.format, *size, samples=self.samples)
         self.resolved = self.tex
         self.dirty = False           # multisampled contents newer than ``resolved``
@@ -123,7 +117,7 @@ class _Target:
             mask = GL.GL_DEPTH_BUFFER_BIT | (GL.GL_STENCIL_BUFFER_BIT if self.fmt.has_stencil
                                               else 0)
         # blits obey the scissor test and (on some drivers) colour masks: neutral state first
-        GS.apply_state(GS.default_state(), ["_"] if self.fmt.is_color else [])
+        GS.apply_state(ir.PassState(), ["_"] if self.fmt.is_color else [])
         w, h = self.size
         GL.glBlitNamedFramebuffer(self.fbo_ms, self.fbo_resolved, 0, 0, w, h, 0, 0, w, h, mask,
                                   GL.GL_NEAREST)
@@ -164,22 +158,21 @@ _STATUS = {
 
 
 class _Pass:
-    def __init__(self, ctx: moderngl.Context, spec: dict, index: int):
+    def __init__(self, ctx: moderngl.Context, spec: PassPlan, index: int):
+        assert spec.code is not None, f"pass '{spec.name}' has no GLSL (a plan from emit_gl)"
         self.spec = spec
         self.index = index
-        self.name = spec["name"]
-        self.draw = dict(spec.get("draw") or {"kind": "fullscreen"})
-        self.kind = self.draw.get("kind", "fullscreen")
-        self.writes = list(spec.get("writes") or [])
-        self.reads = list(spec.get("reads") or [])
-        self.sampled = set(spec.get("sampled") or [])
-        self.depth_target = spec.get("depth_target")
-        self.state = spec.get("state") or GS.default_state()
-        self.group = spec.get("repeat_group")
-        self.repeat_types = list(spec.get("repeat_types") or [])
+        self.name = spec.name
+        self.draw = spec.draw
+        self.kind = spec.draw.kind
+        self.writes = list(spec.writes)
+        self.reads = list(spec.reads)
+        self.sampled = set(spec.sampled)
+        self.depth_target = spec.depth_target
+        self.state = spec.state
         try:
-            fragment = spec.get("fragment") or None
-            self.program = ctx.program(vertex_shader=spec["vertex"], fragment_shader=fragment)
+            self.program = ctx.program(vertex_shader=spec.code.vertex,
+                                       fragment_shader=spec.code.fragment or None)
         except Exception as e:
             raise RuntimeError(f"pass '{self.name}': GLSL compile/link failed:\n{e}") from None
         self.fbo: Optional[int] = None
@@ -199,9 +192,6 @@ class _Pass:
         else:
             u.value = value
 
-    def light_filter(self) -> bool:
-        return light_filter(self.draw)
-
     def release(self) -> None:
         for vao in self.vaos.values():
             vao.release()
@@ -215,24 +205,22 @@ class _Pass:
 class GLPipeline:
     """A PLAN ready to render with OpenGL (see the module docstring)."""
 
-    def __init__(self, plan: dict, size: Optional[tuple[int, int]] = None):
-        self.plan = plan
+    def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None):
+        self.plan = plan = plan_from_dict(plan)
         self.ctx = get_context()
         clear_stale_errors()
         self.size = None if size is None else (int(size[0]), int(size[1]))
-        self.passes = [_Pass(self.ctx, p, k) for k, p in enumerate(plan["passes"])]
+        self.passes = [_Pass(self.ctx, p, k) for k, p in enumerate(plan.passes)]
         self.targets: dict[str, _Target] = {}
         self._built_size: Optional[tuple[int, int]] = None
-        lights = plan.get("lights") or {"capacity": 1, "fields": []}
-        self.capacity = max(1, int(lights.get("capacity") or 1))
-        self.fields = [tuple(f) for f in lights.get("fields") or []]
+        self.capacity = max(1, plan.lights.capacity)
+        self.fields = list(plan.lights.fields)
         self.light_tex = GF.create_texture("rgba32f", max(1, len(self.fields)), self.capacity)
         self._samplers = {mode: self._sampler(mode) for mode in ("nearest", "linear")}
         self._meshes: dict[str, moderngl.Buffer] = {}
         self._scene = None
         self._scene_vbos: dict[tuple, tuple[moderngl.Buffer, int]] = {}
-        self._light_sets: dict[str, list[list[int]]] = {}
-        self.dropped_lights: dict[str, list[int]] = {}   # per channel_slots pack, last scene
+        self._selection: Optional[draws.LightSelection] = None
         self._released = False
         if self.size is not None:
             self._build(self.size)
@@ -256,8 +244,8 @@ class GLPipeline:
         for t in self.targets.values():
             t.release()
         self.targets = {}
-        for spec in self.plan["targets"]:
-            self.targets[spec["name"]] = _Target(spec, target_size(spec, *size))
+        for spec in self.plan.targets:
+            self.targets[spec.name] = _Target(spec, spec.resolve(*size))
         for p in self.passes:
             if p.fbo is not None:
                 GL.glDeleteFramebuffers(1, np.array([p.fbo], np.uint32))
@@ -321,11 +309,9 @@ class GLPipeline:
         for buf, _ in self._scene_vbos.values():
             buf.release()
         self._scene_vbos = {}
-        self._light_sets = {}
-        self.dropped_lights = {}
         lights = list(scene.lights)
-        if self.fields:
-            check_light_capacity(len(lights), self.capacity, self.plan)
+        check_light_capacity(len(lights), self.plan)
+        self._selection = draws.LightSelection(self.plan, lights)
         if self.fields:
             table = np.asarray(scene.light_table([list(f) for f in self.fields],
                                                  self.capacity), dtype=np.float32)
@@ -359,21 +345,22 @@ class GLPipeline:
                 np.ascontiguousarray(light_volume(volume), dtype=np.float32).tobytes())
         return self._meshes[volume]
 
-    def _light_list(self, p: _Pass) -> list[int]:
-        return light_list(p.draw, list(self._scene.lights), self.plan, self._light_sets,
-                          self.dropped_lights)
+    @property
+    def dropped_lights(self) -> dict[str, list[int]]:
+        """Per channel_slots pack, the lights of the last scene no light set could take."""
+        return self._selection.dropped if self._selection else {}
 
     def light_sets(self, scene) -> dict[str, list[list[int]]]:
         """The CPU-sorted light sets this pipeline draws for ``scene`` (for reports/tests)."""
         self._use_scene(scene)
         for p in self.passes:
-            if p.draw.get("light_set"):
-                self._light_list(p)
-        return dict(self._light_sets)
+            if p.draw.light_set:
+                self._selection.of(p.draw)
+        return dict(self._selection.sets)
 
     def _vao(self, p: _Pass) -> Optional[moderngl.VertexArray]:
-        if p.kind == "scene":
-            material = tuple(p.draw.get("material") or ())
+        if p.kind is ir.DrawKind.SCENE:
+            material = p.draw.material
             key = ("scene", material)
             if key not in p.vaos:
                 buf, n = self._scene_vbo(material)
@@ -386,8 +373,8 @@ class GLPipeline:
                         fmt.append(f"{4 * comps}x")
                 p.vaos[key] = self.ctx.vertex_array(p.program, [(buf, " ".join(fmt), *names)])
             return p.vaos[key]
-        if p.kind == "lights":
-            volume = p.draw.get("volume") or "sphere"
+        if p.kind is ir.DrawKind.LIGHTS:
+            volume = (p.draw.volume or ir.Volume.SPHERE).value
             key = ("lights", volume)
             if key not in p.vaos:
                 if p.instance_buffer is None:
@@ -427,34 +414,14 @@ class GLPipeline:
         self._use_scene(scene)
         self._frame_uniforms(scene, size)
         for t in self.targets.values():
-            s = t.spec
-            t.clear(s.get("clear_color"), s.get("clear_depth"), s.get("clear_stencil"))
+            c = t.spec.clear
+            t.clear(c.color, c.depth, c.stencil)
         captures: list[dict] = []
-        k = 0
-        n = len(self.passes)
-        while k < n:
+        for k, light in draws.schedule(self.plan, self._selection):
             p = self.passes[k]
-            if p.group is None:
-                self._run_pass(p, None)
-                if capture_passes:
-                    captures.append({"pass": p.name, "light": None, "targets": self._read_all()})
-                k += 1
-                continue
-            group = [p]
-            while k + len(group) < n and self.passes[k + len(group)].group == p.group:
-                group.append(self.passes[k + len(group)])
-            lists = {q.name: set(self._light_list(q)) for q in group if q.light_filter()}
-            for light in range(len(scene.lights)):
-                for q in group:
-                    if q.name in lists and light not in lists[q.name]:
-                        continue
-                    if q.repeat_types and light_type(scene.lights[light]) not in q.repeat_types:
-                        continue
-                    self._run_pass(q, light)
-                    if capture_passes:
-                        captures.append({"pass": q.name, "light": light,
-                                         "targets": self._read_all()})
-            k += len(group)
+            self._run_pass(p, light)
+            if capture_passes:
+                captures.append({"pass": p.name, "light": light, "targets": self._read_all()})
         return captures
 
     def _frame_uniforms(self, scene, size) -> None:
@@ -478,10 +445,8 @@ class GLPipeline:
                 p.set_uniform("t_" + r, k + 1)
 
     def _run_pass(self, p: _Pass, light: Optional[int]) -> None:
-        for c in p.spec.get("clears") or []:
-            t = self.targets[c["target"]]
-            t.clear(c.get("clear_color"), c.get("clear_depth"), c.get("clear_stencil"),
-                    partial=True)
+        for name, c in p.spec.clears:
+            self.targets[name].clear(c.color, c.depth, c.stencil, partial=True)
         if light is not None:
             p.set_uniform("u_light", int(light))
         # reads: unit 0 is the light table
@@ -496,42 +461,35 @@ class GLPipeline:
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, p.fbo)
         w, h = p.viewport
         GL.glViewport(0, 0, w, h)
-        depth_format = self.targets[p.depth_target].format if p.depth_target else None
-        state = p.state
-        if state.get("cull") == "auto":   # set per run of lights below
-            state = {**state, "cull": "none"}
-        GS.apply_state(state, p.writes, depth_format=depth_format)
+        depth_format = self.targets[p.depth_target].fmt if p.depth_target else None
+        GS.apply_state(p.state, p.writes, depth_format=depth_format)   # cull auto: none here
         vao = self._vao(p)
-        if p.kind == "scene":
-            _, count = self._scene_vbo(tuple(p.draw.get("material") or ()))
+        if p.kind is ir.DrawKind.SCENE:
+            _, count = self._scene_vbo(p.draw.material)
             if count:
                 vao.render(moderngl.TRIANGLES, vertices=count)
-        elif p.kind == "lights":
-            indices = [light] if light is not None else self._light_list(p)
-            if light is not None and p.light_filter() and light not in self._light_list(p):
-                indices = []
+        elif p.kind is ir.DrawKind.LIGHTS:
             lights = list(self._scene.lights)
-            cull = p.state.get("cull") or "none"
-            runs = cull_runs(cull, p.draw.get("volume") or "sphere", lights, indices,
-                             self._scene.camera.position, self._proj)
-            for mode, run in runs:
-                if cull == "auto":   # consecutive lights with the same choice, in light order
-                    run_state = {**p.state, "cull": mode}
-                    depth = p.state.get("depth") or {}
-                    if mode == "front" and depth.get("inside"):   # back faces: `inside FUNC`
-                        run_state["depth"] = {**depth, "func": depth["inside"]}
-                    GS.apply_state(run_state, p.writes, depth_format=depth_format)
-                if p.draw.get("scissor"):
-                    for i in run:
-                        rect = light_scissor_rect(lights[i].position, lights[i].radius,
-                                                  self._view, self._proj, w, h)
+            indices = self._selection.instance(p.spec, light)
+            runs = draws.light_runs(p.state.cull, p.draw.volume, lights, indices,
+                                    self._scene.camera.position, self._proj)
+            for run in runs:
+                if p.spec.cull_auto:     # consecutive lights with the same choice, in order
+                    depth = p.state.depth
+                    if run.inside and depth.inside is not None:   # back faces: `inside FUNC`
+                        depth = replace(depth, func=depth.inside)
+                    GS.apply_state(replace(p.state, cull=run.cull, depth=depth), p.writes,
+                                   depth_format=depth_format)
+                if p.draw.scissor:
+                    for i in run.lights:
+                        rect = draws.scissor_rect(lights[i], self._view, self._proj, w, h)
                         if rect[2] == 0 or rect[3] == 0:
                             continue
                         GS.set_scissor(rect)
                         self._draw_lights(p, vao, [i])
                     GS.set_scissor(None)
                 else:
-                    self._draw_lights(p, vao, run)
+                    self._draw_lights(p, vao, run.lights)
         else:
             vao.render(moderngl.TRIANGLES, vertices=3)
         for name in p.writes + ([p.depth_target] if p.depth_target else []):

@@ -1,4 +1,4 @@
-"""Apply one pass's fixed-function state (the PLAN ``state`` dict) with PyOpenGL.
+"""Apply one pass's fixed-function state (``PassPlan.state``, an ``ir.PassState``) with PyOpenGL.
 
 moderngl tracks none of this raw state (and has no API for most of it), so every pass sets
 *all* of it explicitly: depth func/mask/clamp, per-face stencil func/ops/masks, per-target blend
@@ -7,9 +7,9 @@ and the scissor test, plus the rarely touched switches that would silently chang
 anything (moderngl, a user) left them on: dithering, sRGB writes, logic ops, alpha-to-coverage,
 sample masks, sample shading, rasterizer discard, primitive restart, polygon mode.
 
-The state dict is the one in internals.md ("Compiled plan"); enum values are the IR enums'
-``.value`` strings, and ``ir`` enum members are accepted too.  The colour outputs are indexed by
-the pass's ``writes`` list: ``state["blend"][name]`` applies to draw buffer ``writes.index(name)``.
+The GL tables below are keyed by the IR enums' ``.value`` strings.  The colour outputs are
+indexed by the pass's ``writes``: ``state.blend_for(name)`` applies to draw buffer
+``writes.index(name)``.
 
 Measured on Mesa 22.3 llvmpipe (LLVM 15; tests/test_gl_state.py pins each of these):
 
@@ -42,17 +42,14 @@ Measured on Mesa 22.3 llvmpipe (LLVM 15; tests/test_gl_state.py pins each of the
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Optional, Sequence
+from typing import Optional, Sequence
 
+from .. import formats as F
+from .. import ir
 from .gl_context import GL
 
 __all__ = ["COMPARE", "STENCIL_OP", "BLEND_OP", "BLEND_FACTOR", "CULL", "apply_state",
-           "set_scissor", "reset_state", "default_state", "state_from_ir"]
-
-
-def _v(x: Any) -> Any:
-    """An IR enum member or its value string -> the value string."""
-    return getattr(x, "value", x)
+           "set_scissor", "reset_state"]
 
 
 COMPARE = {
@@ -89,31 +86,6 @@ CULL = {"back": GL.GL_BACK, "front": GL.GL_FRONT}
 
 MAX_DRAW_BUFFERS = 8   # GL_MAX_DRAW_BUFFERS on llvmpipe; masks are reset on all of them
 
-_DEFAULT_FACE = {"func": "always", "ref": 0, "read_mask": 255, "write_mask": 255,
-                 "fail": "keep", "zfail": "keep", "zpass": "keep"}
-
-
-def default_state() -> dict:
-    """The state of a pass that declares nothing (depth off, no stencil, no blending)."""
-    return {
-        "depth": {"func": "always", "write": False, "clamp": False},
-        "stencil": {"front": dict(_DEFAULT_FACE), "back": dict(_DEFAULT_FACE)},
-        "blend": {},
-        "blend_constant": [0.0, 0.0, 0.0, 0.0],
-        "cull": "none",
-        "polygon_offset": None,
-    }
-
-
-def _equation(e) -> list[str]:
-    """``[op, src, dst]`` (``[op]`` alone for min/max, whose factors GL ignores) or an
-    ``ir.BlendEquation`` -> three value strings."""
-    if hasattr(e, "op"):
-        return [_v(e.op), _v(e.src), _v(e.dst)]
-    e = [_v(x) for x in e]
-    return e + ["one", "one"][: 3 - len(e)] if len(e) < 3 else e[:3]
-
-
 def _enable(cap: int, on: bool) -> None:
     (GL.glEnable if on else GL.glDisable)(cap)
 
@@ -134,74 +106,57 @@ def reset_state() -> None:
     GL.glDepthRange(0.0, 1.0)
 
 
-def apply_state(state: Mapping, writes: Sequence[str] = (), *,
-                depth_format: Optional[str] = None, scissor=None) -> None:
+def apply_state(state: ir.PassState, writes: Sequence[str] = (), *,
+                depth_format: Optional[F.Format] = None, scissor=None) -> None:
     """Set every piece of fixed-function state for one pass.
 
-    ``state``: the PLAN pass ``state`` dict (missing keys take ``default_state()`` values).
-    ``writes``: the pass's colour targets in attachment order.  ``depth_format``: the format
-    name of the depth attachment, or None when the pass has none (then depth and stencil tests
-    are disabled).  ``scissor``: ``(x, y, w, h)`` in window pixels, or None for no scissor.
+    ``state``: the pass's ``ir.PassState``.  ``writes``: the pass's colour targets in
+    attachment order.  ``depth_format``: the format of the depth attachment, or None when the
+    pass has none (then depth and stencil tests are disabled).  ``scissor``: ``(x, y, w, h)``
+    in window pixels, or None for no scissor.
     """
-    d = default_state()
-    depth = {**d["depth"], **(state.get("depth") or {})}
-    stencil = state.get("stencil") or d["stencil"]
-    blend = state.get("blend") or {}
-    constant = state.get("blend_constant")
-    constant = d["blend_constant"] if constant is None else constant
-    cull = _v(state.get("cull") or "none")
-    offset = state.get("polygon_offset")
-
+    depth = state.depth
     reset_state()
 
     # -- depth ---------------------------------------------------------------------------------
     has_depth = depth_format is not None
-    has_stencil = depth_format == "d24s8"
+    has_stencil = has_depth and depth_format.has_stencil
     # With an attachment the test stays enabled even for ALWAYS: GL only writes depth while the
     # test is enabled, and ALWAYS/no-write is the same as disabled.
     _enable(GL.GL_DEPTH_TEST, has_depth)
-    GL.glDepthFunc(COMPARE[_v(depth["func"])])
-    GL.glDepthMask(GL.GL_TRUE if (has_depth and depth["write"]) else GL.GL_FALSE)
-    _enable(GL.GL_DEPTH_CLAMP, bool(depth.get("clamp")))
+    GL.glDepthFunc(COMPARE[depth.func.value])
+    GL.glDepthMask(GL.GL_TRUE if (has_depth and depth.write) else GL.GL_FALSE)
+    _enable(GL.GL_DEPTH_CLAMP, depth.clamp)
 
     # -- stencil -------------------------------------------------------------------------------
     _enable(GL.GL_STENCIL_TEST, has_stencil)
-    for face_name, face in (("front", GL.GL_FRONT), ("back", GL.GL_BACK)):
-        s = {**_DEFAULT_FACE, **(stencil.get(face_name) or {})}
-        GL.glStencilFuncSeparate(face, COMPARE[_v(s["func"])], int(s["ref"]),
-                                 int(s["read_mask"]) & 0xFF)
-        GL.glStencilOpSeparate(face, STENCIL_OP[_v(s["fail"])], STENCIL_OP[_v(s["zfail"])],
-                               STENCIL_OP[_v(s["zpass"])])
-        GL.glStencilMaskSeparate(face, int(s["write_mask"]) & 0xFF)
+    for s, face in ((state.stencil.front, GL.GL_FRONT), (state.stencil.back, GL.GL_BACK)):
+        GL.glStencilFuncSeparate(face, COMPARE[s.func.value], int(s.ref), int(s.read_mask) & 0xFF)
+        GL.glStencilOpSeparate(face, STENCIL_OP[s.fail.value], STENCIL_OP[s.zfail.value],
+                               STENCIL_OP[s.zpass.value])
+        GL.glStencilMaskSeparate(face, int(s.write_mask) & 0xFF)
 
     # -- blend + colour masks per draw buffer --------------------------------------------------
     for i in range(MAX_DRAW_BUFFERS):
-        b = blend.get(writes[i]) if i < len(writes) else None
-        if b is None:
-            GL.glDisablei(GL.GL_BLEND, i)
-            GL.glBlendEquationSeparatei(i, GL.GL_FUNC_ADD, GL.GL_FUNC_ADD)
-            GL.glBlendFuncSeparatei(i, GL.GL_ONE, GL.GL_ZERO, GL.GL_ONE, GL.GL_ZERO)
-            GL.glColorMaski(i, True, True, True, True)
-            continue
-        rgb = _equation(b.get("rgb", ["add", "one", "zero"]))
-        alpha = _equation(b.get("alpha", ["add", "one", "zero"]))
-        (GL.glEnablei if b.get("enabled") else GL.glDisablei)(GL.GL_BLEND, i)
-        GL.glBlendEquationSeparatei(i, BLEND_OP[rgb[0]], BLEND_OP[alpha[0]])
-        GL.glBlendFuncSeparatei(i, BLEND_FACTOR[rgb[1]], BLEND_FACTOR[rgb[2]],
-                                BLEND_FACTOR[alpha[1]], BLEND_FACTOR[alpha[2]])
-        m = [bool(x) for x in b.get("write_mask", [True] * 4)]
-        GL.glColorMaski(i, *m)
-    GL.glBlendColor(*[float(c) for c in constant])
+        b = state.blend_for(writes[i]) if i < len(writes) else ir.TargetBlend()
+        rgb, alpha = b.rgb, b.alpha
+        (GL.glEnablei if b.enabled else GL.glDisablei)(GL.GL_BLEND, i)
+        GL.glBlendEquationSeparatei(i, BLEND_OP[rgb.op.value], BLEND_OP[alpha.op.value])
+        GL.glBlendFuncSeparatei(i, BLEND_FACTOR[rgb.src.value], BLEND_FACTOR[rgb.dst.value],
+                                BLEND_FACTOR[alpha.src.value], BLEND_FACTOR[alpha.dst.value])
+        GL.glColorMaski(i, *(bool(m) for m in b.write_mask))
+    GL.glBlendColor(*[float(c) for c in state.blend_constant])
 
     # -- rasterisation -------------------------------------------------------------------------
-    if cull == "none":
+    if state.cull in (ir.CullMode.NONE, ir.CullMode.AUTO):   # auto: the runtime picks per light
         GL.glDisable(GL.GL_CULL_FACE)
     else:
         GL.glEnable(GL.GL_CULL_FACE)
-        GL.glCullFace(CULL[cull])
-    if offset:
+        GL.glCullFace(CULL[state.cull.value])
+    offset = state.polygon_offset
+    if offset is not None:
         GL.glEnable(GL.GL_POLYGON_OFFSET_FILL)
-        GL.glPolygonOffset(float(offset[0]), float(offset[1]))
+        GL.glPolygonOffset(float(offset.factor), float(offset.units))
     else:
         GL.glDisable(GL.GL_POLYGON_OFFSET_FILL)
         GL.glPolygonOffset(0.0, 0.0)
@@ -216,27 +171,3 @@ def set_scissor(rect) -> None:
         x, y, w, h = (int(v) for v in rect)
         GL.glEnable(GL.GL_SCISSOR_TEST)
         GL.glScissor(x, y, max(w, 0), max(h, 0))
-
-
-def state_from_ir(state) -> dict:
-    """An ``ir.PassState`` -> the PLAN state dict (for tests and tools that start from the IR)."""
-    def face(f):
-        return {"func": f.func.value, "ref": f.ref, "read_mask": f.read_mask,
-                "write_mask": f.write_mask, "fail": f.fail.value, "zfail": f.zfail.value,
-                "zpass": f.zpass.value}
-    depth = {"func": state.depth.func.value, "write": state.depth.write,
-             "clamp": state.depth.clamp}
-    if getattr(state.depth, "inside", None) is not None:
-        depth["inside"] = state.depth.inside.value
-    return {
-        "depth": depth,
-        "stencil": {"front": face(state.stencil.front), "back": face(state.stencil.back)},
-        "blend": {name: {"enabled": b.enabled,
-                         "rgb": [b.rgb.op.value, b.rgb.src.value, b.rgb.dst.value],
-                         "alpha": [b.alpha.op.value, b.alpha.src.value, b.alpha.dst.value],
-                         "write_mask": list(b.write_mask)} for name, b in state.blend},
-        "blend_constant": list(state.blend_constant),
-        "cull": state.cull.value,
-        "polygon_offset": (None if state.polygon_offset is None
-                           else [state.polygon_offset.factor, state.polygon_offset.units]),
-    }

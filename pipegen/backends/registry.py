@@ -1,0 +1,76 @@
+"""The backends, in one place: each one's emitter, the files it writes per pass, the template of
+its generated pipeline module and its runtime class.  ``compile``, ``emit``, ``run`` and
+``check`` iterate ``BACKENDS``; adding a backend is one entry here (plus its emitter, template
+and runtime).
+
+Emitters and runtimes are named as ``"module:attribute"`` and imported on first use, so the
+compiler core never imports moderngl or pyopencl (``pipegen compile`` works on any machine).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Callable
+
+from .plan import CLPassCode, GLPassCode, PassPlan, Plan
+
+
+def _gl_files(stem: str, p: PassPlan) -> dict[str, str]:
+    assert isinstance(p.code, GLPassCode)
+    return {f"{stem}.vert": p.code.vertex, f"{stem}.frag": p.code.fragment or ""}
+
+
+def _cl_files(stem: str, p: PassPlan) -> dict[str, str]:
+    assert isinstance(p.code, CLPassCode)
+    return {f"{stem}.cl": p.code.kernel}
+
+
+@dataclass(frozen=True)
+class Backend:
+    name: str                     # as the command line and ``Compiled.plan`` spell it
+    title: str                    # as reports and tables print it
+    emitter: str                  # "module:function", ``(ir.Technique) -> Plan``
+    runtime: str                  # "module:class", ``(plan, size) -> pipeline``
+    module_template: str          # the generated pipeline module (templates/)
+    pass_files: Callable[[str, PassPlan], dict[str, str]]   # per pass: {file name: text}
+
+    @property
+    def module_name(self) -> str:
+        return self.module_template.removesuffix(".j2")
+
+    def emit(self, tech):
+        return _resolve(self.emitter)(tech)
+
+    def runtime_class(self):
+        return _resolve(self.runtime)
+
+    def module_source(self, plan: Plan) -> str:
+        """Source of the generated pipeline module holding ``plan`` as a literal."""
+        from . import templating
+
+        def safe(s: str) -> str:
+            return s.replace("\\", "/").replace('"""', "'''")
+        return templating.render(self.module_template, plan=plan.to_dict(),
+                                 title=safe(plan.title), source=safe(plan.source or "<string>"))
+
+
+def _resolve(path: str):
+    module, _, attr = path.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+BACKENDS: dict[str, Backend] = {b.name: b for b in (
+    Backend("gl", "GL (llvmpipe)", "pipegen.backends.glsl:emit_gl",
+            "pipegen.runtime.gl_pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files),
+    Backend("cl", "CL (PoCL)", "pipegen.backends.opencl:emit_cl",
+            "pipegen.runtime.cl_pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files),
+)}
+
+
+def get(name: str) -> Backend:
+    try:
+        return BACKENDS[name]
+    except KeyError:
+        raise ValueError(f"unknown backend {name!r} (expected one of: "
+                         f"{', '.join(BACKENDS)})") from None

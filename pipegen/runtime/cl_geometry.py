@@ -1,0 +1,437 @@
+"""The CL runtime's geometry: vertex kernels, clipping, triangle set-up and binning of each
+pass's draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
+
+``DrawGeometry(pipe).pass_triangles(k, pass, width, height, timing, lights)`` returns the
+set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile bins
+(``Bins``), or None when the pass draws no triangle.  ``begin_frame()`` drops the per-frame
+caches; ``use_scene()`` the scene's attribute buffers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import TYPE_CHECKING, Optional
+
+import numpy as np
+
+from .. import ir
+from ..backends import opencl as clgen
+from ..backends.plan import PassPlan
+from . import draws
+from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
+
+if TYPE_CHECKING:
+    from .cl_pipeline import CLPipeline
+
+
+def f4(a: np.ndarray) -> np.ndarray:
+    """Rows of up to 4 floats as float4 rows (zero-padded)."""
+    a = np.asarray(a, np.float32)
+    out = np.zeros((len(a), 4), np.float32)
+    out[:, :a.shape[1]] = a
+    return out
+
+
+class Geo:
+    """Set-up triangles of a draw, on the host (``tris``) and on the device (``bufs``, the
+    raster kernel's per-triangle arrays and the varyings); ``ranges``: light -> its
+    triangles ``[lo, hi)`` for a light draw; ``front``: the front-facing triangles."""
+
+    def __init__(self, tris, bufs: dict):
+        self.tris = tris
+        self.bufs = bufs
+        self.ranges: dict = {}
+        self.front = (tris.flat[:, 0] & 1).astype(bool)
+        self.ncoef = tris.coef.shape[1]
+        self.names: list = []        # scene draws: the varyings set up, in slot order
+        self.flats: list = []
+
+
+class Bins:
+    """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
+    work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
+
+    def __init__(self, pipe: "CLPipeline", tile_start, tile_tris, tiles_x: int, triangles: int):
+        active = np.flatnonzero(np.diff(tile_start) > 0).astype(np.int32)
+        self.ntiles = len(active)
+        self.tiles_x = tiles_x
+        self.triangles = triangles
+        self.entries = int(tile_start[-1])
+        self.tile_list = pipe._buffer(active)
+        self.tile_start = pipe._buffer(tile_start)
+        self.tile_tris = pipe._buffer(tile_tris)
+
+
+def select_triangles(tris, index: np.ndarray):
+    """The set-up triangles ``index`` names (int indices, in that order): per-triangle arrays
+    are indexed; the varyings, which the triangles index, are kept whole."""
+    index = np.asarray(index)
+    assert index.dtype.kind in "iu", "select_triangles takes triangle indices, not a mask"
+    n = tris.count
+    changes = {}
+    for f in dataclasses.fields(tris):
+        if f.name in ("vary", "nverts"):
+            continue
+        v = getattr(tris, f.name)
+        if isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == n:
+            changes[f.name] = v[index]
+    return dataclasses.replace(tris, **changes)
+
+
+class DrawGeometry:
+    """Set-up and binning of a ``CLPipeline``'s draws, with its caches."""
+
+    def __init__(self, pipe: "CLPipeline"):
+        self.pipe = pipe
+        self.frame: dict = {}          # per frame: set-ups, bins, (triangle, tile) pairs
+        self.static: dict = {}         # full-screen draws: the same every frame
+        self.scene_attrs: dict = {}    # per material filter, for the current scene
+        self.meshes: dict = {}         # unit light-volume meshes
+
+    def begin_frame(self) -> None:
+        self.frame = {}
+
+    def use_scene(self) -> None:
+        self.scene_attrs = {}
+
+    # -- inputs -------------------------------------------------------------------------------
+    def mesh(self, volume: str):
+        if volume not in self.meshes:
+            from ..meshes import light_volume
+            mesh = light_volume(volume)
+            self.meshes[volume] = (len(mesh), self.pipe._buffer(f4(mesh)))
+        return self.meshes[volume]
+
+    def attributes(self, material: tuple) -> Optional[tuple]:
+        if material not in self.scene_attrs:
+            g = self.pipe._scene.geometry(material)
+            n = g.vertex_count
+            if n == 0:
+                self.scene_attrs[material] = None
+            else:
+                ids = np.floor(np.asarray(g.ids, np.float32)[2::3].astype(np.float64)
+                               + 0.5).astype(np.uint32)            # uvec2(a_ids + 0.5), flat
+                flat = np.zeros((n // 3, 4), np.uint32)
+                flat[:, 1:3] = ids
+                layer = getattr(g, "layer", None)          # uint(a_layer + 0.5), flat
+                if layer is not None:
+                    flat[:, 3] = np.floor(np.asarray(layer, np.float32)[2::3].astype(np.float64)
+                                          + 0.5).astype(np.uint32)
+                attrs = [self.pipe._buffer(f4(a)) for a in (g.positions, g.normals, g.albedo,
+                                                              g.material)]
+                self.scene_attrs[material] = (n, attrs, flat)
+        return self.scene_attrs[material]
+
+    # -- per pass -----------------------------------------------------------------------------
+    def pass_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
+                       lights: Optional[list]):
+        """(geometry, tile bins) a pass draws, or None when it draws no triangle.
+
+        Geometry (vertex kernel, clipping and setup, on the device) is cached per frame and
+        shared by the passes that draw the same triangles under the same raster state.  A
+        light draw sets up every light of its light list at once, with no culling, and each
+        pass draws the range of its light(s) (the instances are consecutive in submission
+        order), keeping the faces its cull mode keeps: inside a repeat group one set-up
+        serves all lights and every pass of the group with the same raster state.  Bins are
+        per pass (cached per frame too) and index the shared triangles; for light draws they
+        are cut from the (triangle, tile) pairs of all their lights, found once."""
+        if p.draw.kind is ir.DrawKind.LIGHTS:
+            return self._light_triangles(k, p, width, height, timing, lights)
+        geo = self._geometry(k, p, width, height, timing, None)
+        if geo is None:
+            return None
+        cache = self.frame if p.draw.kind is ir.DrawKind.SCENE else self.static
+        return self._bins(geo, cache, width, height, timing)
+
+    def _light_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
+                         lights: list):
+        cache = self.frame
+        batch = tuple(self.pipe._selection.of(p.draw))
+        if not set(lights) <= set(batch):
+            batch = tuple(lights)
+        geo = self._geometry(k, p, width, height, timing, batch)
+        if geo is None:
+            return None
+        ranges = [geo.ranges[int(l)] for l in lights]
+        if p.cull_auto:
+            key = ("auto", id(geo), tuple(lights))
+            sub = cache.get(key)
+            if sub is None:
+                tris = geo.tris
+                if tuple(lights) != batch:        # these lights' triangles, in light order
+                    tris = select_triangles(tris, np.concatenate(
+                        [np.arange(a, b) for a, b in ranges]).astype(np.int64))
+                tris = self._cull_auto(tris, p, lights)
+                sub = cache[key] = self._upload(tris, geo.bufs["vary"])
+            return self._bins(sub, cache, width, height, timing)
+        cull = p.state.cull
+        key = ("bins", id(geo.tris), tuple(lights), cull.value, width, height)
+        tb = cache.get(key)
+        if tb is None:
+            t0 = time.perf_counter()
+            pairs_key = ("pairs", id(geo.tris), width, height)
+            pairs = cache.get(pairs_key)
+            if pairs is None:
+                pairs = cache[pairs_key] = bin_pairs(geo.tris, width, height, self.pipe.tile)
+            tri, tile_id, tiles_x, tiles_y = pairs
+            if tuple(lights) != batch:       # the pairs of these lights' triangles
+                cut = [np.searchsorted(tri, r) for r in ranges]
+                tri = np.concatenate([tri[a:b] for a, b in cut])
+                tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
+            if cull in (ir.CullMode.BACK, ir.CullMode.FRONT):
+                keep = geo.front[tri] == (cull is ir.CullMode.BACK)
+                tri, tile_id = tri[keep], tile_id[keep]
+            tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
+            timing["bin"] = (time.perf_counter() - t0) * 1e3
+            n = sum(b - a for a, b in ranges)
+            if cull in (ir.CullMode.BACK, ir.CullMode.FRONT):
+                front = sum(int(np.count_nonzero(geo.front[a:b])) for a, b in ranges)
+                n = front if cull is ir.CullMode.BACK else n - front
+            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, n)
+        return (geo, tb) if tb.ntiles else None
+
+    def _bins(self, geo: Geo, cache: dict, width: int, height: int, timing: dict):
+        """(geo, bins of all its triangles), cached in ``cache``; None when no tile has any.
+        The set-up triangles already hold the pass's culling (scene and full-screen draws
+        are set up per cull mode, ``cull auto`` light draws filtered per light)."""
+        key = ("bins", id(geo.tris), width, height)
+        tb = cache.get(key)
+        if tb is None:
+            t0 = time.perf_counter()
+            tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height,
+                                                              self.pipe.tile)
+            timing["bin"] = (time.perf_counter() - t0) * 1e3
+            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, geo.tris.count)
+        return (geo, tb) if tb.ntiles else None
+
+    def _raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
+        """What the set-up triangles of a pass's draw depend on besides its varyings."""
+        draw = p.draw
+        depth_clamp = p.state.depth.clamp
+        dfmt = p.depth_target and self.pipe.plan.target(p.depth_target).format.name
+        # llvmpipe folds the pixel centre into the planes' a0 unless the pass is multisampled
+        center = 0.0 if self.pipe.plan.pass_samples(p) > 1 else 0.5
+        offset = str(_offset(p))
+        if draw.kind is ir.DrawKind.LIGHTS:
+            # culling is per pass (light draws are set up without it)
+            return ("lights", (draw.volume or ir.Volume.SPHERE).value, draw.scissor,
+                    offset, depth_clamp, width, height, dfmt, center)
+        return (draw.kind.value, draw.material, p.state.cull.value, offset, depth_clamp,
+                width, height, dfmt, center)
+
+    def _scene_group(self, key: tuple) -> tuple:
+        """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
+        with the union of their varyings (SCENE_VARYINGS order) and the 1/w plane if any of
+        them needs it.  Returns (names, flat flags, providers, w_plane); ``providers``: the
+        passes whose vertex kernels compute the union (k, [their varying names])."""
+        got = self.frame.get(("group", key))
+        if got is not None:
+            return got
+        members = []
+        for k, q in enumerate(self.pipe.plan.passes):
+            if q.draw.kind is not ir.DrawKind.SCENE:
+                continue
+            if self._raster_key(q, *self.pipe._pass_size(q)) != key:
+                continue
+            members.append((k, clgen.varying_slots(q), "frag_coord" in q.code.inputs))
+        union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
+        names = [n for n in clgen.SCENE_VARYINGS if n in union]
+        providers, missing = [], set(names)
+        for k, slots, _ in sorted(members, key=lambda m: -len(m[1])):
+            have = [v["name"] for v in slots]
+            if missing & set(have):
+                providers.append((k, have))
+                missing -= set(have)
+        got = (names, [union[n] for n in names], providers, any(m[2] for m in members))
+        self.frame[("group", key)] = got
+        return got
+
+    def _geometry(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
+                  lights: Optional[tuple]):
+        """Vertex kernel, clipping and setup of a pass's draw (``lights``: every light a light
+        draw sets up); cached per frame.  Scene draws are set up once for every pass drawing
+        them under the same raster state (``_scene_group``); a pass reading fewer varyings
+        gets its own varying and plane buffers cut from the shared ones."""
+        kind = p.draw.kind
+        key = self._raster_key(p, width, height)
+        if kind is ir.DrawKind.LIGHTS:
+            key = key + (lights,)
+        elif kind is ir.DrawKind.SCENE:
+            names = [v["name"] for v in clgen.varying_slots(p)]
+            pkey = key + (tuple(names),)
+            if pkey in self.frame:
+                return self.frame[pkey]
+            base = self.frame.get(key, False)
+            if base is False:
+                base = self._set_up(k, p, width, height, timing, key, lights)
+            geo = base if base is None else self._cut(base, names)
+            self.frame[pkey] = geo
+            return geo
+        if key in self.frame:
+            return self.frame[key]
+        if kind is ir.DrawKind.LIGHTS:
+            return self._set_up(k, p, width, height, timing, key, lights)
+        # the full-screen triangle depends on nothing of the frame: kept across frames
+        if key not in self.static:
+            self.static[key] = self._set_up(k, p, width, height, timing, key, lights)
+        geo = self.frame[key] = self.static[key]
+        return geo
+
+    def _cut(self, geo: Geo, names: list) -> Geo:
+        """The shared scene set-up ``geo`` as a pass reading varyings ``names`` sees it: its
+        varyings in slot order (only the flat ones are read from ``vary``) and the planes of
+        its smooth ones."""
+        if names == geo.names:
+            return geo
+        if not names:
+            return geo          # reads no varying: nothing indexes vary or coef
+        tris = geo.tris
+        flat = dict(zip(geo.names, geo.flats))
+        pos = {n: i for i, n in enumerate(geo.names)}
+        smooth_pos = {n: i for i, n in enumerate(n for n in geo.names if not flat[n])}
+        vary = np.zeros((len(names), tris.nverts, 4), np.float32)
+        for i, n in enumerate(names):
+            if flat[n]:
+                vary[i] = tris.vary[pos[n]]
+        coef = np.ascontiguousarray(tris.coef[:, [smooth_pos[n] for n in names if not flat[n]]])
+        cut = Geo(tris, dict(geo.bufs, vary=self.pipe._buffer(vary),
+                             coef=self.pipe._buffer(coef)))
+        cut.ncoef = coef.shape[1]
+        cut.names = list(names)
+        return cut
+
+    def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
+                lights: Optional[tuple]):
+        """Run the vertex kernel(s), read back clip positions and varyings, clip and set up
+        on the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
+        import pyopencl as cl
+        pipe = self.pipe
+        draw = p.draw
+        depth_clamp = p.state.depth.clamp
+        dfmt = p.depth_target and pipe.plan.target(p.depth_target).format.name
+        center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
+        names, flats, providers = [], [], [(k, [])]
+        if draw.kind is ir.DrawKind.SCENE:
+            names, flats, providers, w_plane = self._scene_group(key)
+            providers = providers or [(k, [])]
+            cull = p.state.cull.value
+        else:
+            # light volumes and the full-screen triangle have no varyings; their 1/w plane
+            # (frag_coord.w) is set up always, so that every pass drawing them shares one
+            # set-up (light draws are culled per pass)
+            w_plane = True
+            cull = "none" if draw.kind is ir.DrawKind.LIGHTS else p.state.cull.value
+        mesh_verts = 1
+        zeros = pipe._zeros4
+        attrs = [zeros] * 4
+        inst = np.zeros(1, np.uint32)
+        flat = None
+        scissor = None
+        if draw.kind is ir.DrawKind.SCENE:
+            got = self.attributes(draw.material)
+            if got is None:
+                self.frame[key] = None
+                return None
+            nverts, attrs, flat = got
+        elif draw.kind is ir.DrawKind.LIGHTS:
+            mesh_verts, mesh_buf = self.mesh((draw.volume or ir.Volume.SPHERE).value)
+            nverts = mesh_verts * len(lights)
+            attrs = [mesh_buf] + [zeros] * 3
+            inst = np.asarray(lights, np.uint32)
+            flat = np.zeros((nverts // 3, 4), np.uint32)
+            flat[:, 3] = np.repeat(inst, mesh_verts // 3)
+            if draw.scissor:
+                scissor = self._light_scissors(inst, width, height, mesh_verts // 3)
+        else:
+            nverts = 3
+        inst_buf = pipe._buffer(inst)
+        clip = None
+        vary = np.empty((len(names), nverts, 4), np.float32) if names else None
+        vary_buf = None
+        vertex_ms = 0.0
+        for kp, have in providers:
+            S = len(have)
+            clip_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
+            vbuf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
+            kern = pipe._kernel(kp, "pg_vertex")
+            kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
+                          pipe._frame_buf, pipe._lights_buf, clip_buf, vbuf)
+            gsize = ((nverts + 63) // 64) * 64
+            ev = cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,))
+            if clip is None:
+                clip = np.empty((nverts, 4), np.float32)
+                cl.enqueue_copy(pipe.queue, clip, clip_buf)
+            if S:
+                out = np.empty((S, nverts, 4), np.float32)
+                cl.enqueue_copy(pipe.queue, out, vbuf)
+                for i, n in enumerate(have):
+                    if n in names:
+                        vary[names.index(n)] = out[i]
+                if have == names:
+                    vary_buf = vbuf
+            ev.wait()
+            vertex_ms += (ev.profile.end - ev.profile.start) * 1e-6
+        timing["vertex"] = vertex_ms
+        t0 = time.perf_counter()
+        tris = setup_triangles(clip, width, height, cull=cull, polygon_offset=_offset(p),
+                               depth_clamp=depth_clamp, depth_format=dfmt, flat=flat,
+                               vary=vary, scissor=scissor,
+                               smooth=[i for i, f in enumerate(flats) if not f],
+                               pixel_center=center, w_plane=w_plane)
+        timing["setup"] = (time.perf_counter() - t0) * 1e3
+        if tris.count == 0:
+            self.frame[key] = None
+            return None
+        if vary_buf is None or tris.vary.shape[1] != nverts:
+            vary_buf = pipe._buffer(tris.vary) if tris.vary is not None else pipe._zeros4
+        geo = self.frame[key] = self._upload(tris, vary_buf)
+        geo.names, geo.flats = names, flats
+        if draw.kind is ir.DrawKind.LIGHTS:
+            light_of = tris.flat[:, 3]
+            lo = np.searchsorted(light_of, inst, "left")
+            hi = np.searchsorted(light_of, inst, "right")
+            geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(inst, lo, hi)}
+        return geo
+
+    def _upload(self, tris, vary_buf) -> Geo:
+        buf = self.pipe._buffer
+        bufs = {"a": buf(tris.a), "b": buf(tris.b), "c": buf(tris.c), "z": buf(tris.z),
+                "w": buf(tris.w), "coef": buf(tris.coef), "zp": buf(tris.zp),
+                "zq": buf(tris.zq), "flat": buf(tris.flat), "vtx": buf(tris.vtx),
+                "scissor": buf(tris.scissor), "bbox": buf(tris.bbox), "vary": vary_buf}
+        return Geo(tris, bufs)
+
+    def _cull_auto(self, tris, p: PassPlan, lights: list):
+        """``cull auto``: keep each light's front or back faces as ``draws.light_runs``
+        chooses (the GL runtime draws the same runs).  Filtering the set-up triangles keeps
+        their submission order, so per pixel the lights still arrive in light order."""
+        scene = self.pipe._scene
+        runs = draws.light_runs(p.state.cull, p.draw.volume, list(scene.lights), lights,
+                                scene.camera.position, self.pipe._proj)
+        draw_front = np.zeros(max(lights) + 1, bool)
+        for run in runs:
+            draw_front[list(run.lights)] = not run.inside   # culling back faces: front drawn
+        front = (tris.flat[:, 0] & 1).astype(bool)
+        by_front = draw_front[tris.flat[:, 3]]
+        keep = front == by_front
+        tris = select_triangles(tris, np.flatnonzero(keep))
+        # bit 1 of flat.x: a light drawn with its back faces (`pg_inside`, `depth … inside`)
+        tris.flat[:, 0] |= np.where(by_front[keep], 0, 2).astype(np.uint32)
+        return tris
+
+    def _light_scissors(self, lights: np.ndarray, width: int, height: int, tris_per: int):
+        """Per-triangle scissor rectangles (x0, y0, x1, y1) of each light's screen rectangle."""
+        scene_lights = self.pipe._scene.lights
+        rects = []
+        for i in lights:
+            x, y, w, h = draws.scissor_rect(scene_lights[int(i)], self.pipe._view,
+                                            self.pipe._proj, width, height)
+            rects.append((x, y, x + w, y + h))
+        return np.repeat(np.asarray(rects, np.int32).reshape(-1, 4), tris_per, axis=0)
+
+
+def _offset(p: PassPlan):
+    """The pass's polygon offset as ``setup_triangles`` takes it: [factor, units] or None."""
+    o = p.state.polygon_offset
+    return None if o is None else [o.factor, o.units]

@@ -1,0 +1,274 @@
+"""Host-side draw preparation, decided once for both runtimes: which passes run for which light
+(``schedule``), which lights a light draw instances (``LightSelection``), which faces each light
+volume draws under ``cull auto`` (``light_runs``) and a light's scissor rectangle.
+
+GL and CL execute the same decisions, so they draw the same triangles in the same order.  The
+float64 reference (``reference/``) decides nothing here and imports none of it.
+
+Light volumes under ``cull auto`` draw their front faces (covering each pixel once, with the
+pass's depth test) unless the near plane may cut the mesh; then their back faces, with the
+pass's ``inside`` depth test when it has one (Calver's infinite far plane).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterator, Optional, Sequence
+
+import numpy as np
+
+from .. import ir
+from ..backends.plan import PassPlan, Plan
+
+LIGHT_TYPE_CODES = {0: "point", 1: "spot", 2: "directional"}
+
+
+def light_type(light) -> str:
+    """A scene light's type name (``point``, ``spot``, ``directional``; ints as the light
+    table codes them)."""
+    t = getattr(light, "type", "point")
+    if isinstance(t, (int, np.integer)):
+        return LIGHT_TYPE_CODES.get(int(t), str(t))
+    return str(t)
+
+
+def light_filter(draw: ir.Draw) -> bool:
+    """Whether a light draw instances only some lights (a type filter or a light set)."""
+    return bool(draw.light_types or draw.light_set)
+
+
+@dataclass
+class LightSelection:
+    """The lights each light draw of a plan instances for one scene, in table order: all of
+    them, those of the draw's ``light_types``, and/or those of its CPU-sorted ``light_set``
+    ``(pack, k)`` (``packing.sort_lights_into_slots`` into ``plan.light_sets[pack]`` slots).
+
+    The sorted sets are computed once per scene and pack; ``dropped[pack]`` lists the lights
+    no set could take (more overlapping lights than the packing holds)."""
+
+    plan: Plan
+    lights: Sequence
+    sets: dict[str, list[list[int]]] = field(default_factory=dict)
+    dropped: dict[str, list[int]] = field(default_factory=dict)
+
+    def of(self, draw: ir.Draw) -> list[int]:
+        idx = list(range(len(self.lights)))
+        if draw.light_types:
+            idx = [i for i in idx if light_type(self.lights[i]) in draw.light_types]
+        if draw.light_set:
+            pack, k = draw.light_set
+            chosen = self._sets(pack)
+            keep = set(chosen[k]) if k < len(chosen) else set()
+            idx = [i for i in idx if i in keep]
+        return idx
+
+    def _sets(self, pack: str) -> list[list[int]]:
+        if pack not in self.sets:
+            from ..packing import sort_lights_into_slots
+            slots = int(self.plan.light_sets.get(pack, 4))
+            centers = [tuple(getattr(l, "position", (0.0, 0.0, 0.0))) for l in self.lights]
+            radii = [float(getattr(l, "radius", 0.0)) for l in self.lights]
+            sets, dropped = sort_lights_into_slots(centers, radii, slots)
+            self.sets[pack] = [list(map(int, s)) for s in sets]
+            self.dropped[pack] = [int(i) for i in dropped]
+        return self.sets[pack]
+
+    def instance(self, p: PassPlan, light: Optional[int]) -> list[int]:
+        """The lights one execution of light pass ``p`` draws: inside a repeat group only
+        ``light`` (none when the draw's filter excludes it), else the draw's whole list."""
+        if light is None:
+            return self.of(p.draw)
+        if light_filter(p.draw) and light not in self.of(p.draw):
+            return []
+        return [light]
+
+
+def schedule(plan: Plan, selection: LightSelection) -> Iterator[tuple[int, Optional[int]]]:
+    """The pass executions of a frame, in order: ``(pass index, None)`` for a plain pass;
+    consecutive passes with the same ``repeat_group`` run as a group once per light in turn
+    (``(pass index, light)``), skipping a pass whose light filter or ``repeat_types``
+    excludes the light."""
+    passes = plan.passes
+    k = 0
+    while k < len(passes):
+        group = passes[k].repeat_group
+        if group is None:
+            yield k, None
+            k += 1
+            continue
+        end = k
+        while end < len(passes) and passes[end].repeat_group == group:
+            end += 1
+        lists = {j: set(selection.of(passes[j].draw)) for j in range(k, end)
+                 if passes[j].draw.kind is ir.DrawKind.LIGHTS and light_filter(passes[j].draw)}
+        for light in range(len(selection.lights)):
+            for j in range(k, end):
+                if j in lists and light not in lists[j]:
+                    continue
+                types = passes[j].repeat_types
+                if types and light_type(selection.lights[light]) not in types:
+                    continue
+                yield j, light
+        k = end
+
+
+# ---- cull auto ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LightRun:
+    """Consecutive lights of a light draw that share a face choice, in submission order."""
+    cull: ir.CullMode             # the faces culled for these lights (never AUTO)
+    lights: tuple[int, ...]
+
+    @property
+    def inside(self) -> bool:
+        """Drawn with their back faces under ``cull auto``: the ``inside`` depth test."""
+        return self.cull is ir.CullMode.FRONT
+
+
+def light_runs(cull: ir.CullMode, volume: Optional[ir.Volume], lights: Sequence,
+               indices: Sequence[int], eye, proj) -> list[LightRun]:
+    """Split a light draw of ``indices`` (scene ``lights``) into runs of one cull mode each:
+    one run for a fixed mode; under ``cull auto`` each light asks ``volume_cull``."""
+    indices = tuple(int(i) for i in indices)
+    if not indices:
+        return []
+    if cull is not ir.CullMode.AUTO:
+        return [LightRun(cull, indices)]
+    shape = (volume or ir.Volume.SPHERE).value
+    reach = near_plane_reach(proj)
+    runs: list[LightRun] = []
+    for i in indices:
+        mode = volume_cull(shape, lights[i], eye, reach)
+        if runs and runs[-1].cull is mode:
+            runs[-1] = LightRun(mode, runs[-1].lights + (i,))
+        else:
+            runs.append(LightRun(mode, (i,)))
+    return runs
+
+
+def near_plane_reach(proj) -> float:
+    """Distance from the eye to the farthest point of the near-plane rectangle of a GL
+    perspective projection (``Camera.projection``; an infinite far plane works too):
+    ``near * sqrt(1 + tan_x^2 + tan_y^2)`` with ``near = P[2,3] / (P[2,2] - 1)``,
+    ``tan_x = 1 / P[0,0]``, ``tan_y = 1 / P[1,1]``.  Every point that the near plane clips
+    away in front of a visible pixel lies within this distance of the eye."""
+    p = np.asarray(proj, np.float64)
+    near = abs(p[2, 3] / (p[2, 2] - 1.0))
+    return float(near * np.sqrt(1.0 + (1.0 / p[0, 0]) ** 2 + (1.0 / p[1, 1]) ** 2))
+
+
+_UNIT_MESHES: dict = {}
+
+
+def _unit_mesh(volume: str) -> np.ndarray:
+    if volume not in _UNIT_MESHES:
+        from ..meshes import light_volume
+        _UNIT_MESHES[volume] = np.asarray(light_volume(volume), np.float64)
+    return _UNIT_MESHES[volume]
+
+
+def _cos_clamped(cos_outer: float) -> float:
+    """cos(outer) as the vertex stages clamp it before taking tan(outer)."""
+    return min(max(float(cos_outer), 0.001), 1.0)
+
+
+def volume_bound(volume: str, radius: float, cos_outer: float = -2.0) -> float:
+    """Radius of a sphere around the light's position that contains its light-volume mesh as
+    the vertex stages place it (``meshes.light_volume`` scaled like gl_vertex_lights.glsl.j2):
+
+    - sphere: ``radius * R`` with ``R`` the unit mesh's circumradius (its farthest vertex,
+      about 1.02: the mesh circumscribes the unit sphere);
+    - cone: the farthest vertex from the apex of the unit cone scaled by ``spread`` in x/y
+      (``radius * tan(outer)``) and ``radius`` in z.
+    """
+    r = max(float(radius), 0.0)
+    m = _unit_mesh(volume)
+    if volume == "sphere":
+        return r * float(np.sqrt((m * m).sum(axis=1)).max())
+    if volume == "cone":
+        c = _cos_clamped(cos_outer)
+        spread = r * np.sqrt(1.0 - c * c) / c
+        scaled = m * np.array([spread, spread, r])
+        return float(np.sqrt((scaled * scaled).sum(axis=1)).max())
+    raise ValueError(f"`cull auto` has no rule for {volume!r} light volumes (sphere, cone)")
+
+
+# Relative slack on the distances: the GPU places the mesh from float32 light fields.
+CULL_SLACK = 1e-3
+
+
+def volume_clearance(volume: str, position, radius: float, eye, cos_outer: float = -2.0,
+                     direction=(0.0, 0.0, -1.0)) -> float:
+    """A lower bound on the distance from ``eye`` to a light's volume mesh (<= 0: the eye may
+    be inside it), from a shape that contains the mesh:
+
+    - sphere: the ball of radius ``volume_bound`` around the light's position;
+    - cone: the circular cone around the light direction (apex at the light, half-angle
+      ``atan(rim * tan(outer))`` with ``rim`` the unit mesh's rim radius, since its polygon
+      circumscribes the unit circle) cut by its base plane at ``radius`` along the axis: the
+      larger of the separating-plane distances to the base, ``h - radius``, and to the
+      tangent plane nearest the eye, ``q cos(a) - h sin(a)`` (h, q: the eye's axial and radial
+      offsets from the apex), whatever the mesh's rotation about its axis.
+    """
+    v = np.asarray(eye, np.float64) - np.asarray(position, np.float64)
+    r = max(float(radius), 0.0)
+    if volume == "sphere":
+        return float(np.linalg.norm(v)) - volume_bound("sphere", r)
+    if volume == "cone":
+        d = np.asarray(direction, np.float64)
+        n = float(np.linalg.norm(d))
+        axis = d / n if n > 0 else np.array([0.0, 0.0, -1.0])
+        h = float(v @ axis)
+        q = float(np.linalg.norm(v - h * axis))
+        m = _unit_mesh("cone")
+        rim = float(np.sqrt(m[:, 0] ** 2 + m[:, 1] ** 2).max())
+        c = _cos_clamped(cos_outer)
+        half = float(np.arctan(rim * np.sqrt(1.0 - c * c) / c))
+        return float(max(q * np.cos(half) - h * np.sin(half), h - r))
+    raise ValueError(f"`cull auto` has no rule for {volume!r} light volumes (sphere, cone)")
+
+
+def volume_cull(volume: str, light, eye, reach: float) -> ir.CullMode:
+    """The faces to cull for one light under ``cull auto``: FRONT (draw the back faces) when
+    the near plane may touch the mesh, conservatively
+    ``clearance <= reach * (1 + CULL_SLACK) + bound * CULL_SLACK``; else BACK."""
+    cos_outer = float(getattr(light, "cos_outer", -2.0))
+    bound = volume_bound(volume, light.radius, cos_outer)
+    clearance = volume_clearance(volume, light.position, light.radius, eye, cos_outer,
+                                 getattr(light, "direction", (0.0, 0.0, -1.0)))
+    inside = clearance <= reach * (1.0 + CULL_SLACK) + bound * CULL_SLACK
+    return ir.CullMode.FRONT if inside else ir.CullMode.BACK
+
+
+# ---- scissor -----------------------------------------------------------------------------------
+
+
+def scissor_rect(light, view, proj, width: int, height: int) -> tuple[int, int, int, int]:
+    """Window rectangle ``(x, y, w, h)`` (GL convention, y up) covering a light's sphere.
+
+    Projects the 8 corners of the sphere's world-space bounding box; when any corner is at or
+    behind the camera plane (w <= 1e-6) the rectangle is the whole viewport.  The rectangle is
+    conservative (floor/ceil, clamped to the viewport) and may be empty (w or h 0).  A light
+    without a radius (``radius <= 0``: a directional light) covers the whole viewport.
+    """
+    c = np.asarray(light.position, np.float64)
+    r = float(light.radius)
+    if r <= 0.0:
+        return (0, 0, int(width), int(height))
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
+                     np.float64)
+    corners = np.concatenate([c + signs * r, np.ones((8, 1))], axis=1)
+    clip = corners @ (np.asarray(proj, np.float64) @ np.asarray(view, np.float64)).T
+    w = clip[:, 3]
+    if np.any(w <= 1e-6):
+        return (0, 0, int(width), int(height))
+    ndc = clip[:, :2] / w[:, None]
+    lo = (ndc.min(axis=0) * 0.5 + 0.5) * (width, height)
+    hi = (ndc.max(axis=0) * 0.5 + 0.5) * (width, height)
+    xa, ya = (int(min(max(np.floor(v), 0), s)) for v, s in zip(lo, (width, height)))
+    xb, yb = (int(min(max(np.ceil(v), 0), s)) for v, s in zip(hi, (width, height)))
+    return (xa, ya, max(xb - xa, 0), max(yb - ya, 0))
+
+
