@@ -70,6 +70,9 @@ def test_version():
     assert proc.returncode == 0
     assert proc.stdout.strip() == f"pipegen {pipegen.__version__}"
     assert pipegen.__version__[0].isdigit()
+    proc = subprocess.run([sys.executable, "-m", "pipegen", "--version"], capture_output=True,
+                          text=True, timeout=60, cwd=ROOT)
+    assert proc.returncode == 0 and proc.stdout.strip() == f"pipegen {pipegen.__version__}"
 
 
 @pytest.mark.parametrize("command, defaults", [
