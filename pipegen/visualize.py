@@ -225,16 +225,20 @@ def target_views(tech: ir.Technique) -> dict[str, TargetView]:
     """How to picture every target of ``tech`` (by target name)."""
     packings = {p.name: p for p in tech.packings}
     roles: dict[str, list] = {}
-    conflict: set[str] = set()
     for p in tech.passes:
         locals_ = _single_assignment_locals(p.body)
         for s in irwalk.walk_stmts(p.body):
             if not isinstance(s, ir.Output):
                 continue
             found = _roles_of(s.value, packings, locals_, tech.target(s.target).format)
-            if s.target in roles and roles[s.target] != found:
-                conflict.add(s.target)
-            roles.setdefault(s.target, found)
+            # Several writes: per channel, a constant gives way to a role, and two different
+            # roles are plain data; a light-index packing anywhere makes the target an index.
+            old = roles.setdefault(s.target, found)
+            for c, r in enumerate(found):
+                if old[c] is None or (r is not None and r.kind == "index"):
+                    old[c] = r
+                elif r is not None and r != old[c] and old[c].kind != "index":
+                    old[c] = Role("data", (c,))
     views = {}
     for t in tech.targets:
         clears = [t.clear] + [c for p in tech.passes for name, c in p.clears if name == t.name]
@@ -244,7 +248,7 @@ def target_views(tech: ir.Technique) -> dict[str, TargetView]:
             continue
         colors = tuple(c.color if c.color is not None else (0.0,) * 4 for c in clears
                        if c.color is not None or c is t.clear)
-        found = [] if t.name in conflict else [r for r in roles.get(t.name, []) if r]
+        found = [r for r in roles.get(t.name, []) if r]
         if all(r.kind == "data" for r in found):
             found = []
         if any(r.kind == "index" for r in found):
