@@ -144,6 +144,12 @@ def test_inferred_dsf_target_is_depth_and_id_fields(inferred):
     assert target_views(inferred)["gnormal"].roles[0].kind == "normal"
 
 
+def test_a_target_written_by_several_passes_keeps_its_packing():
+    tech = compile_file(ROOT / "pipelines/lidr_max_stencil.pipe").technique
+    (role,) = target_views(tech)["lightidx"].roles      # rg in one pass, ba in the next
+    assert role.kind == "index" and role.packing.scheme == "max_pairs"
+
+
 def test_bitfield_decode_separates_the_fields(inferred):
     impl = packing.numpy_impl("bitfield", {"fields": (("object", 8), ("group", 8))})
     H, W = 6, 8
