@@ -32,6 +32,7 @@ def assert_user_files(folder: Path) -> None:
     assert (folder / "earlier" / "result.png").read_bytes() == b"not pipegen's"
 
 
+@pytest.mark.gl
 def test_run_refuses_a_foreign_folder_without_force_and_keeps_user_files_with_it(tmp_path,
                                                                                   capsys):
     out = tmp_path / "x"
@@ -52,6 +53,7 @@ def test_run_refuses_a_foreign_folder_without_force_and_keeps_user_files_with_it
     assert (out / "color.npy").stat().st_mtime_ns >= first
 
 
+@pytest.mark.gl
 def test_run_into_a_parent_of_earlier_results_keeps_them(tmp_path):
     """docs/cli.md's ``-o out/`` after ``-o out/forward``: the earlier result survives."""
     out = tmp_path / "out"
@@ -62,6 +64,7 @@ def test_run_into_a_parent_of_earlier_results_keeps_them(tmp_path):
     assert (out / "color.png").exists()
 
 
+@pytest.mark.gl
 def test_run_removes_only_its_own_stale_outputs(tmp_path):
     out = tmp_path / "out"
     deferred = str(ROOT / "pipelines/deferred.pipe")
@@ -113,6 +116,7 @@ def gl_as_cl(monkeypatch):
                         lambda self, backend="gl", size=None: real(self, "gl", size))
 
 
+@pytest.mark.gl
 def test_check_keeps_user_files_and_needs_force_for_a_foreign_folder(tmp_path, capsys,
                                                                      gl_as_cl):
     out = tmp_path / "check"
@@ -183,6 +187,7 @@ pass {p} {{
 """
 
 
+@pytest.mark.gl
 def test_pass_and_target_names_of_300_characters_give_files(tmp_path, capsys):
     src = tmp_path / "long.pipe"
     src.write_text(LONG.format(t="t" * 300, p="p" * 300))

@@ -158,6 +158,7 @@ def test_technique_given_as_scene_says_so(capsys, tmp_path):
     assert "looks like a technique" in capsys.readouterr().err
 
 
+@pytest.mark.gl
 def test_one_default_output_size(tmp_path, capsys):
     """Without --size: the built-in scene is rendered at DEFAULT_SIZE, and compile's printed
     report, report.txt and info state memory at the same size; a scene file keeps its own."""
@@ -194,6 +195,7 @@ def test_api_import_is_lazy_and_light():
     assert proc.stdout.startswith("ok ")
 
 
+@pytest.mark.gl
 def test_save_pngs_from_python(tmp_path):
     compiled = pipegen.compile_file(ROOT / "pipelines/forward.pipe")
     scene = pipegen.default_scene().with_size(64, 36)
