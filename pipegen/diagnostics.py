@@ -31,8 +31,19 @@ class Span:
 
     @property
     def source_line(self) -> str:
-        lines = self.text.splitlines()
-        return lines[self.line - 1] if 0 < self.line <= len(lines) else ""
+        """The line the span starts on, counted as the lexer counts lines: at '\\n' only (not at
+        '\\f', '\\v' or U+2028, where ``str.splitlines`` would also split), without a '\\r'."""
+        lines = self.text.split("\n")
+        line = lines[self.line - 1] if 0 < self.line <= len(lines) else ""
+        return line[:-1] if line.endswith("\r") else line
+
+    @staticmethod
+    def at_offset(file: str, text: str, offset: int) -> "Span":
+        """The one-character span at character ``offset`` of ``text``."""
+        offset = max(0, min(offset, len(text)))
+        line = text.count("\n", 0, offset) + 1
+        column = offset - (text.rfind("\n", 0, offset) + 1) + 1
+        return Span(file, line, column, line, column + 1, text)
 
 
 class PipegenError(Exception):
@@ -51,17 +62,42 @@ class PipegenError(Exception):
         else:
             s = self.span
             out.append(f"{s.file}:{s.line}:{s.column}: error: {self.message}")
-            line = s.source_line
+            line = _printable(s.source_line)
             if line:
-                gutter = f"{s.line:>5} | "
-                out.append(gutter + line)
                 width = 1
                 if s.end_line == s.line and s.end_column > s.column:
                     width = s.end_column - s.column
-                out.append(" " * (len(gutter) - 2) + "| " + " " * (s.column - 1) + "^" * width)
+                line, column = _window(line, s.column)
+                width = max(1, min(width, len(line) + 1 - column))
+                gutter = f"{s.line:>5} | "
+                out.append(gutter + line)
+                out.append(" " * (len(gutter) - 2) + "| " + " " * (column - 1) + "^" * width)
         if self.hint:
             out.append(f"hint: {self.hint}")
         return "\n".join(out)
 
     def __str__(self) -> str:
         return self.render()
+
+
+def _printable(line: str) -> str:
+    """The quoted line with control characters (an escape sequence, a NUL…) shown as '?', one
+    character each so the caret stays under its column."""
+    if line.isprintable():
+        return line
+    return "".join(c if c.isprintable() or c == "\t" else "?" for c in line)
+
+
+_WIDTH = 120
+
+
+def _window(line: str, column: int) -> tuple[str, int]:
+    """A long line cut to about ``_WIDTH`` characters around ``column`` ('…' where cut), and
+    the column in what is shown."""
+    if len(line) <= _WIDTH:
+        return line, column
+    start = max(0, min(column - 1 - _WIDTH // 2, len(line) - _WIDTH))
+    shown = line[start:start + _WIDTH]
+    prefix = "…" if start > 0 else ""
+    suffix = "…" if start + _WIDTH < len(line) else ""
+    return prefix + shown + suffix, column - start + len(prefix)

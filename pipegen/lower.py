@@ -29,7 +29,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Optional, Union
 
-from . import ast, ir, syntax
+from . import ast, ir, sources, syntax
 from .builtins import (BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, LIGHT_TYPES, STAGE_INPUTS,
                        TARGET_FUNCTIONS, TYPE_NAMES, VOLUME_LIGHT_FIELDS, Where, binary_type,
                        describe_overloads,
@@ -58,8 +58,7 @@ def lower(module: ast.Module, filename: str, params: Optional[dict] = None,
 
 
 def _read_file(path: str) -> str:
-    with open(path, encoding="utf-8") as f:
-        return f.read()
+    return sources.read_source(path)
 
 
 def _err(span: Optional[Span], message: str, hint: str) -> PipegenError:
@@ -110,6 +109,7 @@ class _Collector:
         self.loader = loader
         self.decls = _Decls()
         self.seen: set[str] = set()
+        self.texts: dict[str, str] = {}     # found by _find, parsed by _include
         self.groups = 0
 
     def module(self, module: ast.Module, path: str, stack: tuple[str, ...] = ()) -> None:
@@ -157,20 +157,42 @@ class _Collector:
         return self.groups - 1
 
     def _include(self, inc: ast.Include, path: str, stack: tuple[str, ...]) -> None:
-        target = os.path.normpath(os.path.join(os.path.dirname(path), inc.path))
+        if not inc.path.isprintable():
+            raise _err(inc.span, "an include path cannot contain control characters",
+                       'write the path of a .pipe file, e.g. include "common/lighting.pipe"')
+        target = self._find(inc, path)
         if target in stack or target == os.path.normpath(path):
             raise _err(inc.span, f"'{inc.path}' includes itself (through "
                        f"{' -> '.join(os.path.basename(s) for s in stack + (path,))})",
                        "remove one of the includes of the cycle")
         if target in self.seen:
             return   # already spliced in: a file's declarations are included once
-        try:
-            text = self.loader(target)
-        except (OSError, UnicodeDecodeError) as e:
-            raise _err(inc.span, f"cannot read included file '{inc.path}' ({target}): "
-                       f"{getattr(e, 'strerror', None) or e}",
-                       "include paths are relative to the file that includes them") from None
+        text = self.texts.pop(target)
         self.module(syntax.parse(text, target), target, stack + (path,))
+
+    def _find(self, inc: ast.Include, path: str) -> str:
+        """The first of ``sources.include_candidates`` that exists (its text kept in
+        ``self.texts``); a file that exists but cannot be read is an error, not skipped."""
+        candidates = sources.include_candidates(inc.path, path)
+        for target, _ in candidates:
+            if target in self.seen:
+                return target
+            try:
+                self.texts[target] = self.loader(target)
+                return target
+            except FileNotFoundError:
+                continue
+            except (OSError, UnicodeDecodeError) as e:
+                raise _err(inc.span, f"cannot read included file '{inc.path}' ({target}): "
+                           f"{getattr(e, 'strerror', None) or e}",
+                           "include a .pipe file (a regular file of at most "
+                           f"{sources.MAX_SOURCE_BYTES >> 20} MiB)") from None
+        searched = "; ".join(f"{t} ({where})" for t, where in candidates)
+        raise _err(inc.span, f"cannot read included file '{inc.path}': not found (searched "
+                   f"{searched})",
+                   "include paths are relative to the including file; the library shipped "
+                   "with pipegen is included as common/NAME.pipe; more folders can be listed "
+                   "in PIPEGEN_PATH")
 
 
 _NAMED_KINDS = {ast.ParamDecl: "parameter", ast.TargetDecl: "target", ast.PackDecl: "packing",

@@ -7,18 +7,22 @@ have come there instead, e.g. ``unexpected number '1.0'; expected ',' or ')'``.
 
 from __future__ import annotations
 
-import difflib
 import functools
-import importlib.resources
-import re
+import os
+import sys
 from typing import Optional
 
-from lark import Lark, Token, Transformer, v_args
+from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (UnexpectedCharacters, UnexpectedEOF, UnexpectedInput,
                              UnexpectedToken, VisitError)
 
 from . import ast
 from .diagnostics import PipegenError, Span
+
+#: How deeply constructs may nest (parse-tree levels: blocks, statements, parentheses, operator
+#: chains).  The shipped techniques use at most 13; every later phase walks the tree
+#: recursively, so the limit keeps them far from Python's recursion limit.
+MAX_NESTING = 100
 
 
 def parse(text: str, filename: str = "<string>") -> ast.Module:
@@ -27,12 +31,32 @@ def parse(text: str, filename: str = "<string>") -> ast.Module:
         tree = _parser().parse(text)
     except UnexpectedInput as e:
         raise _syntax_error(e, text, filename) from None
+    _check_nesting(tree, text, filename)
     try:
         return _ToAst(text, filename).transform(tree)
     except VisitError as e:   # lark wraps exceptions raised inside transformer callbacks
         if isinstance(e.orig_exc, PipegenError):
             raise e.orig_exc from None
         raise
+
+
+def _check_nesting(tree: Tree, text: str, filename: str) -> None:
+    """Reject trees deeper than ``MAX_NESTING`` (iteratively: the tree may be arbitrarily
+    deep), pointing at the construct that goes one level too deep."""
+    stack = [(tree, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if depth > MAX_NESTING:
+            meta = node.meta
+            line, col = (meta.line, meta.column) if not getattr(meta, "empty", True) else (1, 1)
+            raise PipegenError(
+                Span(filename, line, col, line, col + 1, text),
+                f"this is nested too deeply (more than {MAX_NESTING} levels of blocks, "
+                f"parentheses, operators or operator chains)",
+                "split it up: compute parts into local variables or helper functions")
+        for child in node.children:
+            if isinstance(child, Tree):
+                stack.append((child, depth + 1))
 
 
 class _WholeWords:
@@ -51,11 +75,105 @@ class _WholeWords:
         return stream
 
 
+# ---------------------------------------------------------------------------------------------
+# The parser, built once per grammar and cached on disk
+# ---------------------------------------------------------------------------------------------
+
+_OPTIONS = dict(parser="lalr", propagate_positions=True, maybe_placeholders=True)
+_CACHE_FORMAT = "1"          # bump when what is written to the cache changes
+
+
 @functools.cache
 def _parser() -> Lark:
-    source = importlib.resources.files("pipegen.grammar").joinpath("pipe.lark").read_text()
-    return Lark(source, parser="lalr", propagate_positions=True, maybe_placeholders=True,
-                postlex=_WholeWords())
+    """The LALR parser.  Building its tables takes about half a second, so the built parser
+    is kept in the user's cache folder (``cache_dir()``) and loaded from there (a few ms) by
+    every later process with the same grammar, lark and Python.  A missing, unreadable,
+    unsafe or stale cache file only means the parser is built again; a read-only install or
+    cache folder only means it is not saved."""
+    grammar = _grammar_text()
+    folder = cache_dir()
+    path = _cache_file(folder, grammar) if folder is not None else None
+    if path is not None:
+        parser = _load_cached(path)
+        if parser is not None:
+            return parser
+    parser = Lark(grammar, postlex=_WholeWords(), **_OPTIONS)
+    if path is not None:
+        _save_cached(parser, path)
+    return parser
+
+
+def _grammar_text() -> str:
+    import importlib.resources
+    return importlib.resources.files("pipegen.grammar").joinpath("pipe.lark").read_text(
+        encoding="utf-8")
+
+
+def cache_dir() -> Optional[str]:
+    """Where the built parser is kept: ``$PIPEGEN_CACHE_DIR`` (empty: no cache), else
+    ``$XDG_CACHE_HOME/pipegen``, else ``~/.cache/pipegen`` (``%LOCALAPPDATA%\\pipegen`` on
+    Windows).  None when there is no usable home."""
+    explicit = os.environ.get("PIPEGEN_CACHE_DIR")
+    if explicit is not None:
+        return explicit or None
+    if sys.platform == "win32" and os.environ.get("LOCALAPPDATA"):
+        return os.path.join(os.environ["LOCALAPPDATA"], "pipegen", "cache")
+    base = os.environ.get("XDG_CACHE_HOME") or ""
+    if not os.path.isabs(base):
+        home = os.path.expanduser("~")
+        if not home or home == "~":
+            return None
+        base = os.path.join(home, ".cache")
+    return os.path.join(base, "pipegen")
+
+
+def _cache_file(folder: str, grammar: str) -> str:
+    import hashlib
+    import lark
+    key = "\0".join([_CACHE_FORMAT, grammar, repr(sorted(_OPTIONS.items())),
+                      repr(_WholeWords.always_accept), lark.__version__,
+                      "%d.%d" % sys.version_info[:2]])
+    return os.path.join(folder, f"parser-{hashlib.sha256(key.encode()).hexdigest()[:32]}.pickle")
+
+
+def _private(st: os.stat_result) -> bool:
+    """Owned by this user and writable by nobody else (POSIX); unpickling a file someone else
+    could have written would run their code."""
+    if not hasattr(os, "getuid"):
+        return True
+    import stat
+    return st.st_uid == os.getuid() and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+
+
+def _load_cached(path: str) -> Optional[Lark]:
+    try:
+        if not (_private(os.stat(os.path.dirname(path))) and _private(os.stat(path))):
+            return None
+        with open(path, "rb") as f:
+            return Lark.__new__(Lark)._load(f, postlex=_WholeWords())
+    except Exception:      # missing, truncated, from another lark: build it again
+        return None
+
+
+def _save_cached(parser: Lark, path: str) -> None:
+    """Write atomically (a temporary file renamed over the target), so that concurrent
+    processes never read a partial file."""
+    import tempfile
+    folder = os.path.dirname(path)
+    try:
+        os.makedirs(folder, mode=0o700, exist_ok=True)
+        if not _private(os.stat(folder)):
+            return
+        fd, tmp = tempfile.mkstemp(prefix=".parser-", dir=folder)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                parser.save(f, exclude_options={"postlex"})
+            os.replace(tmp, path)
+        except BaseException:
+            os.unlink(tmp)
+            raise
+    except Exception:      # read-only or full disk, races with another process: not cached
+        pass
 
 
 # ---------------------------------------------------------------------------------------------
@@ -433,8 +551,16 @@ class _ToAst(Transformer):
             if unsigned:
                 raise self._error(span, f"'{text}' is not a valid literal",
                                   "a 'u' suffix makes an unsigned integer: write 2u, not 2.0u")
-            return ast.Number(float(digits), "float", span=span)
-        value = int(digits, 16 if is_hex else 10)
+            value = float(digits)
+            if value > _FLT_MAX:
+                raise self._error(span, f"float literal '{text}' is too large for a float",
+                                  "a float holds up to about 3.4e38")
+            return ast.Number(value, "float", span=span)
+        significant = (digits[2:] if is_hex else digits).lstrip("0")
+        # (a bound on the digits first: int() refuses thousands of them)
+        value = int(significant[:12] or "0", 16 if is_hex else 10)
+        if len(significant) > 12:
+            value = 1 << 40
         limit = 0xFFFFFFFF if unsigned or is_hex else 0x7FFFFFFF
         if value > limit:
             kind = "uint" if unsigned else "int"
@@ -443,6 +569,9 @@ class _ToAst(Transformer):
         if is_hex and not unsigned and value > 0x7FFFFFFF:
             value -= 1 << 32        # GLSL: a hex int literal is a 32-bit pattern (0xFFFFFFFF == -1)
         return ast.Number(value, "uint" if unsigned else "int", span=span)
+
+
+_FLT_MAX = 3.4028234663852886e38
 
 
 def _unquote(tok: Token) -> str:
@@ -589,17 +718,29 @@ def _misspelling_hint(expected: set[str], tok: Token, text: str) -> Optional[str
     (``targt x : rgba8`` fails only at the ':', read as a function ``targt x(…)``)."""
     keywords = {w.strip("'") for w in expected if w.startswith("'") and w[1:2].isalpha()}
     if tok.type == "NAME" and keywords:
-        close = difflib.get_close_matches(str(tok), sorted(keywords), n=1, cutoff=0.6)
+        close = _close_matches(str(tok), sorted(keywords), cutoff=0.6)
         if close:
             return f"did you mean '{close[0]}'?"
-    line = text.splitlines()[tok.line - 1][:tok.column - 1]
+    import re
+    line = _lines(text)[tok.line - 1][:tok.column - 1]
     for word in re.findall(r"[A-Za-z_]\w*", line):
         if word in _STARTERS:
             continue
-        close = difflib.get_close_matches(word, sorted(_STARTERS), n=1, cutoff=0.75)
+        close = _close_matches(word, sorted(_STARTERS), cutoff=0.75)
         if close:
             return f"'{word}' is not a keyword; did you mean '{close[0]}'?"
     return None
+
+
+def _close_matches(word: str, candidates: list[str], cutoff: float) -> list[str]:
+    import difflib
+    return difflib.get_close_matches(word, candidates, n=1, cutoff=cutoff)
+
+
+def _lines(text: str) -> list[str]:
+    """The lines as the lexer counts them: split at '\\n' only (not at '\\f', '\\v', U+2028…,
+    which ``str.splitlines`` also splits at)."""
+    return text.split("\n")
 
 
 def _hint(expected: set[str], tok: Optional[Token]) -> str:
@@ -627,14 +768,14 @@ def _hint(expected: set[str], tok: Optional[Token]) -> str:
 
 
 def _end_position(text: str) -> tuple[int, int]:
-    lines = text.rstrip().splitlines() or [""]
+    lines = _lines(text.rstrip())
     return len(lines), len(lines[-1]) + 1
 
 
 def _end_of_previous_token(text: str, line: int, column: int) -> Optional[tuple[int, int]]:
     """(line, column just after) the last non-blank character before ``line:column``,
     skipping // comments."""
-    lines = text.splitlines()
+    lines = _lines(text)
     row, col = line - 1, column - 1
     while row >= 0:
         code = lines[row][:col] if row == line - 1 else lines[row]
