@@ -89,8 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pipegen {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    def command(name: str, help: str, func, output_note: bool = True):
-        p = sub.add_parser(name, help=help, description=help[0].upper() + help[1:] + ".",
+    def command(name: str, summary: str, func, output_note: bool = True):
+        p = sub.add_parser(name, help=summary, description=summary[0].upper() + summary[1:] + ".",
                            epilog="examples:\n" + EXAMPLES[name]
                            + ("\n" + OUTPUT_NOTE if output_note else ""),
                            formatter_class=fmt)
