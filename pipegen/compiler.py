@@ -83,14 +83,18 @@ def compile_source(text: str, filename: str = "<string>", params: Optional[dict]
 
 def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
                  verify_each: bool = False) -> Compiled:
+    from .sources import MAX_SOURCE_BYTES, read_source
     p = Path(path)
     try:
-        text = p.read_text()
+        text = read_source(str(p))     # bad UTF-8: a PipegenError at the byte
     except FileNotFoundError:
         raise PipegenError(None, f"no such file: {p}",
-                           hint="pass the path of a .pipe file, e.g. pipelines/forward.pipe")
-    except (IsADirectoryError, UnicodeDecodeError) as e:
-        raise PipegenError(None, f"cannot read {p}: {e}")
+                           hint="pass the path of a .pipe file, e.g. pipelines/forward.pipe") \
+            from None
+    except OSError as e:
+        raise PipegenError(None, f"cannot read {p}: {e.strerror or e}",
+                           hint=f"pass a .pipe file (a regular file of at most "
+                                f"{MAX_SOURCE_BYTES >> 20} MiB)") from None
     return compile_source(text, str(p), params, verify_each)
 
 

@@ -506,15 +506,28 @@ def load_scene(path: str | Path) -> Scene:
     return parse_scene(text, str(path), base_dir=path.parent, name=path.stem)
 
 
+def _toml_error(e: Exception, text: str, file: str) -> PipegenError:
+    """tomllib's message ends in ``(at line L, column C)`` or ``(at end of document)``: the
+    position becomes the error's span (tomllib counts lines at '\\n' only, as spans do)."""
+    msg = str(e)
+    m = re.search(r"\s*\(at line (\d+), column (\d+)\)$", msg)
+    if m:
+        line, column = int(m.group(1)), int(m.group(2))
+        span = Span(file, line, column, line, column + 1, text)
+    else:
+        m = re.search(r"\s*\(at end of document\)$", msg)
+        span = Span.at_offset(file, text, len(text.rstrip()))
+    message = msg[:m.start()] if m else msg
+    return PipegenError(span, f"invalid TOML: {message}",
+                        "see https://toml.io for the syntax")
+
+
 def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", name: str = "scene") -> Scene:
     loc = _Locator(file, text)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
-        msg = str(e)
-        m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
-        span = Span(file, int(m.group(1)), int(m.group(2)), text=text) if m else None
-        raise PipegenError(span, "invalid TOML: " + re.sub(r"\s*\(at line.*\)$", "", msg)) from None
+        raise _toml_error(e, text, file) from None
 
     top = _Reader(data, (), loc)
     top.check_keys({"width", "height", "ambient", "camera", "objects", "lights", "name"})
