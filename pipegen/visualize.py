@@ -142,8 +142,11 @@ def category_panel(values: np.ndarray, title: str = "", labels: Optional[dict] =
     values present, most frequent first (at most ``LEGEND_ENTRIES``; the rest are counted).
     ``labels`` maps a value to its legend text (default: the number)."""
     v = np.asarray(values).astype(np.uint64)
-    rgb = category_color(v) if colors is None else colors
-    uniq, counts = np.unique(v, return_counts=True)
+    uniq, inverse, counts = np.unique(v.reshape(-1), return_inverse=True, return_counts=True)
+    if colors is None:      # colour the distinct values only: images have few of them
+        rgb = category_color(uniq)[inverse.reshape(-1)].reshape(v.shape + (3,))
+    else:
+        rgb = colors
     order = np.argsort(-counts, kind="stable")
     shown = sorted(int(x) for x in uniq[order[:LEGEND_ENTRIES]])
     legend = [((labels or {}).get(x, str(x)), tuple(int(c) for c in category_color(x)))
@@ -499,25 +502,31 @@ def _index_panels(codes, values, fmt: Format, p: ir.Packing) -> list[Panel]:
     from . import packing as packing_mod
 
     impl = packing_mod.numpy_impl(p.scheme, _options(p), fmt)
-    v4 = values if values.ndim == 3 else values[..., None]
-    if v4.shape[2] < 4:
-        v4 = np.concatenate([v4, np.zeros(v4.shape[:2] + (4 - v4.shape[2],))], -1)
+    # Decode each distinct texel once: a frame has few distinct light sets, many pixels.
+    c = codes if codes.ndim == 3 else codes[..., None]
+    packed = np.zeros(c.shape[:2], np.uint64)
+    for ch in range(c.shape[2]):
+        packed = (packed << np.uint64(max(fmt.bits))) | c[..., ch].astype(np.uint64)
+    texels, first, inverse = np.unique(packed.reshape(-1), return_index=True,
+                                       return_inverse=True)
+    v = values.reshape(-1, values.shape[-1]) if values.ndim == 3 else values.reshape(-1, 1)
+    v4 = v[first]
+    if v4.shape[1] < 4:
+        v4 = np.concatenate([v4, np.zeros((len(v4), 4 - v4.shape[1]))], -1)
     cap = p.capacity or 4
     lights = np.stack([impl["unpack"](v4, k) for k in range(cap)], -1).astype(np.int64)
-    lights = np.sort(lights, axis=-1)          # a set: order and duplicates do not matter
-    count = np.zeros(lights.shape[:2], np.int64)
-    for k in range(cap):
-        count += (lights[..., k] > 0) & ((k == 0) | (lights[..., k] != lights[..., k - 1]))
-    rows, inverse = np.unique(lights.reshape(-1, cap), axis=0, return_inverse=True)
-    keys, labels = [], {}
-    for row in rows:
-        ids = sorted({int(i) for i in row if i > 0})
+    keys, counts, labels = [], [], {}
+    for row in lights:
+        ids = sorted({int(i) for i in row if i > 0})   # a set: order and duplicates aside
         h = 0                                  # a colour per set, the same in every picture
         for i in ids:
             h = (h * 0x100000001B3 + i) & 0xFFFFFFFFFFFFFFFF
         keys.append(h)
+        counts.append(len(ids))
         labels[h] = "+".join(f"L{i - 1}" for i in ids) if ids else "none"
-    key = np.asarray(keys, np.uint64)[inverse.reshape(-1)].reshape(lights.shape[:2])
+    shape = codes.shape[:2]
+    key = np.asarray(keys, np.uint64)[inverse.reshape(-1)].reshape(shape)
+    count = np.asarray(counts, np.int64)[inverse.reshape(-1)].reshape(shape)
     sets = category_panel(key, "light set", labels=labels)
     counts = category_panel(count, "lights per pixel")
     return [sets, counts]

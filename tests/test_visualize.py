@@ -251,6 +251,7 @@ def test_compose_puts_legends_under_the_panels(lidr):
     assert tuple(px[0, 1]) == tuple(category_color(3))     # top row of the target: row 1
 
 
+@pytest.mark.gl
 def test_run_writes_a_contact_sheet(tmp_path):
     from pipegen.outputs import write_render
     from pipegen.scene import load_scene
