@@ -203,3 +203,16 @@ def test_pass_and_target_names_of_300_characters_give_files(tmp_path, capsys):
     assert arr.shape == (36, 64, 4)
     printed = capsys.readouterr().out
     assert any(line.strip() == str(p) for p in pngs for line in printed.splitlines())
+
+
+def test_failed_compile_leaves_the_previous_outputs_byte_for_byte(tmp_path, capsys):
+    build = tmp_path / "build"
+    assert main(["compile", FORWARD, "-o", str(build)]) == 0
+    before = {p: p.read_bytes() for p in build.rglob("*") if p.is_file()}
+    bad = tmp_path / "bad.pipe"
+    bad.write_text(Path(FORWARD).read_text().replace("normalize(normal)", "normalize(nrml)"))
+    (tmp_path / "common").symlink_to(ROOT / "pipelines" / "common")
+    assert main(["compile", str(bad), "-o", str(build)]) == 1
+    assert "nrml" in capsys.readouterr().err
+    assert {p: p.read_bytes() for p in build.rglob("*") if p.is_file()} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.pipe", "build", "common"]
