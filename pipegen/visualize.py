@@ -177,8 +177,8 @@ def _data_panel(values: np.ndarray, kind: str = "data", title: str = "") -> Pane
     """Float data (H, W) or (H, W, C): colour as is, normals from [-1, 1], else auto-ranged."""
     if values.ndim == 2:
         lo, hi = np.nanmin(values), np.nanmax(values)
-        return Panel(_gray(_autorange(values)), title,
-                     note=f"{_num(lo)} = black, {_num(hi)} = white" if hi > lo else f"all {_num(lo)}")
+        note = f"{_num(lo)} = black, {_num(hi)} = white" if hi > lo else f"all {_num(lo)}"
+        return Panel(_gray(_autorange(values)), title, note=note)
     rgb = values[..., :3] if values.shape[2] >= 3 else np.dstack(
         [values, np.zeros(values.shape[:2] + (3 - values.shape[2],))])
     note = ""
@@ -366,6 +366,10 @@ def _only_conversions(e, inner) -> bool:
     return True
 
 
+def _constant(e) -> bool:
+    return isinstance(e, ir.Const) or (isinstance(e, ir.Var) and e.kind == "param")
+
+
 def _scaled(e, locals_, leaf) -> bool:
     """``e`` is ``leaf`` negated, or multiplied or divided by constants and parameters."""
     e = _resolve(e, locals_)
@@ -374,10 +378,9 @@ def _scaled(e, locals_, leaf) -> bool:
     if isinstance(e, ir.Unary) and e.op == "-":
         return _scaled(e.operand, locals_, leaf)
     if isinstance(e, ir.Binary) and e.op in ("*", "/"):
-        const = lambda x: isinstance(x, ir.Const) or (isinstance(x, ir.Var) and x.kind == "param")  # noqa: E731
-        if const(e.right):
+        if _constant(e.right):
             return _scaled(e.left, locals_, leaf)
-        if e.op == "*" and const(e.left):
+        if e.op == "*" and _constant(e.left):
             return _scaled(e.right, locals_, leaf)
     return False
 
