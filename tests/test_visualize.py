@@ -12,8 +12,8 @@ from PIL import Image
 
 from pipegen import formats, packing
 from pipegen.compiler import compile_file, compile_source
-from pipegen.visualize import (DEPTH_FAR, category_color, compose, target_panels,
-                               target_views, to_rgb8, write_pictures)
+from pipegen.visualize import (DEPTH_FAR, category_color, compose, target_label,
+                               target_panels, target_views, to_rgb8, write_pictures)
 
 ROOT = Path(__file__).resolve().parent.parent
 NEAR, FAR = 0.5, 40.0
@@ -241,6 +241,10 @@ def test_write_pictures_writes_every_target_and_a_labelled_contact_sheet(tmp_pat
     assert Image.open(tmp_path / "gdsf.png").size[0] > 3 * 5
     img = Image.open(sheet)
     assert img.size[0] >= 256 and img.size[1] > 5 * 20
+    # each tile is labelled with the target's name, format and size
+    assert target_label("gds.stencil", inferred, targets["gds.stencil"]) == \
+        "gds.stencil  d24s8 stencil  5x8"
+    assert target_label("gdsf", inferred, targets["gdsf"]) == "gdsf  rg16  5x8"
 
 
 def test_compose_puts_legends_under_the_panels(lidr):
