@@ -637,10 +637,10 @@ def compose(panels: list[Panel], box: Optional[tuple[int, int]] = None):
         out.paste(img, (x, 0))
         y = img.size[1] + 2
         for i, t in enumerate(text):
-            draw.text((x, y), t, fill=TEXT if i == 0 else DIM_TEXT, font=font)
+            draw.text((x + 2, y), t, fill=TEXT if i == 0 else DIM_TEXT, font=font)
             y += line
         for row in rows:
-            xx = x
+            xx = x + 2
             for label, color in row:
                 if color is not None:
                     draw.rectangle([xx, y + 2, xx + 9, y + 11], fill=tuple(color),
