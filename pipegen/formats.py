@@ -1,8 +1,12 @@
 """Render-target formats: the single source of truth.
 
 Every consumer reads formats from here: the language front end (which names exist), the GL
-backend (its own table maps a format *name* to GL enums), the CL code generator (store/convert
-code), the numpy oracle (quantize/dequantize) and the cross-backend comparator (tolerances).
+runtime (``runtime/gl_formats.py`` derives GL's enums from a format's properties), the CL code
+generator (storage, loads, stores and conversions, ``backends/opencl.py``), the CL runtime
+(``Format.pack``/``unpack``), the numpy oracle (quantize/dequantize) and the cross-backend
+comparator (tolerances).  No other module names a format: adding one is a row in ``FORMATS``
+(plus tests), as long as the backends already know its kind of storage and conversion
+(``Encode``).
 
 Arrays returned by a pipeline's ``render()`` hold *codes*: the integer values stored in the
 target for fixed-point and integer formats, IEEE values for float formats.  ``dequantize``
@@ -40,12 +44,43 @@ class Tolerance:
     abs_floor: float = 0.0
 
 
+class Encode(enum.Enum):
+    """How a shader's float output becomes a fixed-point code (llvmpipe, measured on Mesa 22.3;
+    the CL backend and ``Format.quantize`` reproduce it).
+
+    ``ROUND``: clamp to the format's range ([0, 1] or [-1, 1]; NaN -> the low end), multiply
+    by the largest code in float32, round half to even.
+    ``ROUND_SAT``: multiply by the largest code in float32, round half to even, saturate to
+    the code range (NaN -> the lowest code): 8-bit snorm reaches -128 from values below -1
+    (measured; 16-bit snorm clamps to -32767 instead, ``ROUND``).
+    ``UNORM16``: llvmpipe's 16-bit blend type: the low 16 mantissa bits of
+    ``clamp(x, 0, 1) * (65535/65536) + 128`` (two float32 roundings; the same codes as
+    ``ROUND`` for 16-bit channels), then each narrower channel scaled down with Mesa's
+    ``scale_bits`` (lp_state_fs.c; ``scale_bits16``).
+    """
+
+    ROUND = "round"
+    ROUND_SAT = "round_sat"
+    UNORM16 = "unorm16"
+
+
 @dataclass(frozen=True)
 class Format:
+    """One render-target format: everything a backend, the oracle or the comparator needs.
+
+    ``bits``: bits per colour channel (depth formats: ``(depth_bits,)``); ``kind``: how the
+    codes are read; ``encode``: how a float becomes a code (fixed-point kinds); ``word_bits``:
+    0 when each channel is an element of its own, else the width of the one word the channels
+    are packed into, channel 0 in the low bits (GL's ``*_REV`` packed types, e.g. rgb10a2's
+    10/10/10/2 bits in a 32-bit word).  Everything else is derived from these.
+    """
+
     name: str
     kind: Kind
     bits: tuple[int, ...]           # bits per colour channel (depth formats: (depth_bits,))
     stencil_bits: int = 0
+    encode: Encode = Encode.ROUND   # float -> code (UNORM / SNORM)
+    word_bits: int = 0              # channels packed into one word of this width (0: not packed)
 
     # -- shape -----------------------------------------------------------------------------
     @property
@@ -74,8 +109,20 @@ class Format:
         return self.kind is Kind.UINT
 
     @property
+    def is_normalized(self) -> bool:
+        """Fixed-point colour formats: codes stand for values in [0, 1] (unorm) or [-1, 1]."""
+        return self.kind in (Kind.UNORM, Kind.SNORM)
+
+    @property
+    def is_signed(self) -> bool:
+        return self.kind is Kind.SNORM
+
+    @property
     def blendable(self) -> bool:
-        return self.kind in (Kind.UNORM, Kind.SNORM, Kind.FLOAT)
+        """Whether pipegen lets a pass blend into this format.  snorm is not blendable: what
+        llvmpipe computes for it is not modelled (measured on Mesa 22.3: up to 123 codes from
+        the spec's float formula with SRC_ALPHA factors), so it could not be cross-checked."""
+        return self.kind in (Kind.UNORM, Kind.FLOAT)
 
     @property
     def blend_is_exact(self) -> bool:
@@ -91,6 +138,59 @@ class Format:
         assert self.kind in (Kind.UNORM, Kind.UINT, Kind.DEPTH_STENCIL)
         return (1 << max(self.bits)) - 1
 
+    @property
+    def max_codes(self) -> tuple[int, ...]:
+        """The code of 1.0 per channel (unorm, snorm, the depth of d24s8): 2^b - 1, snorm
+        2^(b-1) - 1 (its codes run from -max - 1, which also reads as -1.0, to max)."""
+        assert self.is_normalized or self.kind is Kind.DEPTH_STENCIL, self.name
+        if self.kind is Kind.SNORM:
+            return tuple((1 << (b - 1)) - 1 for b in self.bits)
+        return tuple((1 << b) - 1 for b in self.bits)
+
+    # -- storage -----------------------------------------------------------------------------
+    @property
+    def packed(self) -> bool:
+        return self.word_bits > 0
+
+    @property
+    def shifts(self) -> tuple[int, ...]:
+        """Bit offset of each channel in the packed word (channel 0 in the low bits)."""
+        return tuple(sum(self.bits[:k]) for k in range(self.channels))
+
+    @property
+    def element_dtype(self) -> np.dtype:
+        """dtype of one stored element: the packed word, or one channel's code."""
+        if self.packed:
+            return np.dtype({8: np.uint8, 16: np.uint16, 32: np.uint32}[self.word_bits])
+        return self.dtype
+
+    @property
+    def elements(self) -> int:
+        """Stored elements per pixel (1 for packed formats)."""
+        return 1 if self.packed else self.channels
+
+    def pack(self, codes: np.ndarray) -> np.ndarray:
+        """Codes ``(..., C)`` (single channel: ``(...)``) -> stored elements: one word per
+        pixel for packed formats, else the codes themselves in ``dtype``."""
+        c = np.asarray(codes)
+        if not self.packed:
+            return np.ascontiguousarray(c.astype(self.dtype))
+        w = self.element_dtype
+        c = c.astype(np.uint64)
+        word = np.zeros(c.shape[:-1], np.uint64)
+        for k, (b, s) in enumerate(zip(self.bits, self.shifts)):
+            word |= (c[..., k] & np.uint64((1 << b) - 1)) << np.uint64(s)
+        return word.astype(w)
+
+    def unpack(self, words: np.ndarray) -> np.ndarray:
+        """Stored elements -> codes (inverse of ``pack``)."""
+        w = np.asarray(words)
+        if not self.packed:
+            return w
+        w = w.astype(np.uint64)
+        return np.stack([(w >> np.uint64(s)) & np.uint64((1 << b) - 1)
+                         for b, s in zip(self.bits, self.shifts)], axis=-1).astype(self.dtype)
+
     # -- numpy storage ---------------------------------------------------------------------
     @property
     def dtype(self) -> np.dtype:
@@ -100,21 +200,28 @@ class Format:
             return np.dtype(np.float16 if b == 16 else np.float32)
         if self.kind is Kind.DEPTH:
             return np.dtype(np.float32)
-        if self.kind is Kind.SNORM:
-            return np.dtype({8: np.int8, 16: np.int16}[b])
         if self.kind is Kind.DEPTH_STENCIL:
             return np.dtype(np.uint32)
-        return np.dtype({8: np.uint8, 10: np.uint16, 16: np.uint16, 32: np.uint32}[b])
+        size = 8 if b <= 8 else 16 if b <= 16 else 32
+        return np.dtype(f"{'i' if self.kind is Kind.SNORM else 'u'}{size // 8}")
 
     def array_shape(self, width: int, height: int) -> tuple[int, ...]:
         return (height, width) if self.channels == 1 else (height, width, self.channels)
 
     # -- conversions (the numpy oracle's view of the format) ------------------------------
+    def _per_channel(self, values: tuple[int, ...]):
+        """A per-channel constant, shaped for arrays with (or, single channel, without) a
+        trailing channel axis."""
+        return values[0] if self.channels == 1 or len(set(values)) == 1 else np.array(values)
+
     def quantize(self, x: np.ndarray) -> np.ndarray:
         """Shader output value(s) -> stored codes, following the conversions measured on
         llvmpipe (which the CL backend reproduces):
 
-        - unorm: clamp to [0,1], multiply by 2^b-1 in float32, round half to even; NaN -> 0;
+        - unorm and snorm: as ``encode`` says (``Encode``): clamp to [0, 1] / [-1, 1] (NaN ->
+          the low end), multiply by the largest code in float32, round half to even; 8-bit
+          snorm saturates after rounding instead (-128 below -1); rgb10a2 through llvmpipe's
+          16-bit path;
         - float16: finite values clamp to ±65504 and round toward zero (70000 -> 65504);
           ±inf and NaN are kept, half denormals too;
         - float32 / d32f: stored as float32 with denormals flushed (CL builds with
@@ -122,15 +229,20 @@ class Format:
         - d24: ``rint(float32(z) * 16777215.0f)`` in float32.
         """
         x = np.asarray(x, dtype=np.float64)
-        if self.kind in (Kind.UNORM, Kind.DEPTH_STENCIL):
-            scale = np.array([(1 << b) - 1 for b in self.bits], dtype=np.float32)
-            if self.kind is Kind.DEPTH_STENCIL or self.channels == 1:
-                scale = scale[0]
-            clamped = np.clip(np.nan_to_num(x, nan=0.0), 0.0, 1.0).astype(np.float32)
-            return np.rint(clamped * scale).astype(self.dtype)
-        if self.kind is Kind.SNORM:
-            scale = np.float32((1 << (max(self.bits) - 1)) - 1)
-            clamped = np.clip(np.nan_to_num(x, nan=0.0), -1.0, 1.0).astype(np.float32)
+        if self.is_normalized or self.kind is Kind.DEPTH_STENCIL:
+            lo = -1.0 if self.is_signed else 0.0
+            if self.encode is Encode.ROUND_SAT:
+                top = np.asarray(self._per_channel(self.max_codes), dtype=np.float32)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    y = np.rint(x.astype(np.float32) * top)
+                low = -top - 1 if self.is_signed else np.zeros_like(top)
+                y = np.where(np.isnan(y), low, np.clip(y, low, top))
+                return y.astype(self.dtype)
+            clamped = np.clip(np.nan_to_num(x, nan=lo), lo, 1.0).astype(np.float32)
+            if self.encode is Encode.UNORM16:
+                c16 = unorm16_codes(clamped)
+                return scale_bits16(c16, self._per_channel(self.bits)).astype(self.dtype)
+            scale = np.asarray(self._per_channel(self.max_codes), dtype=np.float32)
             return np.rint(clamped * scale).astype(self.dtype)
         if self.kind is Kind.FLOAT and self.dtype == np.float16:
             return half_toward_zero(x)
@@ -146,14 +258,10 @@ class Format:
     def dequantize(self, codes: np.ndarray) -> np.ndarray:
         """Stored codes -> the float value a shader reads (float64)."""
         c = np.asarray(codes)
-        if self.kind in (Kind.UNORM, Kind.DEPTH_STENCIL):
-            scale = np.array([(1 << b) - 1 for b in self.bits], dtype=np.float64)
-            if self.kind is Kind.DEPTH_STENCIL or self.channels == 1:
-                scale = scale[0]
-            return c.astype(np.float64) / scale
-        if self.kind is Kind.SNORM:
-            scale = float((1 << (max(self.bits) - 1)) - 1)
-            return np.maximum(c.astype(np.float64) / scale, -1.0)
+        if self.is_normalized or self.kind is Kind.DEPTH_STENCIL:
+            scale = np.asarray(self._per_channel(self.max_codes), dtype=np.float64)
+            v = c.astype(np.float64) / scale
+            return np.maximum(v, -1.0) if self.is_signed else v
         return c.astype(np.float64)
 
     def tolerance(self, blended_passes: int = 0) -> Tolerance:
@@ -174,6 +282,28 @@ class Format:
         if self.kind is Kind.DEPTH:
             return Tolerance("ulp", 4)
         return Tolerance("exact", 0)
+
+
+def unorm16_codes(x: np.ndarray) -> np.ndarray:
+    """llvmpipe's float -> 16-bit unorm conversion (lp_bld_conv.c,
+    lp_build_clamped_float_to_unsigned_norm): the low 16 mantissa bits of
+    ``x * (65535/65536) + 128`` in float32, ``x`` already clamped to [0, 1] (uint32 codes)."""
+    f32 = np.float32
+    y = (np.asarray(x, f32) * f32(65535 / 65536)).astype(f32) + f32(128.0)
+    return np.ascontiguousarray(y.astype(f32)).view(np.uint32) & np.uint32(0xFFFF)
+
+
+def scale_bits16(c16: np.ndarray, bits) -> np.ndarray:
+    """16-bit codes -> ``bits``-bit codes as Mesa's ``scale_bits`` (lp_state_fs.c) narrows
+    them: ``c >> (16 - b)`` when ``16 - b <= b`` (truncating: "wrong rounding" in Mesa's
+    words), else ``((c >> b) * (2^b - 1) + 2^(15 - b)) >> (16 - b)``.  ``bits`` is an int or
+    an array broadcast against ``c16``'s last axis."""
+    c = np.asarray(c16).astype(np.int64)
+    b = np.asarray(bits, np.int64)
+    d = 16 - b
+    shifted = c >> d
+    rounded = ((c >> b) * ((1 << b) - 1) + (1 << np.maximum(d - 1, 0))) >> d
+    return np.where(d <= b, shifted, rounded)
 
 
 def half_toward_zero(x: np.ndarray) -> np.ndarray:
@@ -201,32 +331,36 @@ def flush_denormals(x: np.ndarray) -> np.ndarray:
     return np.where(sub, np.copysign(np.zeros_like(x), x), x)
 
 
-def _f(name: str, kind: Kind, bits: tuple[int, ...], stencil: int = 0) -> Format:
-    return Format(name, kind, bits, stencil)
+U, S, FL, UI = Kind.UNORM, Kind.SNORM, Kind.FLOAT, Kind.UINT
 
-
+# THE table.  A new format is one row here (plus tests); the backends derive the rest
+# (gl_formats.py GL's spelling, opencl.py the OpenCL storage and conversions).
 FORMATS: dict[str, Format] = {
     f.name: f
     for f in [
-        _f("r8", Kind.UNORM, (8,)),
-        _f("rg8", Kind.UNORM, (8, 8)),
-        _f("rgba8", Kind.UNORM, (8, 8, 8, 8)),
-        _f("r16", Kind.UNORM, (16,)),
-        _f("rg16", Kind.UNORM, (16, 16)),
-        _f("rgba16", Kind.UNORM, (16, 16, 16, 16)),
-        _f("r16f", Kind.FLOAT, (16,)),
-        _f("rg16f", Kind.FLOAT, (16, 16)),
-        _f("rgba16f", Kind.FLOAT, (16, 16, 16, 16)),
-        _f("r32f", Kind.FLOAT, (32,)),
-        _f("rg32f", Kind.FLOAT, (32, 32)),
-        _f("rgba32f", Kind.FLOAT, (32, 32, 32, 32)),
-        _f("r32ui", Kind.UINT, (32,)),
-        _f("rgba8ui", Kind.UINT, (8, 8, 8, 8)),
-        _f("rgb10a2", Kind.UNORM, (10, 10, 10, 2)),
-        _f("d24s8", Kind.DEPTH_STENCIL, (24,), stencil=8),
-        _f("d32f", Kind.DEPTH, (32,)),
+        Format("r8", U, (8,)),
+        Format("rg8", U, (8, 8)),
+        Format("rgba8", U, (8, 8, 8, 8)),
+        Format("r16", U, (16,), encode=Encode.UNORM16),
+        Format("rg16", U, (16, 16), encode=Encode.UNORM16),
+        Format("rgba16", U, (16, 16, 16, 16), encode=Encode.UNORM16),
+        Format("r16f", FL, (16,)),
+        Format("rg16f", FL, (16, 16)),
+        Format("rgba16f", FL, (16, 16, 16, 16)),
+        Format("r32f", FL, (32,)),
+        Format("rg32f", FL, (32, 32)),
+        Format("rgba32f", FL, (32, 32, 32, 32)),
+        Format("r32ui", UI, (32,)),
+        Format("rgba8ui", UI, (8, 8, 8, 8)),
+        Format("rgb10a2", U, (10, 10, 10, 2), encode=Encode.UNORM16, word_bits=32),
+        Format("rg8_snorm", S, (8, 8), encode=Encode.ROUND_SAT),
+        Format("rgba8_snorm", S, (8, 8, 8, 8), encode=Encode.ROUND_SAT),
+        Format("rg16_snorm", S, (16, 16)),
+        Format("d24s8", Kind.DEPTH_STENCIL, (24,), stencil_bits=8),
+        Format("d32f", Kind.DEPTH, (32,)),
     ]
 }
+del U, S, FL, UI
 
 
 def get(name: str) -> Format:

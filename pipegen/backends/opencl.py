@@ -53,8 +53,9 @@ constant t, ``a (1 - t) + b t``, ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's 
 ``log2`` polynomials (so ``pow``, ``exp``, ``log``), unorm reads as ``code * (1 / max)``,
 unorm8 bilinear filtering in 8-bit fixed point, bilinear filtering of other formats with
 llvmpipe's clamp-to-edge texel coordinates and fused lerps (x then y), unorm16 stores
-``x * (65535/65536) + 128`` (the low mantissa bits) and rgb10a2 stores that 16-bit code
-scaled down (rgb ``>> 6``), varyings interpolated with llvmpipe's float32 planes
+``x * (65535/65536) + 128`` (the low mantissa bits) and narrower unorm channels store that
+16-bit code scaled down (Mesa's ``scale_bits``: 10 bits ``>> 6``), snorm stores and reads as
+``formats.Encode`` says, varyings interpolated with llvmpipe's float32 planes
 (``cl_setup.attribute_planes``).  Not mirrored: ``atan``, ``sin``, ``cos``
 (OpenCL's, within a few ulp) and NIR's constant reassociation (``(x * 3.0) * 0.7`` folded to
 ``x * 2.1``).
@@ -63,6 +64,7 @@ scaled down (rgb ``>> 6``), varyings interpolated with llvmpipe's float32 planes
 from __future__ import annotations
 
 import re
+import textwrap
 from dataclasses import replace
 from typing import Optional
 
@@ -344,82 +346,199 @@ class OpenCLLanguage(CStyleLanguage):
 # ---- formats on the device --------------------------------------------------------------------------
 
 
-def cl_format(name: str) -> dict:
-    """How a target format lives in an OpenCL buffer and in the raster kernel's registers.
+# numpy element type -> OpenCL C scalar type
+_CL_SCALAR = {"u1": "uchar", "i1": "char", "u2": "ushort", "i2": "short", "u4": "uint",
+              "f2": "half", "f4": "float"}
 
-    ``cls``: unorm8 | unorm | half | float | uint | d24 | d32f.  ``storage``: the buffer's
-    element type (one per pixel).  ``reg``: the register type (uint4 codes for unorm/uint,
-    float4 values for float formats, uint / float for depth).  ``load``/``store``: expression /
-    statement templates over ``b`` (buffer), ``i`` (pixel index) and ``r`` (register).
-    ``read``: the decoded float4 (uint4 for integer formats) a shader sees, over ``b``/``i``.
+
+def cl_format(name: str) -> dict:
+    """How a target format lives in an OpenCL buffer and in the raster kernel's registers,
+    derived from ``formats.Format`` (no format is named here).
+
+    ``cls``: unorm8 | unorm | snorm | half | float | uint | d24 | d32f (depth bits).  ``storage``: the
+    buffer's element type (one per pixel).  ``reg``: the register type (uint4 codes for
+    unorm/uint, the int codes' bits for snorm, float4 values for float formats, uint / float
+    for depth).  ``load``/``store``: expression / statement templates over ``b`` (buffer),
+    ``i`` (pixel index) and ``r`` (register).  ``read``: the decoded float4 (uint4 for integer
+    formats) a shader sees, over ``b``/``i``.  ``code``: the prelude function turning a float4
+    into unorm codes; ``encode``: snorm's float4 ``r`` -> register expression.
     """
     fmt = F.get(name)
     n = fmt.channels
+    el = _CL_SCALAR[fmt.element_dtype.str[1:]]
+    np_name = fmt.element_dtype.name
     if fmt.kind is F.Kind.DEPTH_STENCIL:
-        return {"name": name, "cls": "d24", "storage": "uint", "reg": "uint", "np": "uint32",
+        top = f"{fmt.max_codes[0]}.0f"
+        return {"name": name, "cls": f"d{fmt.bits[0]}", "storage": el, "reg": el, "np": np_name,
                 "load": "b[i]", "store": "b[i] = r;",
-                "read": "(float4)((float)b[i] / 16777215.0f, 0.0f, 0.0f, 1.0f)", "vec": "float4"}
+                "read": f"(float4)((float)b[i] / {top}, 0.0f, 0.0f, 1.0f)", "vec": "float4"}
     if fmt.kind is F.Kind.DEPTH:
-        return {"name": name, "cls": "d32f", "storage": "float", "reg": "float", "np": "float32",
-                "load": "b[i]", "store": "b[i] = r;",
+        return {"name": name, "cls": f"d{fmt.bits[0]}f", "storage": el, "reg": el,
+                "np": np_name, "load": "b[i]", "store": "b[i] = r;",
                 "read": "(float4)(b[i], 0.0f, 0.0f, 1.0f)", "vec": "float4"}
-    if name == "rgb10a2":
-        return {"name": name, "cls": "unorm", "storage": "uint", "reg": "uint4", "np": "uint32",
-                "load": "(uint4)(b[i] & 1023u, (b[i] >> 10) & 1023u, (b[i] >> 20) & 1023u, b[i] >> 30)",
-                "store": "b[i] = (r.x & 1023u) | ((r.y & 1023u) << 10) | ((r.z & 1023u) << 20) | (r.w << 30);",
-                "maxv": "(float4)(1023.0f, 1023.0f, 1023.0f, 3.0f)", "code": "pg_rgb10a2_code4",
-                "rcpv": _rcp([1023, 1023, 1023, 3]),
-                "read": None, "vec": "float4"}
-    bits = fmt.bits[0]
-    if fmt.kind is F.Kind.UNORM or fmt.kind is F.Kind.UINT:
-        el = {8: "uchar", 16: "ushort", 32: "uint"}[bits]
-        one = (1 << bits) - 1 if fmt.kind is F.Kind.UNORM else 1
-        storage = el if n == 1 else f"{el}{n}"
-        if n == 1:
-            load = f"(uint4)(b[i], 0u, 0u, {one}u)"
-            store = f"b[i] = ({el})r.x;"
-        elif n == 2:
-            load = f"(uint4)(convert_uint2(b[i]), 0u, {one}u)"
-            store = f"b[i] = convert_{el}2(r.xy);"
-        else:
-            load = "convert_uint4(b[i])" if el != "uint" else "b[i]"
-            store = f"b[i] = convert_{el}4(r);" if el != "uint" else "b[i] = r;"
-        if fmt.kind is F.Kind.UINT:
-            mask = (1 << bits) - 1
-            return {"name": name, "cls": "uint", "storage": storage, "reg": "uint4",
-                    "np": {8: "uint8", 16: "uint16", 32: "uint32"}[bits], "load": load,
-                    "store": store, "read": None, "vec": "uint4", "mask": f"{mask}u"}
-        m = float((1 << bits) - 1)
-        return {"name": name, "cls": "unorm8" if bits == 8 else "unorm", "storage": storage,
-                "reg": "uint4", "np": {8: "uint8", 16: "uint16"}[bits], "load": load,
-                "store": store, "maxv": f"(float4)({m:.1f}f)", "rcpv": _rcp([m] * 4),
-                "code": "pg_unorm8_code4" if bits == 8 else "pg_unorm16_code4",
-                "read": None, "vec": "float4"}
+    assert n in (1, 2, 4), f"{name}: OpenCL has no {n}-component storage of the same size"
     if fmt.kind is F.Kind.FLOAT:
-        if bits == 16:
-            suffix = "" if n == 1 else str(n)
-            if n == 1:
-                load = "(float4)(vload_half(i, b), 0.0f, 0.0f, 1.0f)"
-                store = "vstore_half_rtz(r.x, i, b);"
-            elif n == 2:
-                load = "(float4)(vload_half2(i, b), 0.0f, 1.0f)"
-                store = "vstore_half2_rtz(r.xy, i, b);"
-            else:
-                load = "vload_half4(i, b)"
-                store = "vstore_half4_rtz(r, i, b);"
-            return {"name": name, "cls": "half", "storage": "half", "reg": "float4",
-                    "np": "float16", "load": load, "store": store, "read": load, "vec": "float4",
-                    "suffix": suffix}
-        storage = "float" if n == 1 else f"float{n}"
+        return _cl_float(fmt, el)
+    storage = el if fmt.elements == 1 else f"{el}{n}"
+    if fmt.packed:
+        load, store = _packed_load_store(fmt)
+    elif fmt.is_signed:
+        load, store = _signed_load_store(fmt, el)
+    else:
+        load, store = _unsigned_load_store(fmt, el)
+    out = {"name": name, "storage": storage, "reg": "uint4", "np": np_name, "load": load,
+           "store": store, "read": None}
+    if fmt.kind is F.Kind.UINT:
+        return {**out, "cls": "uint", "vec": "uint4", "mask": f"{(1 << max(fmt.bits)) - 1}u"}
+    rcpv = _rcp(_four(list(fmt.max_codes), n))
+    out.update(vec="float4", rcpv=rcpv)
+    if fmt.is_signed:
+        ints = _signed_ints(fmt)
+        return {**out, "cls": "snorm", "code": None, "encode": _snorm_encode(fmt),
+                "read": f"fmax(convert_float4({ints}) * {rcpv}, -1.0f)"}
+    if fmt.blend_is_exact:
+        return {**out, "cls": "unorm8", "code": "pg_unorm8_code4"}
+    assert fmt.encode is F.Encode.UNORM16, f"{name}: no OpenCL conversion for {fmt.encode}"
+    narrow = any(b < 16 for b in fmt.bits)
+    return {**out, "cls": "unorm", "code": f"pg_{name}_code4" if narrow else "pg_unorm16_code4"}
+
+
+def _four(values: list, n: int) -> list:
+    """Per-channel values of an n-channel format, padded to 4 (missing channels repeat the
+    last value, whose lanes are never used)."""
+    return values + values[-1:] * (4 - n)
+
+
+def _unsigned_load_store(fmt: F.Format, el: str) -> tuple[str, str]:
+    n = fmt.channels
+    one = fmt.max_codes[-1] if fmt.is_normalized else 1      # GL reads missing alpha as 1
+    if n == 1:
+        return f"(uint4)(b[i], 0u, 0u, {one}u)", f"b[i] = ({el})r.x;"
+    if n == 2:
+        return f"(uint4)(convert_uint2(b[i]), 0u, {one}u)", f"b[i] = convert_{el}2(r.xy);"
+    if el == "uint":
+        return "b[i]", "b[i] = r;"
+    return "convert_uint4(b[i])", f"b[i] = convert_{el}4(r);"
+
+
+def _signed_ints(fmt: F.Format) -> str:
+    """int4 codes of an snorm pixel (``b[i]``); GL reads missing channels as (0, 1)."""
+    n, one = fmt.channels, fmt.max_codes[-1]
+    if n == 1:
+        return f"(int4)(b[i], 0, 0, {one})"
+    if n == 2:
+        return f"(int4)(convert_int2(b[i]), 0, {one})"
+    return "convert_int4(b[i])"
+
+
+def _signed_load_store(fmt: F.Format, el: str) -> tuple[str, str]:
+    """snorm: registers hold the int codes' bits (uint4, so masks and moves are shared)."""
+    n = fmt.channels
+    if n == 1:
+        store = f"b[i] = ({el})as_int(r.x);"
+    elif n == 2:
+        store = f"b[i] = convert_{el}2(as_int2(r.xy));"
+    else:
+        store = f"b[i] = convert_{el}4(as_int4(r));"
+    return f"as_uint4({_signed_ints(fmt)})", store
+
+
+def _packed_load_store(fmt: F.Format) -> tuple[str, str]:
+    """Channels packed into one word, channel 0 in the low bits."""
+    loads, stores = [], []
+    for k, (bits, shift) in enumerate(zip(fmt.bits, fmt.shifts)):
+        mask = f" & {(1 << bits) - 1}u" if shift + bits < fmt.word_bits else ""
+        word = f"(b[i] >> {shift})" if shift and mask else f"b[i] >> {shift}" if shift else "b[i]"
+        loads.append(word + mask)
+        value = f"r.{'xyzw'[k]}"
+        value = f"({value}{mask})" if mask else value
+        stores.append(f"({value} << {shift})" if shift else value)
+    loads += ["0u", "0u", "0u", f"{fmt.max_codes[-1]}u"][len(loads):]
+    return f"(uint4)({', '.join(loads)})", f"b[i] = {' | '.join(stores)};"
+
+
+def _snorm_encode(fmt: F.Format) -> str:
+    """float4 ``r`` -> snorm register (the codes' bits), as ``Format.quantize`` (``Encode``)."""
+    m = _rcp_literal(fmt.max_codes[0])
+    if fmt.encode is F.Encode.ROUND_SAT:     # round x * max, saturate to [-max - 1, max]
+        lo = _rcp_literal(-fmt.max_codes[0] - 1)
+        return f"as_uint4(convert_int4_rte(fmin(fmax(r * {m}, {lo}), {m})))"
+    assert fmt.encode is F.Encode.ROUND, fmt.encode
+    return f"as_uint4(convert_int4_rte(fmin(fmax(r, -1.0f), 1.0f) * {m}))"
+
+
+def _rcp_literal(x: float) -> str:
+    return OpenCLLanguage().render_float(float(x))
+
+
+def _cl_float(fmt: F.Format, el: str) -> dict:
+    n, name = fmt.channels, fmt.name
+    if el == "half":
+        suffix = "" if n == 1 else str(n)
         if n == 1:
-            load, store = "(float4)(b[i], 0.0f, 0.0f, 1.0f)", "b[i] = r.x;"
+            load = "(float4)(vload_half(i, b), 0.0f, 0.0f, 1.0f)"
+            store = "vstore_half_rtz(r.x, i, b);"
         elif n == 2:
-            load, store = "(float4)(b[i], 0.0f, 1.0f)", "b[i] = r.xy;"
+            load = "(float4)(vload_half2(i, b), 0.0f, 1.0f)"
+            store = "vstore_half2_rtz(r.xy, i, b);"
         else:
-            load, store = "b[i]", "b[i] = r;"
-        return {"name": name, "cls": "float", "storage": storage, "reg": "float4",
-                "np": "float32", "load": load, "store": store, "read": load, "vec": "float4"}
-    raise AssertionError(f"format {name} has no OpenCL layout")
+            load = "vload_half4(i, b)"
+            store = "vstore_half4_rtz(r, i, b);"
+        return {"name": name, "cls": "half", "storage": "half", "reg": "float4",
+                "np": "float16", "load": load, "store": store, "read": load, "vec": "float4",
+                "suffix": suffix}
+    storage = "float" if n == 1 else f"float{n}"
+    if n == 1:
+        load, store = "(float4)(b[i], 0.0f, 0.0f, 1.0f)", "b[i] = r.x;"
+    elif n == 2:
+        load, store = "(float4)(b[i], 0.0f, 1.0f)", "b[i] = r.xy;"
+    else:
+        load, store = "b[i]", "b[i] = r;"
+    return {"name": name, "cls": "float", "storage": storage, "reg": "float4",
+            "np": "float32", "load": load, "store": store, "read": load, "vec": "float4"}
+
+
+def scaled16_conversions() -> list[dict]:
+    """The prelude's ``pg_NAME_code4`` of the unorm formats narrower than 16 bits that llvmpipe
+    stores through its 16-bit blend type (``formats.Encode.UNORM16``): ``expr`` narrows the
+    16-bit codes ``c`` with Mesa's ``scale_bits`` (``formats.scale_bits16``), ``doc`` says so."""
+    out = []
+    for fmt in F.FORMATS.values():
+        if fmt.kind is not F.Kind.UNORM or fmt.encode is not F.Encode.UNORM16 \
+                or all(b >= 16 for b in fmt.bits):
+            continue
+        assert fmt.channels == 4, fmt.name
+        exprs, docs = [], []
+        k = 0
+        while k < 4:           # runs of channels with the same bits: one swizzle each
+            j = k
+            while j < 4 and fmt.bits[j] == fmt.bits[k]:
+                j += 1
+            b, d, sw = fmt.bits[k], 16 - fmt.bits[k], "xyzw"[k:j]
+            who = "alpha" if sw == "w" else "rgba"[k:j]
+            if d <= b:
+                exprs.append(f"c.{sw} >> {d}")
+                docs.append(f'{who} c16 >> {d} (truncating, "wrong rounding" in Mesa\'s words)')
+            else:
+                exprs.append(f"((c.{sw} >> {b}) * {(1 << b) - 1}u + {1 << (d - 1)}u) >> {d}")
+                docs.append(f"{who} ((c16 >> {b}) * {(1 << b) - 1} + 2^{d - 1}) >> {d}")
+            k = j
+        out.append({"name": fmt.name, "expr": ", ".join(exprs), "doc": ", ".join(docs)})
+    return out
+
+
+@templating.template_filter
+def c_comment(text: str, width: int = 95) -> str:
+    """``text`` as a C block comment wrapped at ``width`` columns."""
+    lines = textwrap.wrap(text + " */", width, initial_indent="/* ", subsequent_indent=" * ",
+                          break_on_hyphens=False, break_long_words=False)
+    return "\n".join(lines)
+
+
+def prelude_source(tile: int = TILE) -> str:
+    """The prelude every pass program starts with (``templates/cl_prelude.cl.j2``)."""
+    return templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines(),
+                             scaled16=scaled16_conversions())
 
 
 def _rcp(maxima) -> str:
@@ -575,14 +694,14 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         f = cl_format(plan.target(name).format.name)
         reads.append({**f, "name": name, "format": f["name"], "decoded": _read_expr(f),
                       "integer": f["cls"] == "uint",
-                      "linear": f["cls"] in ("unorm8", "unorm", "half", "float"),
+                      "linear": f["cls"] in ("unorm8", "unorm", "snorm", "half", "float"),
                       "sampled": name in code.sampled})
     inputs = set(code.inputs)
     draw = pass_.draw
     fields = [f[0] for f in plan.lights.fields]
     volume = (draw.volume or ir.Volume.SPHERE).value
     slots = {f: k for k, f in enumerate(fields)}
-    prelude = templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines())
+    prelude = prelude_source(tile)
     samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
     return templating.render(

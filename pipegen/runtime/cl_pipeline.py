@@ -230,21 +230,13 @@ class CLPipeline:
             cl.enqueue_copy(self.queue, buf, np.tile(pattern, n))
 
     def _pack(self, t: _Target, codes: np.ndarray) -> np.ndarray:
-        """Format codes (H, W[, C]) -> device layout."""
-        fmt = t.fmt
-        if fmt.name == "rgb10a2":
-            c = codes.astype(np.uint32)
-            return ((c[..., 0] & 1023) | ((c[..., 1] & 1023) << 10) | ((c[..., 2] & 1023) << 20)
-                    | ((c[..., 3] & 3) << 30)).astype(np.uint32)
-        return np.ascontiguousarray(codes.astype(fmt.dtype))
+        """Format codes (H, W[, C]) -> device layout (``Format.pack``: packed formats hold
+        one word per pixel)."""
+        return np.ascontiguousarray(t.fmt.pack(codes))
 
     def _unpack(self, t: _Target, raw: np.ndarray) -> np.ndarray:
-        fmt = t.fmt
-        if fmt.name == "rgb10a2":
-            w = raw.astype(np.uint32)
-            return np.stack([w & 1023, (w >> 10) & 1023, (w >> 20) & 1023, w >> 30],
-                            axis=-1).astype(fmt.dtype)
-        return raw
+        """Device layout -> format codes (``Format.unpack``)."""
+        return t.fmt.unpack(raw)
 
     def _read_planes(self, t: _Target, buf, sbuf, planes: int):
         """(codes (planes, H, W[, C]), stencil (planes, H, W) or None) of a buffer pair."""
@@ -260,10 +252,8 @@ class CLPipeline:
                 st = np.empty((planes, h, w), np.uint8)
                 cl.enqueue_copy(self.queue, st, sbuf)
             return d, st
-        if fmt.name == "rgb10a2":
-            raw = np.empty((planes, h, w), np.uint32)
-        else:
-            raw = np.empty((planes,) + fmt.array_shape(w, h), fmt.dtype)
+        per_pixel = () if fmt.elements == 1 else (fmt.elements,)
+        raw = np.empty((planes, h, w) + per_pixel, fmt.element_dtype)
         cl.enqueue_copy(self.queue, raw, buf)
         return self._unpack(t, raw), None
 
@@ -374,10 +364,7 @@ class CLPipeline:
     def _alloc(self, t: _Target, planes: int):
         import pyopencl as cl
         fmt = t.fmt
-        if fmt.kind in (F.Kind.DEPTH_STENCIL, F.Kind.DEPTH) or fmt.name == "rgb10a2":
-            nbytes = 4
-        else:
-            nbytes = fmt.dtype.itemsize * fmt.channels
+        nbytes = fmt.element_dtype.itemsize * fmt.elements     # stencil: a buffer apart
         return cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
                          size=max(16, t.pixels * nbytes * planes))
 

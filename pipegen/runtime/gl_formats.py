@@ -1,21 +1,25 @@
-"""GL view of the target formats: format *name* -> GL enums, texture creation, clears, readback.
+"""GL view of the target formats: GL's spelling of a ``formats.Format``, texture creation,
+clears, readback.
 
-``pipegen.formats`` is the single source of truth for what a format is (kind, bits, dtype,
-quantisation); this table only says how GL spells it.  Readback returns *codes*, the same arrays
-``formats.Format.quantize`` produces:
+``pipegen.formats`` is the single source of truth for what a format is (kind, bits, packing,
+dtype, quantisation); GL's enums are *derived* from those properties here, with GL's naming
+rules, so a format added to ``formats.FORMATS`` needs no edit in this file:
 
-=========  =====================================  ================================================
-kind       GL transfer                            codes returned
-=========  =====================================  ================================================
-unorm      GL_UNSIGNED_BYTE / _SHORT              uint8 / uint16 codes
-rgb10a2    GL_UNSIGNED_INT_2_10_10_10_REV         uint16 codes (R, G, B 10-bit; A 2-bit)
-float16    GL_HALF_FLOAT                          float16
-float32    GL_FLOAT                               float32
-uint       GL_*_INTEGER                           uint8 (rgba8ui) / uint32 (r32ui)
-d24s8      GL_DEPTH_STENCIL / GL_UNSIGNED_INT_24_8  uint32 24-bit depth codes + uint8 stencil
-d32f       GL_DEPTH_COMPONENT / GL_FLOAT          float32
-=========  =====================================  ================================================
+================  ==========================================  ================================
+property          internal format (glTexStorage2D)            transfer type
+================  ==========================================  ================================
+unorm             ``GL_<CH><bits>``: GL_RGBA8, GL_R16         GL_UNSIGNED_BYTE / _SHORT
+snorm             ``GL_<CH><bits>_SNORM``: GL_RG8_SNORM       GL_BYTE / GL_SHORT
+float             ``GL_<CH><bits>F``: GL_RGBA16F              GL_HALF_FLOAT / GL_FLOAT
+uint              ``GL_<CH><bits>UI``: GL_R32UI               GL_UNSIGNED_BYTE / _INT
+packed word       runs of equal bits: GL_RGB10_A2             GL_UNSIGNED_INT_2_10_10_10_REV
+depth + stencil   ``GL_DEPTH<d>_STENCIL<s>``                  GL_UNSIGNED_INT_<d>_<s>
+depth (float)     ``GL_DEPTH_COMPONENT<d>F``                  GL_FLOAT
+================  ==========================================  ================================
 
+Readback returns *codes*, the same arrays ``formats.Format.quantize`` produces (packed words
+are split with ``Format.unpack``; depth-stencil formats yield their packed words, see
+``split_depth_stencil``).
 Arrays are in GL memory order here (row 0 = window y 0, the *bottom* row); ``GLPipeline``
 flips them into image order.  Single-channel formats give ``(H, W)``, others ``(H, W, C)``.
 
@@ -26,6 +30,7 @@ or the bound framebuffer (unlike ``glClear``).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
@@ -55,42 +60,60 @@ class GLFormat:
         return F.get(self.name)
 
 
-def _c(name, internal, fmt, typ, comps, np_type, sampler="sampler2D"):
-    return GLFormat(name, internal, fmt, typ, comps, np_type, GL.GL_COLOR_ATTACHMENT0, sampler)
+_CHANNELS = "RGBA"
+_SUFFIX = {F.Kind.UNORM: "", F.Kind.SNORM: "_SNORM", F.Kind.FLOAT: "F", F.Kind.UINT: "UI"}
+_ELEMENT_TYPE = {"u1": "GL_UNSIGNED_BYTE", "i1": "GL_BYTE", "u2": "GL_UNSIGNED_SHORT",
+                 "i2": "GL_SHORT", "u4": "GL_UNSIGNED_INT", "f2": "GL_HALF_FLOAT",
+                 "f4": "GL_FLOAT"}
 
 
-GL_FORMATS: dict[str, GLFormat] = {
-    g.name: g for g in [
-        _c("r8", GL.GL_R8, GL.GL_RED, GL.GL_UNSIGNED_BYTE, 1, np.uint8),
-        _c("rg8", GL.GL_RG8, GL.GL_RG, GL.GL_UNSIGNED_BYTE, 2, np.uint8),
-        _c("rgba8", GL.GL_RGBA8, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, 4, np.uint8),
-        _c("r16", GL.GL_R16, GL.GL_RED, GL.GL_UNSIGNED_SHORT, 1, np.uint16),
-        _c("rg16", GL.GL_RG16, GL.GL_RG, GL.GL_UNSIGNED_SHORT, 2, np.uint16),
-        _c("rgba16", GL.GL_RGBA16, GL.GL_RGBA, GL.GL_UNSIGNED_SHORT, 4, np.uint16),
-        _c("r16f", GL.GL_R16F, GL.GL_RED, GL.GL_HALF_FLOAT, 1, np.float16),
-        _c("rg16f", GL.GL_RG16F, GL.GL_RG, GL.GL_HALF_FLOAT, 2, np.float16),
-        _c("rgba16f", GL.GL_RGBA16F, GL.GL_RGBA, GL.GL_HALF_FLOAT, 4, np.float16),
-        _c("r32f", GL.GL_R32F, GL.GL_RED, GL.GL_FLOAT, 1, np.float32),
-        _c("rg32f", GL.GL_RG32F, GL.GL_RG, GL.GL_FLOAT, 2, np.float32),
-        _c("rgba32f", GL.GL_RGBA32F, GL.GL_RGBA, GL.GL_FLOAT, 4, np.float32),
-        _c("r32ui", GL.GL_R32UI, GL.GL_RED_INTEGER, GL.GL_UNSIGNED_INT, 1, np.uint32,
-           "usampler2D"),
-        _c("rgba8ui", GL.GL_RGBA8UI, GL.GL_RGBA_INTEGER, GL.GL_UNSIGNED_BYTE, 4, np.uint8,
-           "usampler2D"),
-        _c("rgb10a2", GL.GL_RGB10_A2, GL.GL_RGBA, GL.GL_UNSIGNED_INT_2_10_10_10_REV, 1,
-           np.uint32),
-        GLFormat("d24s8", GL.GL_DEPTH24_STENCIL8, GL.GL_DEPTH_STENCIL, GL.GL_UNSIGNED_INT_24_8,
-                 1, np.uint32, GL.GL_DEPTH_STENCIL_ATTACHMENT, "sampler2D"),
-        GLFormat("d32f", GL.GL_DEPTH_COMPONENT32F, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, 1,
-                 np.float32, GL.GL_DEPTH_ATTACHMENT, "sampler2D"),
-    ]
-}
-
-assert set(GL_FORMATS) == set(F.FORMATS), "gl_formats.py and formats.py disagree on names"
+def _enum(name: str) -> int:
+    value = getattr(GL, name, None)
+    assert value is not None, f"GL has no {name}"
+    return value
 
 
+def _spell(fmt: F.Format) -> GLFormat:
+    """GL's enums for a format, from its properties (the table in the module docstring)."""
+    if fmt.kind is F.Kind.DEPTH_STENCIL:
+        d, s = fmt.bits[0], fmt.stencil_bits
+        return GLFormat(fmt.name, _enum(f"GL_DEPTH{d}_STENCIL{s}"), GL.GL_DEPTH_STENCIL,
+                        _enum(f"GL_UNSIGNED_INT_{d}_{s}"), 1, np.uint32,
+                        GL.GL_DEPTH_STENCIL_ATTACHMENT, "sampler2D")
+    if fmt.kind is F.Kind.DEPTH:
+        return GLFormat(fmt.name, _enum(f"GL_DEPTH_COMPONENT{fmt.bits[0]}F"),
+                        GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, 1, np.float32,
+                        GL.GL_DEPTH_ATTACHMENT, "sampler2D")
+    channels = _CHANNELS[:fmt.channels]
+    groups: list[list] = []          # runs of channels with the same bits: RGB10_A2
+    for c, b in zip(channels, fmt.bits):
+        if groups and groups[-1][1] == b:
+            groups[-1][0] += c
+        else:
+            groups.append([c, b])
+    internal = "_".join(f"{c}{b}" for c, b in groups) + _SUFFIX[fmt.kind]
+    transfer = {1: "RED", 2: "RG", 3: "RGB", 4: "RGBA"}[fmt.channels]
+    if fmt.is_integer:
+        transfer += "_INTEGER"
+    if fmt.packed:     # channel 0 in the low bits: GL's _REV packed type
+        typ = f"GL_UNSIGNED_INT_{'_'.join(str(b) for b in reversed(fmt.bits))}_REV"
+        assert fmt.word_bits == 32, fmt.name
+        components = 1
+    else:
+        typ = _ELEMENT_TYPE[fmt.element_dtype.str[1:]]
+        components = fmt.channels
+    return GLFormat(fmt.name, _enum("GL_" + internal), _enum("GL_" + transfer), _enum(typ),
+                    components, fmt.element_dtype.type, GL.GL_COLOR_ATTACHMENT0,
+                    "usampler2D" if fmt.is_integer else "sampler2D")
+
+
+@functools.cache
 def gl_format(name: str) -> GLFormat:
-    return GL_FORMATS[name]
+    return _spell(F.get(name))
+
+
+# every format has a GL spelling (an import error otherwise)
+GL_FORMATS: dict[str, GLFormat] = {name: gl_format(name) for name in F.FORMATS}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -116,7 +139,7 @@ def create_texture(name: str, width: int, height: int, samples: int = 1) -> int:
         GL.glTextureParameteri(tex, GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST)
         GL.glTextureParameteri(tex, GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE)
         GL.glTextureParameteri(tex, GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)
-        if g.name == "d24s8":
+        if g.fmt.has_stencil:
             GL.glTextureParameteri(tex, GL.GL_DEPTH_STENCIL_TEXTURE_MODE, GL.GL_DEPTH_COMPONENT)
         if not g.fmt.is_color:
             GL.glTextureParameteri(tex, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_NONE)
@@ -132,13 +155,11 @@ def _pack_transfer(name: str, codes: np.ndarray) -> np.ndarray:
     g = gl_format(name)
     fmt = g.fmt
     c = np.asarray(codes)
-    if name == "rgb10a2":
-        c = c.astype(np.uint32).reshape(c.shape[:-1] + (4,))
-        return (c[..., 0] & 1023) | ((c[..., 1] & 1023) << 10) | ((c[..., 2] & 1023) << 20) \
-            | ((c[..., 3] & 3) << 30)
     if fmt.kind is F.Kind.DEPTH_STENCIL:
-        raise AssertionError("d24s8 transfers go through pack_depth_stencil")
-    return np.ascontiguousarray(c.astype(g.np_type))
+        raise AssertionError("depth-stencil transfers go through pack_depth_stencil")
+    if fmt.packed:
+        c = c.reshape(c.shape[:-1] + (fmt.channels,))
+    return np.ascontiguousarray(fmt.pack(c).astype(g.np_type))
 
 
 def pack_depth_stencil(depth_codes, stencil) -> np.ndarray:
@@ -185,24 +206,20 @@ def clear_texture(tex: int, name: str, color=None, depth=None, stencil=None) -> 
 def read_texture(tex: int, name: str, width: int, height: int) -> np.ndarray:
     """Read a single-sample texture back as codes (GL row order: bottom row first).
 
-    d24s8 yields the packed words; use ``split_depth_stencil``.
+    Depth-stencil formats yield the packed words; use ``split_depth_stencil``.
     """
     g = gl_format(name)
     fmt = g.fmt
     shape = (height, width) if g.components == 1 else (height, width, g.components)
     out = np.zeros(shape, dtype=g.np_type)
     GL.glGetTextureImage(tex, 0, g.format, g.type, out.nbytes, out)
-    if name == "rgb10a2":
-        w = out.astype(np.uint32)
-        return np.stack([w & 1023, (w >> 10) & 1023, (w >> 20) & 1023, w >> 30],
-                        axis=-1).astype(fmt.dtype)
-    return out
+    return fmt.unpack(out) if fmt.packed else out
 
 
 def write_texture(tex: int, name: str, codes: np.ndarray, stencil: np.ndarray = None) -> None:
     """Upload codes (GL row order) into a single-sample texture: tests preset targets this way.
 
-    For d24s8 ``codes`` are the 24-bit depth codes and ``stencil`` the stencil values.
+    For depth-stencil formats ``codes`` are the depth codes and ``stencil`` the stencil values.
     """
     g = gl_format(name)
     c = np.asarray(codes)
