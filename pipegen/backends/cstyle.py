@@ -3,9 +3,13 @@
 One emitter, dialects as small subclasses of *data* (tinygrad's ``renderer/cstyle.py`` is the
 model): ``type_names`` (IR type -> spelling), ``builtin_map`` (builtin -> name, ``{0}``-template
 or callable), ``vector_ops`` (functions for component-wise vector comparisons), ``guards``
-(builtins emitted through helper functions whose bodies are IR), literal spellings, qualifiers.  What genuinely differs between GLSL and OpenCL C goes through the
-``render_*`` hooks at the end of the class (stage inputs, the light table, target reads and
-writes, matrix arithmetic, constructors).  No dialect knowledge lives here.
+(builtins emitted through helper functions whose bodies are IR), ``builtin_lowerings`` (IR
+rewrites of builtin calls, the backend's passes), literal spellings, qualifiers.  What
+genuinely differs between GLSL and OpenCL C goes through the public ``render_*`` hooks at the
+end of the class (stage inputs, the light table, target reads and writes, matrix arithmetic,
+constructors, calls of user functions, ``return``, vector equality).  Dialects override only
+those hooks and ``signature``; the ``_``-methods are the emitter's own.  No dialect knowledge
+lives here.
 
 Parenthesisation follows C precedence (GLSL's is the same), plus parentheses for clarity around
 bit operations mixed with other operators and ``&&`` inside ``||``; nested ternaries are always
@@ -109,6 +113,10 @@ class CStyleLanguage:
     light_fields: tuple[str, ...] = ()        # light table schema order: field -> slot
     guards: dict[str, Callable[..., ir.Expr]] = _GUARDS   # builtin -> helper body (IR)
     componentwise: frozenset = _COMPONENTWISE  # guards lifted per component for vectors
+    # builtin -> IR rewrite of a call (None: emit the call); the rewrites are compiler passes
+    # (pipegen/passes) a backend runs on the technique first: this catches IR that reaches
+    # the emitter without them (single expressions)
+    builtin_lowerings: dict[str, Callable[[ir.Call], Optional[ir.Expr]]] = {}
     indent = "    "
 
     def __init__(self) -> None:
@@ -191,6 +199,12 @@ class CStyleLanguage:
 
     def _binary(self, e: ir.Binary) -> tuple[str, int]:
         op, left, right = e.op, e.left, e.right
+        assert not (op in ("&&", "||", "^^") and e.type.is_vector), \
+            "vector logical operators are not in the language"
+        if op in ("==", "!=") and left.type.is_vector and not e.type.is_vector:
+            text = self.render_vector_equality(op, self.expr(left), self.expr(right))
+            if text is not None:
+                return text, ATOM
         if op in ("<<", ">>") and not self._raw and not (
                 isinstance(right, ir.Const) and not isinstance(right.value, tuple)
                 and 0 <= right.value < 32):
@@ -218,7 +232,11 @@ class CStyleLanguage:
 
     def _call(self, e: ir.Call) -> tuple[str, int]:
         if not e.builtin:
-            return f"{self.ident(e.name)}({', '.join(self.expr(a) for a in e.args)})", ATOM
+            return self.render_call(e.name, [self.expr(a) for a in e.args], e.type), ATOM
+        lower = self.builtin_lowerings.get(e.name)
+        lowered = lower(e) if lower is not None else None
+        if lowered is not None:
+            return f"({self.expr(lowered)})", ATOM
         args = e.args
         if not self._raw:
             if e.name == "sqrt" or (e.name == "pow" and _positive_const(args[1])):
@@ -324,7 +342,7 @@ class CStyleLanguage:
         if isinstance(s, ir.Continue):
             return [f"{pad}continue;"]
         if isinstance(s, ir.Return):
-            return [f"{pad}return;" if s.value is None else f"{pad}return {self.expr(s.value)};"]
+            return [pad + self.render_return(None if s.value is None else self.expr(s.value))]
         if isinstance(s, ir.Discard):
             return [pad + self.render_discard()]
         if isinstance(s, ir.ExprStmt):
@@ -349,6 +367,19 @@ class CStyleLanguage:
 
     def render_construct(self, t: Type, args: list[str], types: list[Type]) -> str:
         return f"{self.type_name(t)}({', '.join(args)})"
+
+    def render_call(self, name: str, args: list[str], ret: Type) -> str:
+        """A call of user (or guard helper) function ``name`` (the IR name)."""
+        return f"{self.ident(name)}({', '.join(args)})"
+
+    def render_return(self, value: Optional[str]) -> str:
+        """A ``return`` statement (``value``: the rendered expression, None for none)."""
+        return "return;" if value is None else f"return {value};"
+
+    def render_vector_equality(self, op: str, left: str, right: str) -> Optional[str]:
+        """``==`` / ``!=`` of two vectors, giving one bool (all / any component): a primary
+        expression, or None for the infix operator (GLSL's meaning)."""
+        return None
 
     def render_index(self, base: str, index: str, base_type: Type) -> str:
         return f"{base}[{index}]"

@@ -49,7 +49,7 @@ Arithmetic follows llvmpipe where the two could differ (each measured bit-exact 
 no contraction of ``a * b + c`` (``FP_CONTRACT OFF``), correctly rounded ``/`` and ``sqrt``,
 ``inversesqrt`` = ``1 / sqrt``, ``dot`` = ``x + (y + (z + w))`` of unfused products (and
 ``length``, ``distance``, matrix products built on it), ``mix`` = ``a + (b - a) t`` or, for a
-constant t, ``a (1 - t) + b t``, ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` /
+constant t, ``a (1 - t) + b t`` (``passes/lower_mix_constant``, run by ``emit_cl``), ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` /
 ``log2`` polynomials (so ``pow``, ``exp``, ``log``), unorm reads as ``code * (1 / max)``,
 unorm8 bilinear filtering in 8-bit fixed point, bilinear filtering of other formats with
 llvmpipe's clamp-to-edge texel coordinates and fused lerps (x then y), unorm16 stores
@@ -77,7 +77,8 @@ from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
 from . import templating
 from ..builtins import VOLUME_LIGHT_FIELDS
-from .cstyle import ATOM, FLT_MIN, CStyleLanguage, texel_select
+from ..passes import lower_mix_constant
+from .cstyle import FLT_MIN, CStyleLanguage, texel_select
 
 TILE = 16
 
@@ -174,6 +175,9 @@ class OpenCLLanguage(CStyleLanguage):
         "log": "pg_log",
         "atan": lambda self, a, t, r: f"atan2({a[0]}, {a[1]})" if len(a) == 2 else f"atan({a[0]})",
     }
+    # llvmpipe (NIR) lowers mix(x, y, constant t) to x * (1 - t) + y * t (measured); emit_cl
+    # runs the pass on the technique, this catches expressions rendered on their own
+    builtin_lowerings = {"mix": lower_mix_constant.lower_call}
     vector_ops: dict = {}
     float_suffix = "f"
     inf_literal = "INFINITY"
@@ -193,35 +197,20 @@ class OpenCLLanguage(CStyleLanguage):
         params = ", ".join(ctx + [f"{self.type_name(t)} {self.ident(n)}" for n, t in f.params])
         return f"{self.function_qualifier}{self.type_name(f.ret)} {self.ident(f.name)}({params})"
 
-    def _call(self, e: ir.Call) -> tuple[str, int]:
-        if e.builtin and e.name == "mix" and isinstance(e.args[2], ir.Const) \
-                and e.args[2].type.scalar is Scalar.FLOAT:
-            # llvmpipe (NIR) lowers mix(x, y, constant t) to x * (1 - t) + y * t (measured)
-            t = e.args[2]
-            vals = t.value if isinstance(t.value, tuple) else (t.value,)
-            one_minus = tuple(float(np.float32(1.0) - np.float32(v)) for v in vals)
-            om = ir.Const(t.type, one_minus if isinstance(t.value, tuple) else one_minus[0])
-            x, y = self._sub(e.args[0], 13), self._sub(e.args[1], 13)
-            return f"({x} * {self.expr(om)} + {y} * {self.expr(t)})", ATOM
-        if not e.builtin and e.name not in self.helpers:
-            args = ", ".join(["in"] + [self.expr(a) for a in e.args])
-            return f"{self.ident(e.name)}({args})", ATOM
-        return super()._call(e)
+    def render_call(self, name: str, args: list[str], ret: Type) -> str:
+        if name not in self.helpers:         # user functions take the fragment context
+            args = ["in"] + args
+        return super().render_call(name, args, ret)
 
-    def stmt(self, s: ir.Stmt, depth: int) -> list[str]:
-        if isinstance(s, ir.Return) and self.in_body:
-            return [self.indent * depth + "return true;"]
-        return super().stmt(s, depth)
+    def render_return(self, value: Optional[str]) -> str:
+        if self.in_body:                     # the fragment function: true = not discarded
+            return "return true;"
+        return super().render_return(value)
 
     # -- expressions that differ -------------------------------------------------------------------
-    def _binary(self, e: ir.Binary) -> tuple[str, int]:
+    def render_vector_equality(self, op: str, left: str, right: str) -> str:
         # GLSL ==/!= on vectors give one bool; OpenCL gives a component mask.
-        if e.op in ("==", "!=") and (e.left.type.is_vector) and not e.type.is_vector:
-            l, r = self.expr(e.left), self.expr(e.right)
-            return (f"all({l} == {r})" if e.op == "==" else f"any({l} != {r})"), ATOM
-        if e.op in ("&&", "||", "^^") and e.type.is_vector:
-            raise AssertionError("vector logical operators are not in the language")
-        return super()._binary(e)
+        return f"all({left} == {right})" if op == "==" else f"any({left} != {right})"
 
     def render_construct(self, t: Type, args: list[str], types: list[Type]) -> str:
         name = self.type_name(t)
@@ -723,6 +712,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
 
 def emit_cl(tech: ir.Technique) -> Plan:
     """The plan of ``tech`` with one OpenCL program (``CLPassCode.kernel``) per pass."""
+    tech = lower_mix_constant.run(tech)         # llvmpipe's split of mix(x, y, constant)
     frags = [emit_fragment(tech, p) for p in tech.passes]
     codes = [CLPassCode("", f["fragment"], tuple(f["inputs"]), f["discard"], tuple(f["sampled"]))
              for f in frags]
