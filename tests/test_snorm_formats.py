@@ -66,7 +66,8 @@ pass read {
     r8 = load(n8);
     r2 = load(n2);
     r16 = load(n16);
-    vec2 uv = frag_coord.xy / vec2(160.0, 96.0) * 1.2 - 0.1 + vec2(0.00123, 0.00071) * frag_coord.yx;
+    vec2 uv = frag_coord.xy / vec2(160.0, 96.0) * 1.2 - 0.1
+              + vec2(0.00123, 0.00071) * frag_coord.yx;
     s8 = sample(n8, uv);
     s16 = sample(n16, uv);
   }

@@ -49,16 +49,16 @@ Arithmetic follows llvmpipe where the two could differ (each measured bit-exact 
 no contraction of ``a * b + c`` (``FP_CONTRACT OFF``), correctly rounded ``/`` and ``sqrt``,
 ``inversesqrt`` = ``1 / sqrt``, ``dot`` = ``x + (y + (z + w))`` of unfused products (and
 ``length``, ``distance``, matrix products built on it), ``mix`` = ``a + (b - a) t`` or, for a
-constant t, ``a (1 - t) + b t`` (``passes/lower_mix_constant``, run by ``emit_cl``), ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` /
-``log2`` polynomials (so ``pow``, ``exp``, ``log``), unorm reads as ``code * (1 / max)``,
-unorm8 bilinear filtering in 8-bit fixed point, bilinear filtering of other formats with
-llvmpipe's clamp-to-edge texel coordinates and fused lerps (x then y), unorm16 stores
-``x * (65535/65536) + 128`` (the low mantissa bits) and narrower unorm channels store that
-16-bit code scaled down (Mesa's ``scale_bits``: 10 bits ``>> 6``), snorm stores and reads as
-``formats.Encode`` says, varyings interpolated with llvmpipe's float32 planes
-(``cl_setup.attribute_planes``).  Not mirrored: ``atan``, ``sin``, ``cos``
-(OpenCL's, within a few ulp) and NIR's constant reassociation (``(x * 3.0) * 0.7`` folded to
-``x * 2.1``).
+constant t, ``a (1 - t) + b t`` (``passes/lower_mix_constant``, run by ``emit_cl``),
+``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` / ``log2`` polynomials (so ``pow``,
+``exp``, ``log``), unorm reads as ``code * (1 / max)``, unorm8 bilinear filtering in 8-bit fixed
+point, bilinear filtering of other formats with llvmpipe's clamp-to-edge texel coordinates and
+fused lerps (x then y), unorm16 stores ``x * (65535/65536) + 128`` (the low mantissa bits) and
+narrower unorm channels store that 16-bit code scaled down (Mesa's ``scale_bits``: 10 bits
+``>> 6``), snorm stores and reads as ``formats.Encode`` says, varyings interpolated with
+llvmpipe's float32 planes (``cl_setup.attribute_planes``).  Not mirrored: ``atan``, ``sin``,
+``cos`` (OpenCL's, within a few ulp) and NIR's constant reassociation (``(x * 3.0) * 0.7``
+folded to ``x * 2.1``).
 """
 
 from __future__ import annotations
@@ -344,10 +344,10 @@ def cl_format(name: str) -> dict:
     """How a target format lives in an OpenCL buffer and in the raster kernel's registers,
     derived from ``formats.Format`` (no format is named here).
 
-    ``cls``: unorm8 | unorm | snorm | half | float | uint | d24 | d32f (depth bits).  ``storage``: the
-    buffer's element type (one per pixel).  ``reg``: the register type (uint4 codes for
-    unorm/uint, the int codes' bits for snorm, float4 values for float formats, uint / float
-    for depth).  ``load``/``store``: expression / statement templates over ``b`` (buffer),
+    ``cls``: unorm8 | unorm | snorm | half | float | uint | d24 | d32f (depth bits).
+    ``storage``: the buffer's element type (one per pixel).  ``reg``: the register type (uint4
+    codes for unorm/uint, the int codes' bits for snorm, float4 values for float formats,
+    uint / float for depth).  ``load``/``store``: expression / statement templates over ``b`` (buffer),
     ``i`` (pixel index) and ``r`` (register).  ``read``: the decoded float4 (uint4 for integer
     formats) a shader sees, over ``b``/``i``.  ``code``: the prelude function turning a float4
     into unorm codes; ``encode``: snorm's float4 ``r`` -> register expression.
