@@ -23,7 +23,7 @@ Format-valued parameters have type ``ir.VOID`` and a ``str`` value: they are not
 
 from __future__ import annotations
 
-import difflib
+import contextlib
 import importlib
 import os
 from dataclasses import dataclass, field
@@ -66,6 +66,7 @@ def _err(span: Optional[Span], message: str, hint: str) -> PipegenError:
 
 
 def _did_you_mean(name: str, candidates: Iterable[str], fallback: str) -> str:
+    import difflib
     close = difflib.get_close_matches(name, sorted(set(candidates)), n=1, cutoff=0.6)
     return f"did you mean '{close[0]}'?" if close else fallback
 
@@ -522,11 +523,12 @@ class _Lowerer:
         self.packs[name] = decl
         self.pack_specs[name] = spec
         self.pack_options[name] = options
-        module = syntax.parse(spec.functions_source, f"<{scheme} packing '{name}'>")
-        for item in module.items:
-            assert isinstance(item, ast.FunctionDef), f"packing {scheme} generated {item}"
-            assert item.name.name.startswith(name + "_"), item.name.name
-            self._signature(item, pack=decl)
+        with _generated_by(decl):
+            module = syntax.parse(spec.functions_source, f"<{scheme} packing '{name}'>")
+            for item in module.items:
+                assert isinstance(item, ast.FunctionDef), f"packing {scheme} generated {item}"
+                assert item.name.name.startswith(name + "_"), item.name.name
+                self._signature(item, pack=decl)
 
     def _pack_options(self, options: list[ast.Option]) -> dict:
         out: dict = {}
@@ -582,7 +584,8 @@ class _Lowerer:
             self._signature(decl)
         for sig in list(self.signatures.values()):
             checker = _BodyChecker(self, _Context.for_function(sig))
-            self.bodies[sig.name] = checker.function_body(sig)
+            with _generated_by(self.packs[sig.pack] if sig.pack is not None else None):
+                self.bodies[sig.name] = checker.function_body(sig)
             self.uses[sig.name] = checker.uses
         self._close_uses()
 
@@ -662,6 +665,21 @@ class _Lowerer:
             names[name.name] = name.span
             out.append(_PassLowerer(self, item).lower())
         return tuple(out)
+
+
+@contextlib.contextmanager
+def _generated_by(pack: Optional[ast.PackDecl]):
+    """Errors in the code a packing generates are reported at the ``pack`` declaration: the
+    user cannot see or edit that code (a name of theirs may clash with one of its locals)."""
+    try:
+        yield
+    except PipegenError as e:
+        if pack is None or (e.span is not None and not e.span.file.startswith("<")):
+            raise
+        raise _err(pack.span, f"the code packing '{pack.name.name}' generates does not compile "
+                   f"in this technique: {e.message}",
+                   "a name declared here may clash with one the generated functions use; "
+                   "rename it") from None
 
 
 def _reserved_meaning(name: str) -> Optional[str]:

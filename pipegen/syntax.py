@@ -575,9 +575,29 @@ _FLT_MAX = 3.4028234663852886e38
 
 
 def _unquote(tok: Token) -> str:
+    """A string literal's text, with the escapes Python knows decoded (\\n, \\", \\xHH,
+    \\uXXXX, octal…); an escape that is not one (\\q, a truncated \\x4, a surrogate) stays as
+    written, backslash included."""
     body = str(tok)[1:-1]
-    return body.encode("latin-1", "backslashreplace").decode("unicode_escape") \
-        if "\\" in body else body
+    if "\\" not in body:
+        return body
+    import re
+    return re.sub(r"\\(x[0-9a-fA-F]{2}|u[0-9a-fA-F]{4}|U[0-9a-fA-F]{8}|[0-7]{1,3}|.)",
+                  _escape, body, flags=re.S)
+
+
+_ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "a": "\a", "b": "\b", "f": "\f", "v": "\v",
+            "\\": "\\", '"': '"', "'": "'", "\n": ""}
+
+
+def _escape(m) -> str:
+    e = m.group(1)
+    if e[0] in "xuU" and len(e) > 1 or e[0] in "01234567":
+        code = int(e, 8) if e[0] in "01234567" else int(e[1:], 16)
+        if code <= 0x10FFFF and not 0xD800 <= code <= 0xDFFF:
+            return chr(code)
+        return m.group(0)
+    return _ESCAPES.get(e, m.group(0))
 
 
 def _join(a: Span, b: Span) -> Span:

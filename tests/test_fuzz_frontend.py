@@ -36,7 +36,7 @@ TECHNIQUES = sorted((ROOT / "pipelines").glob("*.pipe"))
 COUNT = int(os.environ.get("PIPEGEN_FUZZ", "300"))
 SEED = int(os.environ.get("PIPEGEN_FUZZ_SEED", "8"))
 EMIT = os.environ.get("PIPEGEN_FUZZ_EMIT", "") not in ("", "0")
-TIME_LIMIT = float(os.environ.get("PIPEGEN_FUZZ_TIME_LIMIT", "5"))   # seconds per input
+TIME_LIMIT = float(os.environ.get("PIPEGEN_FUZZ_TIME_LIMIT", "10"))  # seconds per input
 
 _TOKEN = re.compile(r'''//[^\n]*|/\*.*?\*/|"(?:[^"\\\n]|\\.)*"
     |0[xX][0-9a-fA-F]+[uU]?|(?:\d+\.\d*|\.\d+|\d+)(?:[eE][+-]?\d+)?[uU]?

@@ -204,3 +204,23 @@ def test_an_unresolved_include_lists_the_places_searched(tmp_path, monkeypatch):
 def test_the_library_is_found_from_a_checkout():
     lib = sources.library_dir()
     assert lib is not None and (lib / "lighting.pipe").is_file()
+
+
+# -- strings and generated code ----------------------------------------------------------------
+
+@pytest.mark.parametrize("written, value", [
+    (r"a\nb", "a\nb"), (r"\x41\u00e9\101", "AéA"), (r"\q", r"\q"), (r"\x4", r"\x4"),
+    (r"\ud800", r"\ud800"), (r"\U00110000", r"\U00110000"), (r"common\lighting", r"common\lighting"),
+])
+def test_string_escapes_never_fail(written, value, recwarn):
+    module = syntax.parse(f'technique t "{written}"')
+    assert module.items[0].title == value
+    assert not [w for w in recwarn if issubclass(w.category, DeprecationWarning)]
+
+
+def test_errors_in_generated_packing_code_point_at_the_pack_declaration():
+    source = (ROOT / "pipelines/inferred.pipe").read_text().replace("(object: 8", "(lbuf: 8")
+    err = error(source, str(ROOT / "pipelines/inferred.pipe"))
+    assert "the code packing 'id' generates does not compile" in err.message
+    assert err.span.file == str(ROOT / "pipelines/inferred.pipe")
+    assert err.span.source_line.startswith("pack id = bitfield")
