@@ -12,6 +12,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.gl, pytest.mark.cl]
+
 from pipegen.check import check, first_divergent_pass  # noqa: E402
 from pipegen.compiler import compile_file  # noqa: E402
 from pipegen.scene import default_scene, load_scene  # noqa: E402

@@ -21,6 +21,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.gl, pytest.mark.cl]
+
 SPECIAL = np.array([
     0x0, 0x80000000, 0x1, 0x80000001, 0x7fffff, 0x807fffff, 0x800000, 0x80800000, 0x400000,
     0x3f800000, 0xbf800000, 0x3fc00000, 0x3f000000, 0xbf000000, 0x3effffff, 0x3f7fffff,

@@ -28,6 +28,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.gl, pytest.mark.cl]
+
 from cl_util import TriScene, make_pass, make_plan, target  # noqa: E402
 from pipegen.runtime import cl_setup as CS  # noqa: E402
 from pipegen.runtime.cl_pipeline import CLPipeline  # noqa: E402

@@ -23,6 +23,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.gl, pytest.mark.cl]
+
 from cl_util import TriScene, make_pass, make_plan, quad, target  # noqa: E402
 from pipegen.compare import compare_target, ulp_distance  # noqa: E402
 from pipegen.compiler import compile_file, compile_source  # noqa: E402

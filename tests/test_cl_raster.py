@@ -13,6 +13,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.cl]
+
 from cl_util import FLAT_COLOR, TriScene, fullscreen, make_pass, make_plan, pixel_quad, quad, target  # noqa: E402
 from pipegen.reference import fixed_function as ff  # noqa: E402
 from pipegen.reference.raster import rasterize_triangles  # noqa: E402

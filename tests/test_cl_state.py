@@ -14,6 +14,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.cl]
+
 from cl_util import TriScene, fullscreen, make_pass, make_plan, pixel_quad, target  # noqa: E402
 from pipegen import formats as F  # noqa: E402
 from pipegen.reference import fixed_function as ff  # noqa: E402

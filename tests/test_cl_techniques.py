@@ -16,6 +16,8 @@ import pytest
 
 pytest.importorskip("pyopencl")
 
+pytestmark = [pytest.mark.gl, pytest.mark.cl]
+
 from pipegen import formats as F  # noqa: E402
 from pipegen.compare import compare_target  # noqa: E402
 from pipegen.compiler import compile_file, compile_source  # noqa: E402

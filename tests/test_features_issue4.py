@@ -330,6 +330,8 @@ pass g {
 """
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_stippled_layers_match_the_reference(backends):
     from pipegen.reference.translucent import stippled_gbuffer
     from pipegen.scene import stipple_map
@@ -379,6 +381,8 @@ def _short_far(scene, far=3.0):
     return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, far=far))
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_cull_auto_camera_inside(mixed, backends):
     """Camera inside a light volume whose back faces lie past the far plane: `cull auto`
     with depth clamp lights every pixel exactly once; front faces are lost behind the near
@@ -400,6 +404,8 @@ def test_cull_auto_camera_inside(mixed, backends):
         assert np.all(count_image(s, volume, "auto", clamp=False) == 0), volume
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_cull_auto_camera_outside(mixed, backends):
     """Lights away from the camera: front faces, each covered pixel once (cull none covers
     each exactly twice); the far plane cuts them, which clamp undoes."""
@@ -432,6 +438,8 @@ pass points {
 """
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 @pytest.mark.parametrize("depth, scissor", [("always", ""), ("lequal inside always", ""),
                                             ("lequal inside gequal", ""),
                                             ("lequal inside always", " scissor")])
@@ -456,6 +464,8 @@ def test_cull_auto_runs_in_light_order(mixed, backends, depth, scissor):
         assert np.array_equal(plain["color"], gl["color"])
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_inside_depth_test_applies_to_back_face_lights(mixed, backends):
     """`lequal inside always` equals `lequal` for outside lights and `always` for inside ones."""
     eye = np.asarray(mixed.camera.position)
@@ -483,6 +493,8 @@ pass dir {
 """
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_directional_quads_cover_the_screen(mixed, backends):
     c = compiles(DIRECTIONAL)
     gl, cl = render_both(c, mixed)
@@ -557,6 +569,8 @@ pass resolve {
 """
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_deferred_mixed_lights_agree(mixed, backends):
     """Calver-style deferred lighting on mixed_lights: directional quads, spot cones and
     point spheres (cull auto, depth clamp) agree between the backends."""
@@ -589,6 +603,8 @@ repeat per light spot point {
 """
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_repeat_per_light_types(mixed, backends):
     c = compiles(REPEAT)
     (gl, glc), (cl, clc) = render_both(c, mixed, capture_passes=True)

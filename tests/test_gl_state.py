@@ -34,7 +34,7 @@ try:
 except Exception as e:  # pragma: no cover - machines without EGL
     _CTX, _ERR = None, e
 
-pytestmark = pytest.mark.skipif(_CTX is None, reason=f"no EGL/GL context: {_ERR}")
+pytestmark = [pytest.mark.gl, pytest.mark.skipif(_CTX is None, reason=f"no EGL/GL context: {_ERR}")]
 
 W = H = 16
 LLVMPIPE = _CTX is not None and "llvmpipe" in _CTX.info["GL_RENDERER"]

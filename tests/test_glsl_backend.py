@@ -327,6 +327,7 @@ def test_every_guard_helper_is_valid_glsl(tmp_path):
     validate(src, "fragment", tmp_path)
 
 
+@pytest.mark.gl
 def test_llvmpipe_links_every_pass(plan, ctx):
     for p in plan["passes"]:
         prog = ctx.program(vertex_shader=p["vertex"], fragment_shader=p["fragment"])
@@ -383,6 +384,7 @@ def _render_fullscreen(ctx, tech, size, setup=None):
     return out.reshape(size[1], size[0], 4)
 
 
+@pytest.mark.gl
 def test_guarded_forms_on_llvmpipe(ctx):
     # Inputs come from uniforms, so that Mesa can neither fold them nor reassociate them.
     amb, cam, out = inp("ambient", VEC3), inp("camera_pos", VEC3), inp("output_size", VEC2)
@@ -427,6 +429,7 @@ def test_guarded_forms_on_llvmpipe(ctx):
     np.testing.assert_allclose(got, expected, rtol=1e-6, atol=0)
 
 
+@pytest.mark.gl
 def test_fullscreen_triangle_covers_the_target(ctx):
     body = (ir.Output("out", Construct(VEC4, (Swizzle(FRAG, "xyz", VEC3), F(1.0)))),)
     tech = _technique((Pass("f", Draw(DrawKind.FULLSCREEN), PassState(), ("out",), (), None,
@@ -509,6 +512,7 @@ def _sphere_points(centre, radius, rng, n=4000):
     return np.asarray(centre) + d * radius * 0.97 * rng.uniform(0, 1, (n, 1)) ** (1 / 3)
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("volume", [Volume.SPHERE, Volume.QUAD])
 @pytest.mark.parametrize("eye", [(0.0, 0.5, 6.0), (0.3, 0.2, 1.2)])   # second: inside the light
 def test_sphere_and_quad_cover_the_light(ctx, volume, eye):
@@ -524,6 +528,7 @@ def test_sphere_and_quad_cover_the_light(ctx, volume, eye):
         assert covered.all()
 
 
+@pytest.mark.gl
 def test_cone_covers_the_spot(ctx):
     outer = math.radians(30)
     direction = np.array([0.3, -0.2, -1.0])

@@ -33,6 +33,8 @@ from pipegen.reference.metrics import rgb_error
 from pipegen.reference.translucent import reference_composite
 from pipegen.scene import load_scene
 
+pytestmark = [pytest.mark.gl]
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -724,6 +724,7 @@ def run_glsl(ctx, source, main, inputs: np.ndarray, out_uint=False):
     return out
 
 
+@pytest.mark.gl
 class TestAgainstGL:
     def test_bitplanes(self, gl):
         src = build("bitplanes", {"index_bits": 8}, "rgba8", name="bp").functions_source

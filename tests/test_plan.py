@@ -89,6 +89,8 @@ repeat per light {
 """
 
 
+@pytest.mark.gl
+@pytest.mark.cl
 def test_cull_auto_inside_a_repeat_group_agrees_across_backends(tmp_path):
     """Regression: CL drew light 0's volume for every light of a repeat group under
     ``cull auto`` (an index array was taken for a mask): 78 codes off at light 1."""

@@ -1,0 +1,44 @@
+"""Test tiers (README, "Tests"): a test that renders with OpenGL is marked ``gl``, one that runs
+the OpenCL backend ``cl``; the rest need no backend (``pytest -m "not gl and not cl"``).
+
+The markers are enforced: while a test not marked ``gl`` (its fixtures included) is set up and
+run, asking for a GL context fails, and so does asking for an OpenCL context without ``cl``; a
+tier can never silently need a backend it does not declare.  (Tests that run ``pipegen`` in a
+subprocess declare what the command renders with.)"""
+
+from __future__ import annotations
+
+import pytest
+
+_GUARDS = "_pipegen_backend_guard"
+
+
+def _refuse(marker: str):
+    def context(*args, **kwargs):
+        raise AssertionError(f"this test uses the {marker.upper()} backend: mark it "
+                             f"@pytest.mark.{marker} (or its module: pytestmark)")
+    return context
+
+
+def _guard(item) -> pytest.MonkeyPatch:
+    mp = pytest.MonkeyPatch()
+    if item.get_closest_marker("gl") is None:
+        import moderngl
+        from pipegen.runtime import gl_context, gl_pipeline
+        for module in (gl_context, gl_pipeline):
+            mp.setattr(module, "get_context", _refuse("gl"))
+        mp.setattr(moderngl, "create_standalone_context", _refuse("gl"))
+    if item.get_closest_marker("cl") is None:
+        from pipegen.runtime import cl_context
+        mp.setattr(cl_context, "get_context", _refuse("cl"))
+    return mp
+
+
+def pytest_runtest_setup(item):
+    setattr(item, _GUARDS, _guard(item))
+
+
+def pytest_runtest_teardown(item, nextitem):
+    mp = getattr(item, _GUARDS, None)
+    if mp is not None:
+        mp.undo()
