@@ -19,6 +19,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from . import formats
+from .backends import registry
 from .backends.plan import plan_from_dict
 from .compare import TargetComparison, compare_target
 from .outputs import packed_channels, target_hints
@@ -83,13 +84,17 @@ def compare_targets(compiled, gl: dict, cl: dict, lights: int,
     return rows
 
 
+# what ``check`` compares: the system's GL against the software reference, which counts the
+# fragments it blends per pixel (``last_blend_counts``) for the per-pixel tolerance
+CHECKED = ("gl", "cl")
+
+
 def check(compiled, scene, out_dir: Optional[Path] = None,
           progress: Callable[[str], None] = lambda msg: None) -> CheckResult:
-    gl_pipe = compiled.pipeline("gl")
-    cl_pipe = compiled.pipeline("cl")
-    progress("rendering on GL (llvmpipe)")
+    gl_pipe, cl_pipe = (compiled.pipeline(b) for b in CHECKED)
+    progress(f"rendering on {registry.get(CHECKED[0]).title}")
     gl = gl_pipe.render(scene)
-    progress("rendering on CL (PoCL)")
+    progress(f"rendering on {registry.get(CHECKED[1]).title}")
     cl = cl_pipe.render(scene)
     result = CheckResult(compiled.name, compare_targets(
         compiled, gl, cl, len(scene.lights), counts=getattr(cl_pipe, "last_blend_counts", None)))
@@ -149,7 +154,7 @@ def main_check(compiled, scene, out_dir: Path) -> int:
 
     result = check(compiled, scene, out_dir, say)
     print(f"{compiled.name} on {scene.width}x{scene.height}, {len(scene.lights)} lights: "
-          f"GL (llvmpipe) vs CL (PoCL)")
+          + " vs ".join(registry.get(b).title for b in CHECKED))
     print(result.table())
     print(f"error images: {out_dir}/error_<target>.png")
     if result.passed:

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 from . import DEFAULT_SIZE
+from .backends import registry
 from .diagnostics import PipegenError
 
 MAX_SIZE = 16384          # per side: GL_MAX_TEXTURE_SIZE of llvmpipe
@@ -114,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--size", type=size_arg, default=DEFAULT_SIZE, metavar="WxH",
                    help=f"output size the report's memory figures assume "
                         f"(default: {DEFAULT_SIZE_TEXT}; each side 1..{MAX_SIZE})")
-    c.add_argument("--backend", choices=["gl", "cl", "all"], default="all",
+    c.add_argument("--backend", choices=[*registry.BACKENDS, "all"], default="all",
                    help="which backends to emit (default: all)")
     force(c)
 
@@ -126,9 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--size", type=size_arg, metavar="WxH",
                    help=f"output size (default: the scene file's width x height, "
                         f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
-    r.add_argument("--backend", choices=["gl", "cl"], default="gl",
-                   help="gl: moderngl on the system's OpenGL (llvmpipe); cl: the PoCL software "
-                        "reference (default: gl)")
+    r.add_argument("--backend", choices=list(registry.BACKENDS), default="gl",
+                   help="; ".join(f"{b.name}: {b.description}" for b in registry.BACKENDS.values())
+                   + " (default: gl)")
     force(r)
 
     k = command("check", "render on GL and CL, compare every target", cmd_check)
@@ -226,7 +227,7 @@ def cmd_compile(args) -> int:
     from .outdir import OutputDir
     out = OutputDir(args.out, "compile", args.force)          # before any work
     compiled = _compile(args)
-    backends = ("gl", "cl") if args.backend == "all" else (args.backend,)
+    backends = tuple(registry.BACKENDS) if args.backend == "all" else (args.backend,)
     compiled.write(out, backends, args.size)
     print(compiled.report(args.size), end="")
     print(f"wrote {out}/")

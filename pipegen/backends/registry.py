@@ -30,6 +30,7 @@ def _cl_files(stem: str, p: PassPlan) -> dict[str, str]:
 class Backend:
     name: str                     # as the command line and ``Compiled.plan`` spell it
     title: str                    # as reports and tables print it
+    description: str              # one line for ``--help``
     emitter: str                  # "module:function", ``(ir.Technique) -> Plan``
     runtime: str                  # "module:class", ``(plan, size) -> pipeline``
     module_template: str          # the generated pipeline module (templates/)
@@ -61,9 +62,11 @@ def _resolve(path: str):
 
 
 BACKENDS: dict[str, Backend] = {b.name: b for b in (
-    Backend("gl", "GL (llvmpipe)", "pipegen.backends.glsl:emit_gl",
+    Backend("gl", "GL (llvmpipe)", "moderngl on the system's OpenGL (Mesa llvmpipe without a GPU)",
+            "pipegen.backends.glsl:emit_gl",
             "pipegen.runtime.gl_pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files),
-    Backend("cl", "CL (PoCL)", "pipegen.backends.opencl:emit_cl",
+    Backend("cl", "CL (PoCL)", "the OpenCL software reference on PoCL's CPU device",
+            "pipegen.backends.opencl:emit_cl",
             "pipegen.runtime.cl_pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files),
 )}
 

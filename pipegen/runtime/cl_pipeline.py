@@ -64,13 +64,13 @@ from typing import Optional
 
 import numpy as np
 
-from .. import formats as F
 from .. import ir
 from ..backends import opencl as clgen
-from ..backends.plan import CLPassCode, PassPlan, Plan, TargetPlan, plan_from_dict
+from ..backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from . import cl_context, draws
 from .common import check_light_capacity, check_param_overrides
 from .cl_geometry import DrawGeometry
+from .cl_targets import TargetStore, d24_resolve, device_buffer
 
 __all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
 
@@ -83,37 +83,8 @@ FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
 assert FRAME_DTYPE.itemsize == 320
 
 
-def d24_resolve(codes: np.ndarray) -> np.ndarray:
-    """d24 codes as llvmpipe's multisample depth resolve writes them back: its blit reads
-    sample 0 as a float and stores it as a d24 code again, ``code * (float)(1/(2^24-1))``,
-    then ``* (2^24-1)`` rounded to nearest even, all float32 (measured on Mesa 22.3: moves
-    about a third of the codes by one)."""
-    f32 = np.float32
-    v = (np.asarray(codes).astype(f32) * f32(1.0 / 16777215.0)).astype(f32)
-    return np.rint((v * f32(16777215.0)).astype(f32)).astype(np.uint32)
-
-
 def _colmajor(m: np.ndarray) -> np.ndarray:
     return np.asarray(m, np.float64).astype(np.float32).T.reshape(16)
-
-
-class _Target:
-    def __init__(self, spec: TargetPlan, width: int, height: int):
-        self.spec = spec
-        self.name = spec.name
-        self.fmt = spec.format
-        self.cl = clgen.cl_format(self.fmt.name)
-        self.width, self.height = width, height
-        self.samples = spec.samples
-        self.buf = None           # colour or depth codes, one plane per sample
-        self.stencil = None       # d24s8 stencil, one plane per sample
-        self.res = None           # the resolved (single-sample) planes: reads and readback
-        self.res_stencil = None
-        self.dirty = False        # samples newer than the resolved planes
-
-    @property
-    def pixels(self) -> int:
-        return self.width * self.height
 
 
 class CLPipeline:
@@ -132,12 +103,11 @@ class CLPipeline:
         self.ctx, self.queue = cl_context.get_context(
             cache_dir, key=f"{plan.technique}:{plan.source}")
         self.targets_spec = {t.name: t for t in plan.targets}
+        self.store = TargetStore(self.ctx, self.queue, plan)
         self._programs: dict[int, object] = {}
         self.last_timings: list[dict] = []
         self.last_blend_counts: dict[str, np.ndarray] = {}
-        self._blend_counts: dict = {}
         self.geometry = DrawGeometry(self)
-        self._count_pool: dict = {}         # blend-count buffers, reused every frame
         self._presets: dict = {}
         self._scene = None
         self._selection: Optional[draws.LightSelection] = None
@@ -176,155 +146,25 @@ class CLPipeline:
             return clgen.pass_program(self.plan, p, dynamic=self.dynamic_state, tile=self.tile)
         return p.code.kernel
 
-    # -- buffers ----------------------------------------------------------------------------------
+    # -- buffers and targets ----------------------------------------------------------------------
     def _buffer(self, array: np.ndarray):
-        import pyopencl as cl
-        a = np.ascontiguousarray(array)
-        if a.nbytes == 0:
-            a = np.zeros(16, np.uint8)
-        return cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+        return device_buffer(self.ctx, array)
 
-    def _clear_target(self, t: _Target, color=None, depth=None, stencil=None,
-                      depth_given: bool = True, stencil_given: bool = True) -> None:
-        n = t.pixels
-        if t.samples > 1:          # keep the resolved plane current for a partial clear
-            self._resolve(t)
-        self._fill(t, t.buf, t.stencil, t.samples * n, color, depth, stencil, depth_given,
-                   stencil_given)
-        if t.samples > 1:
-            self._fill(t, t.res, t.res_stencil, n, color, depth, stencil, depth_given,
-                       stencil_given)
-        t.dirty = False
-
-    def _fill(self, t: _Target, buf, sbuf, n: int, color, depth, stencil, depth_given: bool,
-              stencil_given: bool) -> None:
-        import pyopencl as cl
-        fmt = t.fmt
-        if fmt.kind is F.Kind.DEPTH_STENCIL:
-            if depth_given:
-                code = np.uint32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
-                cl.enqueue_fill_buffer(self.queue, buf, code, 0, n * 4)
-            if stencil_given:
-                s = np.uint8(int(stencil or 0) & 0xFF)
-                cl.enqueue_fill_buffer(self.queue, sbuf, s, 0, n)
-            return
-        if fmt.kind is F.Kind.DEPTH:
-            if depth_given:
-                v = np.float32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
-                cl.enqueue_fill_buffer(self.queue, buf, v, 0, n * 4)
-            return
-        col = np.zeros(4) if color is None else np.asarray(color, np.float64)
-        if col.ndim == 0:
-            col = np.full(4, float(col))
-        col = np.concatenate([col, np.zeros(4)])[:4]
-        if fmt.kind is F.Kind.UINT:
-            codes = col[:fmt.channels].astype(np.uint64).astype(fmt.dtype)
-        else:
-            codes = fmt.quantize(col[:fmt.channels])
-        pixel = self._pack(t, np.asarray(codes).reshape(1, 1, -1) if fmt.channels > 1
-                           else np.asarray(codes).reshape(1, 1))
-        pattern = np.ascontiguousarray(pixel).view(np.uint8).reshape(-1)
-        if len(pattern) in (1, 2, 4, 8, 16, 32, 64, 128):     # clEnqueueFillBuffer's sizes
-            cl.enqueue_fill_buffer(self.queue, buf, pattern, 0, n * len(pattern))
-        else:
-            cl.enqueue_copy(self.queue, buf, np.tile(pattern, n))
-
-    def _pack(self, t: _Target, codes: np.ndarray) -> np.ndarray:
-        """Format codes (H, W[, C]) -> device layout (``Format.pack``: packed formats hold
-        one word per pixel)."""
-        return np.ascontiguousarray(t.fmt.pack(codes))
-
-    def _unpack(self, t: _Target, raw: np.ndarray) -> np.ndarray:
-        """Device layout -> format codes (``Format.unpack``)."""
-        return t.fmt.unpack(raw)
-
-    def _read_planes(self, t: _Target, buf, sbuf, planes: int):
-        """(codes (planes, H, W[, C]), stencil (planes, H, W) or None) of a buffer pair."""
-        import pyopencl as cl
-        fmt = t.fmt
-        h, w = t.height, t.width
-        if fmt.kind in (F.Kind.DEPTH_STENCIL, F.Kind.DEPTH):
-            d = np.empty((planes, h, w), np.uint32 if fmt.kind is F.Kind.DEPTH_STENCIL
-                         else np.float32)
-            cl.enqueue_copy(self.queue, d, buf)
-            st = None
-            if fmt.kind is F.Kind.DEPTH_STENCIL:
-                st = np.empty((planes, h, w), np.uint8)
-                cl.enqueue_copy(self.queue, st, sbuf)
-            return d, st
-        per_pixel = () if fmt.elements == 1 else (fmt.elements,)
-        raw = np.empty((planes, h, w) + per_pixel, fmt.element_dtype)
-        cl.enqueue_copy(self.queue, raw, buf)
-        return self._unpack(t, raw), None
-
-    def _resolve(self, t: _Target) -> None:
-        """Resolve the samples like llvmpipe's blit (measured): colour = the average of the
-        sample values, stored like a fragment output (unorm: round half to even, half:
-        toward zero); depth, stencil and integer formats take sample 0, d24 depth through
-        llvmpipe's float round trip (``d24_resolve``)."""
-        import pyopencl as cl
-        if t.samples == 1 or not t.dirty:
-            return
-        codes, st = self._read_planes(t, t.buf, t.stencil, t.samples)
-        fmt = t.fmt
-        if fmt.kind in (F.Kind.UNORM, F.Kind.FLOAT):
-            if fmt.kind is F.Kind.UNORM:
-                top = np.array([(1 << b) - 1 for b in fmt.bits], np.float32)
-                rcp = (np.float32(1.0) / top).astype(np.float32)
-                vals = codes.astype(np.float32) * (rcp if fmt.channels > 1 else rcp[0])
-            else:
-                vals = codes.astype(np.float32)
-            acc = vals[0].copy()
-            for k in range(1, t.samples):
-                acc = (acc + vals[k]).astype(np.float32)
-            avg = (acc * np.float32(1.0 / t.samples)).astype(np.float32)
-            if fmt.kind is F.Kind.UNORM:
-                m = top if fmt.channels > 1 else top[0]
-                res = np.rint(np.clip(avg, 0, 1) * m).astype(fmt.dtype)
-            elif fmt.dtype == np.float16:
-                from ..reference.fixed_function import half_store
-                res = half_store(avg, "rtz")
-            else:
-                res = avg
-            res = res[None]
-        elif fmt.kind is F.Kind.DEPTH_STENCIL:
-            res = d24_resolve(codes[0])[None]
-        else:
-            res = codes[:1]
-        cl.enqueue_copy(self.queue, t.res, np.ascontiguousarray(self._pack(t, res[0])))
-        if st is not None:
-            cl.enqueue_copy(self.queue, t.res_stencil, np.ascontiguousarray(st[0]))
-        t.dirty = False
-
-    def _read(self, t: _Target) -> dict:
-        self._resolve(t)
-        codes, st = self._read_planes(t, t.res, t.res_stencil, 1)
-        out = {t.name: codes[0]}
-        if st is not None:
-            out[t.name + ".stencil"] = st[0]
-        return out
+    @property
+    def _targets(self) -> dict:
+        return self.store.targets
 
     def preset(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None) -> None:
         """Start the next renders with target ``name`` holding ``codes`` (GL row order, like
         the arrays ``render`` returns) instead of its clear value; ``stencil`` for d24s8."""
         self._presets[name] = (np.asarray(codes), None if stencil is None else np.asarray(stencil))
 
-    def write_target(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None):
-        """Overwrite a target of the current frame with codes (GL row order): every sample."""
-        import pyopencl as cl
-        t = self._targets[name]
-        data = np.ascontiguousarray(self._pack(t, np.asarray(codes)))
-        cl.enqueue_copy(self.queue, t.buf, np.ascontiguousarray(
-            np.broadcast_to(data, (t.samples,) + data.shape)))
-        if t.res is not t.buf:
-            cl.enqueue_copy(self.queue, t.res, data)
-        if stencil is not None and t.stencil is not None:
-            st = np.ascontiguousarray(np.asarray(stencil, np.uint8))
-            cl.enqueue_copy(self.queue, t.stencil, np.ascontiguousarray(
-                np.broadcast_to(st, (t.samples,) + st.shape)))
-            if t.res_stencil is not t.stencil:
-                cl.enqueue_copy(self.queue, t.res_stencil, st)
-        t.dirty = False
+    def prepare(self, scene) -> None:
+        """Allocate and clear every target for a frame of ``scene``."""
+        self._out = self.output_size(scene)
+        self.store.prepare(*self._out)
+        for name, (codes, stencil) in self._presets.items():
+            self.store.write(name, codes, stencil)
 
     # -- frame --------------------------------------------------------------------------------------
     def output_size(self, scene) -> tuple[int, int]:
@@ -334,39 +174,6 @@ class CLPipeline:
 
     def target_size(self, name: str, out_w: int, out_h: int) -> tuple[int, int]:
         return self.targets_spec[name].resolve(out_w, out_h)
-
-    def prepare(self, scene) -> None:
-        """Allocate and clear every target for a frame of ``scene``."""
-        out_w, out_h = self.output_size(scene)
-        self._out = (out_w, out_h)
-        last = getattr(self, "_targets", {})
-        self._targets = {}
-        for name, spec in self.targets_spec.items():
-            w, h = self.target_size(name, out_w, out_h)
-            t = _Target(spec, w, h)
-            old = last.get(name)
-            if old is not None and (old.width, old.height) == (w, h):
-                # the last frame's buffers (its results were read back): cleared below
-                t.buf, t.stencil = old.buf, old.stencil
-                t.res, t.res_stencil = old.res, old.res_stencil
-            else:
-                t.buf = t.res = self._alloc(t, t.samples)
-                if t.fmt.kind is F.Kind.DEPTH_STENCIL:
-                    t.stencil = t.res_stencil = self._buffer(
-                        np.zeros(w * h * t.samples, np.uint8))
-                if t.samples > 1:
-                    t.res = self._alloc(t, 1)
-                    if t.stencil is not None:
-                        t.res_stencil = self._buffer(np.zeros(w * h, np.uint8))
-            self._targets[name] = t
-            self._clear_target(t, spec.clear.color, spec.clear.depth, spec.clear.stencil)
-
-    def _alloc(self, t: _Target, planes: int):
-        import pyopencl as cl
-        fmt = t.fmt
-        nbytes = fmt.element_dtype.itemsize * fmt.elements     # stencil: a buffer apart
-        return cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
-                         size=max(16, t.pixels * nbytes * planes))
 
     def _frame(self, scene, light: int = 0) -> np.ndarray:
         out_w, out_h = self._out
@@ -394,10 +201,7 @@ class CLPipeline:
         check_param_overrides(self.plan, params)
         self._use_scene(scene)
         self.prepare(scene)
-        for name, (codes, stencil) in self._presets.items():
-            self.write_target(name, codes, stencil)
         self.last_timings = []
-        self._blend_counts = {}
         self.geometry.begin_frame()
         self._events = []
         self._frame_np = self._frame(scene)
@@ -407,10 +211,10 @@ class CLPipeline:
             self._run_pass(k, light)
             if capture_passes:
                 captures.append({"pass": self.plan.passes[k].name, "light": light,
-                                 "targets": self._read_all(),
-                                 "blend_counts": self._read_blend_counts()})
-        result = self._read_all()
-        self.last_blend_counts = self._read_blend_counts()
+                                 "targets": self.store.read_all(),
+                                 "blend_counts": self.store.read_blend_counts()})
+        result = self.store.read_all()
+        self.last_blend_counts = self.store.read_blend_counts()
         self.queue.finish()
         for timing, ev in self._events:          # raster kernels run while the host goes on
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
@@ -431,47 +235,11 @@ class CLPipeline:
         self._lights_buf = self._buffer(table.reshape(-1, 4) if table.size
                                         else np.zeros((1, 4), np.float32))
 
-    def _read_all(self) -> dict:
-        out = {}
-        for t in self._targets.values():
-            out.update(self._read(t))
-        return out
-
-    def _blend_count_buffer(self, t: _Target):
-        """The per-pixel count of fragments blended into colour target ``t`` this frame (a
-        uint32 per pixel, zeroed at the first blended pass; the raster kernel adds its
-        pixel's count at the end of every blended pass)."""
-        import pyopencl as cl
-        buf = self._blend_counts.get(t.name)
-        if buf is None:
-            buf = self._count_pool.get((t.name, t.pixels))
-            if buf is None:
-                buf = self._count_pool[(t.name, t.pixels)] = cl.Buffer(
-                    self.ctx, cl.mem_flags.READ_WRITE, size=t.pixels * 4)
-            cl.enqueue_fill_buffer(self.queue, buf, np.uint32(0), 0, t.pixels * 4)
-            self._blend_counts[t.name] = buf
-        return buf
-
-    def _read_blend_counts(self) -> dict:
-        import pyopencl as cl
-        out = {}
-        for name, buf in self._blend_counts.items():
-            t = self._targets[name]
-            a = np.empty((t.height, t.width), np.uint32)
-            cl.enqueue_copy(self.queue, a, buf)
-            out[name] = a
-        return out
-
     def _run_pass(self, k: int, light: Optional[int]) -> None:
         import pyopencl as cl
         p = self.plan.passes[k]
         for name, c in p.clears:
-            t = self._targets[name]
-            partial = t.fmt.kind is F.Kind.DEPTH_STENCIL and (
-                (c.depth is None) != (c.stencil is None))
-            self._clear_target(t, c.color, c.depth, c.stencil,
-                               depth_given=not partial or c.depth is not None,
-                               stencil_given=not partial or c.stencil is not None)
+            self.store.clear_for_pass(name, c)
         width, height = self._pass_size(p)
         timing = {"pass": p.name, "light": light}
         self.last_timings.append(timing)
@@ -500,7 +268,7 @@ class CLPipeline:
             t = self._targets[name]
             if not t.fmt.is_integer:
                 on = p.state.blend_for(name).enabled
-                args.append(self._blend_count_buffer(t) if on else self._dummy)
+                args.append(self.store.blend_count(t) if on else self._dummy)
         if p.depth_target:
             dt = self._targets[p.depth_target]
             args.append(dt.buf)
@@ -508,7 +276,7 @@ class CLPipeline:
                 args.append(dt.stencil)
         for name in p.reads:
             rt = self._targets[name]
-            self._resolve(rt)                     # reads see the resolved texture, like GL
+            self.store.resolve(rt)                # reads see the resolved texture, like GL
             args += [rt.res, cl.cltypes.make_int2(rt.width, rt.height)]
         kern = self._kernel(k, "pg_raster")
         kern.set_args(*args)

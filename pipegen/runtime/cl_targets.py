@@ -1,0 +1,268 @@
+"""The CL runtime's render targets: device buffers in GL row order, cleared, resolved, read
+back and preset through their ``formats.Format`` (which says how codes are stored: one element
+per channel, or channels packed into one word).
+
+``TargetStore(ctx, queue, plan).prepare(out_w, out_h)`` allocates (or reuses) and clears
+every target for a frame; ``targets[name]`` is a ``Target``.  Multisampled targets keep one
+plane per sample and a resolved plane that reads and read-back see (``resolve``).
+``blend_count(t)`` is the per-pixel count of fragments blended into a colour target this
+frame, which ``pipegen check`` turns into a per-pixel tolerance.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from .. import formats as F
+from ..backends.plan import Plan, TargetPlan
+
+
+def device_buffer(ctx, array: np.ndarray):
+    """A read-write device buffer holding a copy of ``array`` (at least 16 bytes)."""
+    import pyopencl as cl
+    a = np.ascontiguousarray(array)
+    if a.nbytes == 0:
+        a = np.zeros(16, np.uint8)
+    return cl.Buffer(ctx, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+
+
+def d24_resolve(codes: np.ndarray) -> np.ndarray:
+    """d24 codes as llvmpipe's multisample depth resolve writes them back: its blit reads
+    sample 0 as a float and stores it as a d24 code again, ``code * (float)(1/(2^24-1))``,
+    then ``* (2^24-1)`` rounded to nearest even, all float32 (measured on Mesa 22.3: moves
+    about a third of the codes by one)."""
+    f32 = np.float32
+    v = (np.asarray(codes).astype(f32) * f32(1.0 / 16777215.0)).astype(f32)
+    return np.rint((v * f32(16777215.0)).astype(f32)).astype(np.uint32)
+
+
+class Target:
+    def __init__(self, spec: TargetPlan, width: int, height: int):
+        self.spec = spec
+        self.name = spec.name
+        self.fmt = spec.format
+        self.width, self.height = width, height
+        self.samples = spec.samples
+        self.buf = None           # colour or depth codes, one plane per sample
+        self.stencil = None       # d24s8 stencil, one plane per sample
+        self.res = None           # the resolved (single-sample) planes: reads and readback
+        self.res_stencil = None
+        self.dirty = False        # samples newer than the resolved planes
+
+    @property
+    def pixels(self) -> int:
+        return self.width * self.height
+
+
+class TargetStore:
+    def __init__(self, ctx, queue, plan: Plan):
+        self.ctx, self.queue = ctx, queue
+        self.specs = {t.name: t for t in plan.targets}
+        self.targets: dict[str, Target] = {}
+        self.blend_counts: dict = {}        # target name -> this frame's count buffer
+        self._count_pool: dict = {}         # count buffers, reused every frame
+
+    # -- a frame ------------------------------------------------------------------------------
+    def prepare(self, out_w: int, out_h: int) -> None:
+        """Allocate (or reuse the last frame's buffers) and clear every target."""
+        last = self.targets
+        self.targets = {}
+        self.blend_counts = {}
+        for name, spec in self.specs.items():
+            w, h = spec.resolve(out_w, out_h)
+            t = Target(spec, w, h)
+            old = last.get(name)
+            if old is not None and (old.width, old.height) == (w, h):
+                # the last frame's buffers (its results were read back): cleared below
+                t.buf, t.stencil = old.buf, old.stencil
+                t.res, t.res_stencil = old.res, old.res_stencil
+            else:
+                t.buf = t.res = self._alloc(t, t.samples)
+                if t.fmt.kind is F.Kind.DEPTH_STENCIL:
+                    t.stencil = t.res_stencil = device_buffer(
+                        self.ctx, np.zeros(w * h * t.samples, np.uint8))
+                if t.samples > 1:
+                    t.res = self._alloc(t, 1)
+                    if t.stencil is not None:
+                        t.res_stencil = device_buffer(self.ctx, np.zeros(w * h, np.uint8))
+            self.targets[name] = t
+            self.clear(t, spec.clear.color, spec.clear.depth, spec.clear.stencil)
+
+    def _alloc(self, t: Target, planes: int):
+        import pyopencl as cl
+        fmt = t.fmt
+        nbytes = fmt.element_dtype.itemsize * fmt.elements     # stencil: a buffer apart
+        return cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
+                         size=max(16, t.pixels * nbytes * planes))
+
+    # -- clears -------------------------------------------------------------------------------
+    def clear(self, t: Target, color=None, depth=None, stencil=None,
+              depth_given: bool = True, stencil_given: bool = True) -> None:
+        n = t.pixels
+        if t.samples > 1:          # keep the resolved plane current for a partial clear
+            self.resolve(t)
+        self._fill(t, t.buf, t.stencil, t.samples * n, color, depth, stencil, depth_given,
+                   stencil_given)
+        if t.samples > 1:
+            self._fill(t, t.res, t.res_stencil, n, color, depth, stencil, depth_given,
+                       stencil_given)
+        t.dirty = False
+
+    def clear_for_pass(self, name: str, c) -> None:
+        """A pass's ``clears`` entry (an ``ir.Clear``): a d24s8 clear naming only depth or
+        only stencil keeps the other aspect."""
+        t = self.targets[name]
+        partial = t.fmt.kind is F.Kind.DEPTH_STENCIL and (c.depth is None) != (c.stencil is None)
+        self.clear(t, c.color, c.depth, c.stencil,
+                   depth_given=not partial or c.depth is not None,
+                   stencil_given=not partial or c.stencil is not None)
+
+    def _fill(self, t: Target, buf, sbuf, n: int, color, depth, stencil, depth_given: bool,
+              stencil_given: bool) -> None:
+        import pyopencl as cl
+        fmt = t.fmt
+        if fmt.kind is F.Kind.DEPTH_STENCIL:
+            if depth_given:
+                code = np.uint32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
+                cl.enqueue_fill_buffer(self.queue, buf, code, 0, n * 4)
+            if stencil_given:
+                s = np.uint8(int(stencil or 0) & 0xFF)
+                cl.enqueue_fill_buffer(self.queue, sbuf, s, 0, n)
+            return
+        if fmt.kind is F.Kind.DEPTH:
+            if depth_given:
+                v = np.float32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
+                cl.enqueue_fill_buffer(self.queue, buf, v, 0, n * 4)
+            return
+        col = np.zeros(4) if color is None else np.asarray(color, np.float64)
+        if col.ndim == 0:
+            col = np.full(4, float(col))
+        col = np.concatenate([col, np.zeros(4)])[:4]
+        if fmt.kind is F.Kind.UINT:
+            codes = col[:fmt.channels].astype(np.uint64).astype(fmt.dtype)
+        else:
+            codes = fmt.quantize(col[:fmt.channels])
+        pixel = fmt.pack(np.asarray(codes).reshape(1, 1, -1) if fmt.channels > 1
+                         else np.asarray(codes).reshape(1, 1))
+        pattern = np.ascontiguousarray(pixel).view(np.uint8).reshape(-1)
+        if len(pattern) in (1, 2, 4, 8, 16, 32, 64, 128):     # clEnqueueFillBuffer's sizes
+            cl.enqueue_fill_buffer(self.queue, buf, pattern, 0, n * len(pattern))
+        else:
+            cl.enqueue_copy(self.queue, buf, np.tile(pattern, n))
+
+    # -- reading ------------------------------------------------------------------------------
+    def _read_planes(self, t: Target, buf, sbuf, planes: int):
+        """(codes (planes, H, W[, C]), stencil (planes, H, W) or None) of a buffer pair."""
+        import pyopencl as cl
+        fmt = t.fmt
+        h, w = t.height, t.width
+        if fmt.kind in (F.Kind.DEPTH_STENCIL, F.Kind.DEPTH):
+            d = np.empty((planes, h, w), np.uint32 if fmt.kind is F.Kind.DEPTH_STENCIL
+                         else np.float32)
+            cl.enqueue_copy(self.queue, d, buf)
+            st = None
+            if fmt.kind is F.Kind.DEPTH_STENCIL:
+                st = np.empty((planes, h, w), np.uint8)
+                cl.enqueue_copy(self.queue, st, sbuf)
+            return d, st
+        per_pixel = () if fmt.elements == 1 else (fmt.elements,)
+        raw = np.empty((planes, h, w) + per_pixel, fmt.element_dtype)
+        cl.enqueue_copy(self.queue, raw, buf)
+        return fmt.unpack(raw), None
+
+    def resolve(self, t: Target) -> None:
+        """Resolve the samples like llvmpipe's blit (measured): colour = the average of the
+        sample values, stored like a fragment output (unorm: round half to even, half:
+        toward zero); depth, stencil and integer formats take sample 0, d24 depth through
+        llvmpipe's float round trip (``d24_resolve``)."""
+        import pyopencl as cl
+        if t.samples == 1 or not t.dirty:
+            return
+        codes, st = self._read_planes(t, t.buf, t.stencil, t.samples)
+        fmt = t.fmt
+        if fmt.kind in (F.Kind.UNORM, F.Kind.FLOAT):
+            if fmt.kind is F.Kind.UNORM:
+                top = np.array([(1 << b) - 1 for b in fmt.bits], np.float32)
+                rcp = (np.float32(1.0) / top).astype(np.float32)
+                vals = codes.astype(np.float32) * (rcp if fmt.channels > 1 else rcp[0])
+            else:
+                vals = codes.astype(np.float32)
+            acc = vals[0].copy()
+            for k in range(1, t.samples):
+                acc = (acc + vals[k]).astype(np.float32)
+            avg = (acc * np.float32(1.0 / t.samples)).astype(np.float32)
+            if fmt.kind is F.Kind.UNORM:
+                m = top if fmt.channels > 1 else top[0]
+                res = np.rint(np.clip(avg, 0, 1) * m).astype(fmt.dtype)
+            elif fmt.dtype == np.float16:
+                res = F.half_toward_zero(avg)
+            else:
+                res = avg
+            res = res[None]
+        elif fmt.kind is F.Kind.DEPTH_STENCIL:
+            res = d24_resolve(codes[0])[None]
+        else:
+            res = codes[:1]
+        cl.enqueue_copy(self.queue, t.res, np.ascontiguousarray(fmt.pack(res[0])))
+        if st is not None:
+            cl.enqueue_copy(self.queue, t.res_stencil, np.ascontiguousarray(st[0]))
+        t.dirty = False
+
+    def read(self, t: Target) -> dict:
+        self.resolve(t)
+        codes, st = self._read_planes(t, t.res, t.res_stencil, 1)
+        out = {t.name: codes[0]}
+        if st is not None:
+            out[t.name + ".stencil"] = st[0]
+        return out
+
+    def read_all(self) -> dict:
+        out = {}
+        for t in self.targets.values():
+            out.update(self.read(t))
+        return out
+
+    def write(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None):
+        """Overwrite a target of the current frame with codes (GL row order): every sample."""
+        import pyopencl as cl
+        t = self.targets[name]
+        data = np.ascontiguousarray(t.fmt.pack(np.asarray(codes)))
+        cl.enqueue_copy(self.queue, t.buf, np.ascontiguousarray(
+            np.broadcast_to(data, (t.samples,) + data.shape)))
+        if t.res is not t.buf:
+            cl.enqueue_copy(self.queue, t.res, data)
+        if stencil is not None and t.stencil is not None:
+            st = np.ascontiguousarray(np.asarray(stencil, np.uint8))
+            cl.enqueue_copy(self.queue, t.stencil, np.ascontiguousarray(
+                np.broadcast_to(st, (t.samples,) + st.shape)))
+            if t.res_stencil is not t.stencil:
+                cl.enqueue_copy(self.queue, t.res_stencil, st)
+        t.dirty = False
+
+    # -- blend counts -------------------------------------------------------------------------
+    def blend_count(self, t: Target):
+        """The per-pixel count of fragments blended into colour target ``t`` this frame (a
+        uint32 per pixel, zeroed at the first blended pass; the raster kernel adds its
+        pixel's count at the end of every blended pass)."""
+        import pyopencl as cl
+        buf = self.blend_counts.get(t.name)
+        if buf is None:
+            buf = self._count_pool.get((t.name, t.pixels))
+            if buf is None:
+                buf = self._count_pool[(t.name, t.pixels)] = cl.Buffer(
+                    self.ctx, cl.mem_flags.READ_WRITE, size=t.pixels * 4)
+            cl.enqueue_fill_buffer(self.queue, buf, np.uint32(0), 0, t.pixels * 4)
+            self.blend_counts[t.name] = buf
+        return buf
+
+    def read_blend_counts(self) -> dict:
+        import pyopencl as cl
+        out = {}
+        for name, buf in self.blend_counts.items():
+            t = self.targets[name]
+            a = np.empty((t.height, t.width), np.uint32)
+            cl.enqueue_copy(self.queue, a, buf)
+            out[name] = a
+        return out
