@@ -20,6 +20,8 @@ from pipegen.compiler import compile_file
 from pipegen.reference.lighting import lights_per_pixel, reference_image
 from pipegen.scene import load_scene
 
+pytestmark = [pytest.mark.gl]
+
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
               "lidr_bitplanes"]
