@@ -984,7 +984,11 @@ class _BodyChecker:
         if not isinstance(s.expr, (ast.Call, ast.MethodCall)):
             raise _err(s.span, "this statement has no effect",
                        "a statement is a declaration, an assignment or a call")
-        return ir.ExprStmt(self.expr(s.expr, allow_void=True))
+        value = self.expr(s.expr, allow_void=True)
+        if not isinstance(value, ir.Call):   # a constructor, conversion or load()/sample()
+            raise _err(s.span, "this statement has no effect",
+                       "use the value: assign it to a variable or a target")
+        return ir.ExprStmt(value)
 
     def _stmt_If(self, s: ast.If) -> ir.Stmt:
         cond = self._condition(s.cond, "an if condition")

@@ -18,6 +18,13 @@ ROOT = Path(__file__).resolve().parents[1]
 FORWARD = (ROOT / "pipelines/forward.pipe").read_text()
 
 
+def line_of(text: str, marker: str) -> int:
+    return text[:text.index(marker)].count("\n") + 1
+
+
+C_LINE = line_of(FORWARD, "vec3 c = ambient")      # the line the tests below break
+
+
 def error(source: str, filename: str = "t.pipe") -> PipegenError:
     with pytest.raises(PipegenError) as info:
         compile_source(source, filename)
@@ -71,7 +78,7 @@ def test_invalid_utf8_is_located_at_the_byte(tmp_path):
         compile_file(bad)
     err = info.value
     assert "not valid UTF-8 (byte 0xff)" in err.message
-    assert (err.span.file, err.span.line, err.span.column) == (str(bad), 18, 14)
+    assert (err.span.file, err.span.line, err.span.column) == (str(bad), C_LINE, 14)
     assert "\ufffd" in err.span.source_line
 
 
@@ -88,7 +95,7 @@ def test_odd_line_breaks_in_comments_do_not_shift_the_caret(odd):
     source = FORWARD.replace("technique forward", f"// a{odd}b\ntechnique forward").replace(
         "vec3 c = ambient", "vec3 c = ambent")
     err = error(source)
-    assert err.span.line == 19
+    assert err.span.line == C_LINE + 1
     assert caret_text(err) == "ambent"
 
 
@@ -129,7 +136,7 @@ def test_deep_nesting_is_a_located_error():
     err = error(FORWARD.replace("vec3 c = ambient", "vec3 c = " + "(-" * 3000 + "1.0" +
                                 ")" * 3000 + " * ambient"))
     assert "nested too deeply" in err.message
-    assert err.span.line == 18
+    assert err.span.line == C_LINE
 
 
 def test_many_passes_cost_linear_time():
@@ -224,3 +231,12 @@ def test_errors_in_generated_packing_code_point_at_the_pack_declaration():
     assert "the code packing 'id' generates does not compile" in err.message
     assert err.span.file == str(ROOT / "pipelines/inferred.pipe")
     assert err.span.source_line.startswith("pack id = bitfield")
+
+
+@pytest.mark.parametrize("statement", ["vec4(1.0);", "float(1);", "ivec2(1, 2);",
+                                       "load(color);"])
+def test_value_statements_without_effect_are_errors(statement):
+    source = FORWARD.replace("vec3 c = ambient * albedo;", f"vec3 c = ambient * albedo; {statement}")
+    err = error(source, str(ROOT / "pipelines/forward.pipe"))
+    assert "has no effect" in err.message or "reads target" in err.message
+    assert err.span.line == C_LINE
