@@ -2,6 +2,10 @@
 
     parse → lower → validate → specialise → fold → prune → emit
 
+and, compiled for a scene (``compile_file(..., scene=)``, ``specialise.py``), the scene phases
+after ``prune``: assume_scene → spec_light_types → fold → prune → cull_empty_draws →
+cull_unread.
+
 Each phase after ``lower`` is a ``run(ir) -> ir`` from ``pipegen.passes``; with
 ``verify_each=True`` (the tests' setting) the IR verifier runs after every phase.  Nothing here
 imports moderngl or pyopencl: ``pipegen compile`` works on any machine; ``Compiled.pipeline``
@@ -11,16 +15,17 @@ imports a runtime only when asked to render.
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import TYPE_CHECKING, Callable, Optional
 
 from . import ir, lower, syntax, verify
 from .diagnostics import PipegenError
 from .backends import registry
 from .backends.plan import Plan
+
+if TYPE_CHECKING:
+    from .specialise import Specialisation
 from .passes import opt_fold_constants, opt_unused_functions, specialise_params
 
 Phase = tuple[str, Callable[[ir.Technique], ir.Technique]]
@@ -39,6 +44,7 @@ class Compiled:
     technique: ir.Technique
     params: dict
     phases_run: list[str] = field(default_factory=list)
+    specialisation: Optional["Specialisation"] = None    # set when compiled for a scene
     _plans: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -58,6 +64,18 @@ class Compiled:
     def report(self, output_size: tuple[int, int] = (1280, 720)) -> str:
         from .report import render_report
         return render_report(self, output_size)
+
+    def mismatches(self, scene) -> list:
+        """What this technique will not render of ``scene`` (``features.Mismatch`` list:
+        light types it cannot draw, translucent objects, light-index capacity)."""
+        from .features import mismatches
+        return mismatches(self.technique, scene)
+
+    def specialise(self, scene, verify_each: bool = False) -> "Compiled":
+        """This technique compiled for what ``scene`` calls for (``specialise.py``); the
+        light table is shrunk only by ``compile_file(..., scene=)``, which can recompile."""
+        from .specialise import specialise
+        return specialise(self, scene, verify_each=verify_each)
 
     def write(self, out_dir, backends: tuple[str, ...] = ("gl", "cl"),
               output_size: Optional[tuple[int, int]] = None, force: bool = False) -> Path:
@@ -82,7 +100,9 @@ def compile_source(text: str, filename: str = "<string>", params: Optional[dict]
 
 
 def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
-                 verify_each: bool = False) -> Compiled:
+                 verify_each: bool = False, scene=None) -> Compiled:
+    """Compile a ``.pipe`` file; with ``scene``, specialised for what the scene calls for
+    (``specialise.py``: cuts with reasons, guards, a cached variant per scene-feature key)."""
     from .sources import MAX_SOURCE_BYTES, read_source
     p = Path(path)
     try:
@@ -95,7 +115,12 @@ def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
         raise PipegenError(None, f"cannot read {p}: {e.strerror or e}",
                            hint=f"pass a .pipe file (a regular file of at most "
                                 f"{MAX_SOURCE_BYTES >> 20} MiB)") from None
-    return compile_source(text, str(p), params, verify_each)
+    compiled = compile_source(text, str(p), params, verify_each)
+    if scene is None:
+        return compiled
+    from .specialise import specialise
+    return specialise(compiled, scene, verify_each=verify_each,
+                      recompile=lambda ps: compile_source(text, str(p), ps, verify_each))
 
 
 def _run_phases(tech: ir.Technique, params: dict, verify_each: bool) -> Compiled:

@@ -594,6 +594,39 @@ class Packing:
 
 
 @dataclass(frozen=True)
+class SceneFacts:
+    """What a scene-specialised technique assumes of every scene it renders (``features.py``
+    computes them; the runtimes refuse a scene that breaks one).  Set by the ``assume_scene``
+    phase; the scene passes read them."""
+
+    light_types: tuple[str, ...]        # the light types present ("point", "spot", ...)
+    lights: int                         # the most lights a scene may have
+    translucent: bool                   # whether any object is translucent
+    opaque: bool = True                 # whether any object is opaque
+
+    def describe(self) -> str:
+        types = ", ".join(self.light_types) or "no lights"
+        return (f"{types}; at most {self.lights} lights; "
+                f"{'translucent objects' if self.translucent else 'nothing translucent'}")
+
+
+@dataclass(frozen=True)
+class Cut:
+    """Something scene specialisation removed, and why: ``kind`` is "pass", "target",
+    "branch" or "table"; ``reason`` names the scene fact or the earlier cut it follows from."""
+
+    kind: str
+    name: str
+    reason: str
+    reads: tuple[str, ...] = ()         # a culled pass: the targets it read (for later reasons)
+
+    def describe(self) -> str:
+        verb = {"pass": "culled", "target": "culled", "table": "shrunk"}.get(self.kind,
+                                                                             "removed")
+        return f"{self.kind} `{self.name}` {verb}: {self.reason}"
+
+
+@dataclass(frozen=True)
 class Technique:
     name: str
     title: str
@@ -605,6 +638,8 @@ class Technique:
     passes: tuple[Pass, ...]
     output: str                         # the target that is the technique's final image
     source: str = ""                    # path of the .pipe file
+    scene: Optional[SceneFacts] = None  # scene specialisation: what every scene must satisfy
+    cuts: tuple[Cut, ...] = ()          # what scene specialisation removed, with reasons
 
     def target(self, name: str) -> Target:
         for t in self.targets:

@@ -28,7 +28,19 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
             if p.error is not None:
                 lines.append(f"    error bound   {p.error:.3g}")
             lines += [f"    {n}" for n in p.notes]
+    spec = getattr(compiled, "specialisation", None)
+    if spec is not None:
+        general = spec.general
+        saved = _memory(general, w, h) - _memory(tech, w, h)
+        lines += ["", "scene specialisation", *[f"  {x}" for x in spec.features.describe()],
+                  *[f"  {x}" for x in spec.summary()],
+                  f"  target memory saved at {w}x{h}: {_mib(saved)}"]
     return "\n".join(lines) + "\n"
+
+
+def _memory(tech: ir.Technique, w: int, h: int) -> int:
+    return sum(t.size.resolve(w, h)[0] * t.size.resolve(w, h)[1] * t.format.bytes_per_pixel
+               * t.samples for t in tech.targets)
 
 
 def target_table(tech: ir.Technique, w: int, h: int) -> list[str]:

@@ -104,6 +104,7 @@ class Plan:
     targets: tuple[TargetPlan, ...]
     passes: tuple[PassPlan, ...]
     light_sets: Mapping[str, int] = field(default_factory=dict)   # channel_slots: slots
+    scene: Optional[ir.SceneFacts] = None     # specialised: what every scene must satisfy
 
     def target(self, name: str) -> TargetPlan:
         for t in self.targets:
@@ -137,7 +138,8 @@ def technique_plan(tech: ir.Technique, backend: str,
         targets=tuple(target_plan(t) for t in tech.targets),
         passes=tuple(pass_plan(p, code, s) for p, code, s in zip(tech.passes, codes, sampled)),
         light_sets={p.name: int(dict(p.options).get("slots", 4))
-                    for p in tech.packings if p.scheme == "channel_slots"})
+                    for p in tech.packings if p.scheme == "channel_slots"},
+        scene=tech.scene)
 
 
 def target_plan(t: ir.Target) -> TargetPlan:
@@ -160,7 +162,7 @@ def pass_plan(p: ir.Pass, code: PassCode = None, sampled: tuple[str, ...] = ()) 
 def plan_to_dict(plan: Plan) -> dict:
     """The plan as plain data (docs/internals.md, "Compiled plan"): IR enums as their
     ``.value`` strings, formats by name, containers as lists."""
-    return {
+    out = {
         "technique": plan.technique, "title": plan.title, "backend": plan.backend,
         "source": plan.source, "params": dict(plan.params),
         "lights": {"capacity": plan.lights.capacity,
@@ -170,6 +172,11 @@ def plan_to_dict(plan: Plan) -> dict:
         "passes": [_pass_to_dict(p) for p in plan.passes],
         "light_sets": dict(plan.light_sets),
     }
+    if plan.scene is not None:
+        f = plan.scene
+        out["scene"] = {"light_types": list(f.light_types), "lights": f.lights,
+                        "translucent": f.translucent, "opaque": f.opaque}
+    return out
 
 
 def _clear_to_dict(c: ir.Clear) -> dict:
@@ -257,7 +264,15 @@ def plan_from_dict(d: Union[Mapping, Plan]) -> Plan:
         output=d.get("output", ""),
         targets=tuple(_target_from_dict(t) for t in d.get("targets") or []),
         passes=tuple(_pass_from_dict(p) for p in d.get("passes") or []),
-        light_sets={k: int(v) for k, v in (d.get("light_sets") or {}).items()})
+        light_sets={k: int(v) for k, v in (d.get("light_sets") or {}).items()},
+        scene=_facts_from_dict(d.get("scene")))
+
+
+def _facts_from_dict(f: Optional[Mapping]) -> Optional[ir.SceneFacts]:
+    if f is None:
+        return None
+    return ir.SceneFacts(tuple(f.get("light_types") or ()), int(f.get("lights") or 0),
+                         bool(f.get("translucent")), bool(f.get("opaque", True)))
 
 
 def _clear_from_dict(c: Mapping) -> ir.Clear:

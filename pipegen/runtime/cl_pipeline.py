@@ -68,7 +68,7 @@ from .. import ir
 from ..backends import opencl as clgen
 from ..backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from . import cl_context, draws
-from .common import check_light_capacity, check_param_overrides
+from .common import check_light_capacity, check_param_overrides, check_scene_facts
 from .cl_geometry import DrawGeometry
 from .cl_targets import TargetStore, d24_resolve, device_buffer
 
@@ -224,11 +224,12 @@ class CLPipeline:
     def _use_scene(self, scene) -> None:
         if self._scene is scene:
             return
+        check_scene_facts(self.plan, scene)
+        check_light_capacity(len(scene.lights), self.plan)
         self._scene = scene
         self._selection = draws.LightSelection(self.plan, list(scene.lights))
         self.geometry.use_scene()
         capacity = max(1, self.plan.lights.capacity)
-        check_light_capacity(len(scene.lights), self.plan)
         fields = [list(f) for f in self.plan.lights.fields]
         table = (np.asarray(scene.light_table(fields, capacity), np.float32) if fields
                  else np.zeros((0, 4), np.float32))

@@ -1,5 +1,6 @@
-"""What both runtimes check the same way: the light-capacity check and parameter overrides at
-render time.  (Which lights and passes a frame draws is ``draws.py``.)"""
+"""What both runtimes check the same way: the light capacity, a specialised pipeline's scene
+assumptions and parameter overrides at render time.  (Which lights and passes a frame draws
+is ``draws.py``.)"""
 
 from __future__ import annotations
 
@@ -17,6 +18,32 @@ def check_light_capacity(lights: int, plan: Plan) -> None:
             + " or use a scene with fewer lights")
     raise PipegenError(None, f"the scene has {lights} lights but technique "
                              f"'{plan.technique or '?'}' holds {capacity}", hint=hint)
+
+
+def check_scene_facts(plan: Plan, scene) -> None:
+    """A pipeline specialised for a scene's features refuses a scene that breaks one of them:
+    a light type it was specialised without, more lights, translucency (never a silently
+    wrong image)."""
+    facts = plan.scene
+    if facts is None:
+        return
+    counts: dict[str, int] = {}
+    for light in scene.lights:
+        counts[light.type] = counts.get(light.type, 0) + 1
+    broken = [f"specialised for 0 {t} lights; this scene has {n}"
+              for t, n in counts.items() if t not in facts.light_types]
+    if len(scene.lights) > facts.lights:
+        broken.append(f"specialised for at most {facts.lights} lights; this scene has "
+                      f"{len(scene.lights)}")
+    translucent = sum(o.material.translucent for o in scene.objects)
+    if translucent and not facts.translucent:
+        broken.append(f"specialised for no translucent objects; this scene has {translucent}")
+    opaque = len(scene.objects) - translucent
+    if opaque and not facts.opaque:
+        broken.append(f"specialised for no opaque objects; this scene has {opaque}")
+    if broken:
+        raise PipegenError(None, f"technique '{plan.technique}' " + "; ".join(broken),
+                           hint="compile it for this scene (--scene), or without a scene")
 
 
 def check_param_overrides(plan: Plan, params) -> None:

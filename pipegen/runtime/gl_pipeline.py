@@ -47,7 +47,7 @@ from ..backends.plan import PassPlan, Plan, TargetPlan, plan_from_dict
 from . import draws
 from . import gl_formats as GF
 from . import gl_state as GS
-from .common import check_light_capacity, check_param_overrides
+from .common import check_light_capacity, check_param_overrides, check_scene_facts
 from .gl_context import GL, clear_stale_errors, get_context
 
 import moderngl
@@ -303,6 +303,8 @@ class GLPipeline:
     def _use_scene(self, scene) -> None:
         if self._scene is scene:
             return
+        check_scene_facts(self.plan, scene)
+        check_light_capacity(len(scene.lights), self.plan)
         for p in self.passes:
             for key in [k for k in p.vaos if k[0] == "scene"]:
                 p.vaos.pop(key).release()
@@ -310,7 +312,6 @@ class GLPipeline:
             buf.release()
         self._scene_vbos = {}
         lights = list(scene.lights)
-        check_light_capacity(len(lights), self.plan)
         self._selection = draws.LightSelection(self.plan, lights)
         if self.fields:
             table = np.asarray(scene.light_table([list(f) for f in self.fields],

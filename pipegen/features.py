@@ -1,0 +1,238 @@
+"""What a scene calls for, what a technique renders, and where the two disagree.
+
+- ``scene_features(scene)``: light types and counts, translucent objects and stipple layers,
+  specular materials, the ambient term, lights whose volume holds the camera, ids and normal
+  groups in use; ``lights_per_pixel_bound(scene)`` (costly: a float64 rasterisation) bounds
+  the lights whose volumes a light-index packing must hold at one pixel.
+- ``capabilities(tech)``: derived from the IR, not declared: which light types the technique
+  draws and evaluates, whether it draws translucent objects, its light-index capacity.
+- ``mismatches(tech, scene)``: what the technique will not render of this scene, in words
+  ("2 spot lights are lit as point lights ..."): ``run``, ``check`` and the API report them,
+  ``--strict`` makes them an error.  A silently wrong image is the worst bug.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from . import ir, irwalk
+from .backends.plan import pass_functions
+
+LIGHT_TYPES = ("point", "spot", "directional")
+INDEX_SCHEMES = ("bitplanes", "max_pairs")        # packings with a per-pixel light capacity
+RENDERED = "rendered"
+
+
+# ---- the scene ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SceneFeatures:
+    light_counts: tuple[tuple[str, int], ...]    # per light type present, in LIGHT_TYPES order
+    translucent_objects: int
+    opaque_objects: int
+    max_layer: int                               # highest stipple layer used (0: none)
+    specular: bool                               # any material with specular > 0
+    ambient: bool                                # a non-zero ambient term
+    camera_inside: tuple[int, ...]               # lights whose sphere holds the camera
+    object_ids: int
+    normal_groups: int
+
+    @property
+    def lights(self) -> int:
+        return sum(n for _, n in self.light_counts)
+
+    @property
+    def light_types(self) -> tuple[str, ...]:
+        return tuple(t for t, _ in self.light_counts)
+
+    def count(self, light_type: str) -> int:
+        return dict(self.light_counts).get(light_type, 0)
+
+    def facts(self) -> ir.SceneFacts:
+        """The compile-time facts a specialised technique assumes.  The light count is
+        rounded up to a power of two so that similar scenes share a variant."""
+        return ir.SceneFacts(self.light_types, _pow2(self.lights), self.translucent_objects > 0,
+                             self.opaque_objects > 0)
+
+    def describe(self) -> list[str]:
+        lights = ", ".join(f"{n} {t}" for t, n in self.light_counts) or "none"
+        return [f"lights: {lights}",
+                f"objects: {self.opaque_objects} opaque, {self.translucent_objects} translucent"
+                + (f" (stipple layers up to {self.max_layer})" if self.max_layer else ""),
+                f"specular materials: {'yes' if self.specular else 'no'}; ambient: "
+                f"{'yes' if self.ambient else 'no'}",
+                f"camera inside the volume of light(s): "
+                f"{', '.join(map(str, self.camera_inside)) or 'none'}",
+                f"object ids in use: {self.object_ids}; normal groups: {self.normal_groups}"]
+
+
+def _pow2(n: int) -> int:
+    return 1 if n <= 1 else 1 << (int(n) - 1).bit_length()
+
+
+def scene_features(scene) -> SceneFeatures:
+    counts = {t: 0 for t in LIGHT_TYPES}
+    for light in scene.lights:
+        counts[light.type] = counts.get(light.type, 0) + 1
+    eye = np.asarray(scene.camera.position, np.float64)
+    inside = tuple(i for i, l in enumerate(scene.lights) if l.radius > 0 and
+                   np.linalg.norm(eye - np.asarray(l.position, np.float64)) <= l.radius)
+    objects = list(scene.objects)
+    groups = {int(g) for o in objects for g in np.unique(o.groups)}
+    return SceneFeatures(
+        light_counts=tuple((t, n) for t, n in counts.items() if n),
+        translucent_objects=sum(o.material.translucent for o in objects),
+        opaque_objects=sum(not o.material.translucent for o in objects),
+        max_layer=max((o.layer for o in objects), default=0),
+        specular=any(o.material.specular > 0 for o in objects),
+        ambient=bool(np.any(np.asarray(scene.ambient) > 0)),
+        camera_inside=inside,
+        object_ids=len({o.id for o in objects}),
+        normal_groups=len(groups))
+
+
+def lights_per_pixel_bound(scene) -> int:
+    """The most lights whose volumes a light-index pass may write at one pixel: lights whose
+    circumscribing volume has a back face at or behind the visible surface (or the sky) along
+    the pixel's ray, directional lights everywhere (``reference.lighting.lights_per_pixel``,
+    conservative, at the scene's resolution)."""
+    from .reference.lighting import lights_per_pixel
+    from .reference.raster import rasterize
+    if not scene.lights:
+        return 0
+    counts = lights_per_pixel(rasterize(scene), scene, conservative=True)
+    return int(counts.max()) if counts.size else 0
+
+
+# ---- the technique -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    light_types: tuple[tuple[str, str], ...]   # type -> RENDERED or what happens instead
+    has_light_table: bool
+    translucent: bool                          # draws translucent objects
+    index_packing: Optional[tuple[str, str, int]]   # (pack, scheme, lights per pixel)
+    slot_packing: Optional[tuple[str, int]]         # channel_slots: (pack, sets)
+
+    def light_type(self, t: str) -> str:
+        return dict(self.light_types)[t]
+
+
+def _volume_fills(volume: Optional[ir.Volume], light_type: str) -> bool:
+    """Whether a light volume covers every pixel a light of this type reaches: spheres hold
+    points and spots (a spot's cone lies in its sphere), cones spots; quads cover a light's
+    screen bounds, the whole screen for a directional light (radius 0)."""
+    v = volume or ir.Volume.SPHERE
+    if v is ir.Volume.QUAD:
+        return True
+    if v is ir.Volume.CONE:
+        return light_type == "spot"
+    return light_type in ("point", "spot")
+
+
+def _types_match(types: tuple[str, ...], light_type: str) -> bool:
+    return not types or light_type in types
+
+
+def _light_fields_read(tech: ir.Technique, passes) -> set[str]:
+    fields: set[str] = set()
+    for p in passes:
+        functions = pass_functions(tech, p.body)
+        for stmts in [p.body] + [f.body for f in functions]:
+            fields |= {e.field for e in irwalk.walk_exprs(stmts) if isinstance(e, ir.LightField)}
+    return fields
+
+
+def capabilities(tech: ir.Technique) -> Capabilities:
+    has_table = bool(tech.lights.fields)
+    volumes = [p for p in tech.passes if p.draw.kind is ir.DrawKind.LIGHTS]
+    repeats = [p for p in tech.passes if p.repeat_per_light and p.draw.kind is not
+               ir.DrawKind.LIGHTS]
+    fields = _light_fields_read(tech, tech.passes)
+    out = []
+    for t in LIGHT_TYPES:
+        if volumes:       # light volumes decide which pixels a light reaches
+            covered = any(_types_match(p.draw.light_types, t) and _types_match(p.repeat_types, t)
+                          and _volume_fills(p.draw.volume, t) for p in volumes) or any(
+                _types_match(p.repeat_types, t) for p in repeats)
+        else:             # light-table loops and per-light full passes reach every pixel
+            covered = has_table
+        if not has_table:
+            how = "ignored (the technique has no light table)"
+        elif not covered:
+            how = ("not drawn (its light volumes do not cover a directional light)"
+                   if t == "directional" else f"not drawn (no light draw takes {t} lights)")
+        elif t == "spot" and not fields & {"cos_outer", "cos_inner"}:
+            how = "lit as point lights (the technique reads no cone angle)"
+        elif t == "directional" and not fields & {"direction", "type"}:
+            how = "not lit (the technique reads no light direction; radius 0 attenuates them)"
+        else:
+            how = RENDERED
+        out.append((t, how))
+    translucent = any(p.draw.kind is ir.DrawKind.SCENE and
+                      (not p.draw.material or "translucent" in p.draw.material)
+                      for p in tech.passes)
+    index = next(((k.name, k.scheme, int(k.capacity)) for k in tech.packings
+                  if k.scheme in INDEX_SCHEMES and k.capacity), None)
+    slots = next(((k.name, int(dict(k.options).get("slots", 4))) for k in tech.packings
+                  if k.scheme == "channel_slots"), None)
+    return Capabilities(tuple(out), has_table, translucent, index, slots)
+
+
+# ---- where they disagree -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    kind: str          # "light_type", "translucent", "capacity", "table"
+    message: str
+
+
+def _n(count: int, noun: str) -> str:
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = None,
+               per_pixel: Optional[int] = None) -> list[Mismatch]:
+    """What ``tech`` will not render of ``scene`` (empty: it renders everything).
+    ``per_pixel`` overrides the lights-per-pixel bound (computed only when the technique
+    has a per-pixel light-index capacity)."""
+    f = features or scene_features(scene)
+    cap = capabilities(tech)
+    out: list[Mismatch] = []
+    for t, how in cap.light_types:
+        n = f.count(t)
+        if n and how != RENDERED:
+            verb = "is" if n == 1 else "are"
+            out.append(Mismatch("light_type", f"{_n(n, t + ' light')} {verb} {how}"))
+    if f.translucent_objects and not cap.translucent:
+        n = f.translucent_objects
+        out.append(Mismatch("translucent", f"{_n(n, 'translucent object')} "
+                                           f"{'is' if n == 1 else 'are'} not drawn "
+                                           f"(no pass draws scene.translucent)"))
+    if cap.index_packing and f.lights:
+        pack, scheme, capacity = cap.index_packing
+        bound = lights_per_pixel_bound(scene) if per_pixel is None else per_pixel
+        if bound > capacity:
+            out.append(Mismatch("capacity", f"up to {bound} lights reach a pixel, the packing "
+                                            f"`{pack}` ({scheme}) holds {capacity}: lights "
+                                            f"will be dropped"))
+    if cap.slot_packing and f.lights:
+        from .packing import sort_lights_into_slots
+        pack, slots = cap.slot_packing
+        _, dropped = sort_lights_into_slots([tuple(l.position) for l in scene.lights],
+                                            [float(l.radius) for l in scene.lights], slots)
+        if len(dropped):
+            out.append(Mismatch("capacity", f"{_n(len(dropped), 'light')} overlap more than "
+                                            f"the {slots} light sets of `{pack}` hold: "
+                                            f"{'it is' if len(dropped) == 1 else 'they are'} "
+                                            f"dropped (lights {', '.join(map(str, dropped))})"))
+    if tech.lights.fields and f.lights > tech.lights.capacity:
+        out.append(Mismatch("table", f"the scene has {f.lights} lights, the light table holds "
+                                     f"{tech.lights.capacity}"))
+    return out
