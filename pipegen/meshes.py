@@ -172,81 +172,106 @@ class ObjError(ValueError):
 
 
 def load_obj(path: str | Path, crease_deg: float = 45.0) -> Mesh:
-    """Read ``v``, ``vn`` and ``f`` records (other records are ignored); polygons are split
-    into fans.  Faces without normals get smoothed ones: the area-weighted average of the
-    face normals around the vertex that lie within ``crease_deg`` of the face's own (so a cube
-    stays faceted and a tessellated sphere becomes smooth)."""
-    verts: list[tuple[float, float, float]] = []
-    vnormals: list[tuple[float, float, float]] = []
-    tri_v: list[tuple[int, int, int]] = []
-    tri_n: list[tuple[int, int, int] | None] = []
-
-    def index(token: str, count: int, lineno: int) -> int:
-        i = int(token)
-        i = i - 1 if i > 0 else count + i
-        if not 0 <= i < count:
-            raise ObjError(f"index {token} out of range (have {count})", lineno)
-        return i
-
-    text = Path(path).read_text()
-    for lineno, line in enumerate(text.splitlines(), 1):
-        parts = line.split("#", 1)[0].split()
-        if not parts:
-            continue
-        try:
-            if parts[0] == "v":
-                verts.append(tuple(float(x) for x in parts[1:4]))
-                if len(parts) < 4:
-                    raise ObjError("a 'v' record needs three coordinates", lineno)
-            elif parts[0] == "vn":
-                if len(parts) < 4:
-                    raise ObjError("a 'vn' record needs three components", lineno)
-                vnormals.append(tuple(float(x) for x in parts[1:4]))
-            elif parts[0] == "f":
-                if len(parts) < 4:
-                    raise ObjError("a face needs at least three vertices", lineno)
-                corners = [c.split("/") for c in parts[1:]]
-                vi = [index(c[0], len(verts), lineno) for c in corners]
-                has_n = all(len(c) >= 3 and c[2] for c in corners)
-                ni = [index(c[2], len(vnormals), lineno) for c in corners] if has_n else None
-                for k in range(1, len(vi) - 1):
-                    tri_v.append((vi[0], vi[k], vi[k + 1]))
-                    tri_n.append((ni[0], ni[k], ni[k + 1]) if ni else None)
-        except ValueError as e:
-            if isinstance(e, ObjError):
-                raise
-            raise ObjError(f"cannot read '{line.strip()}': {e}", lineno) from None
-    if not tri_v:
-        raise ObjError("no faces")
-
-    V = np.array(verts, dtype=np.float64)
-    F = np.array(tri_v, dtype=np.int64)
-    positions = V[F].reshape(-1, 3)
-    fn_raw = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])  # length = 2 * area
-    normals = _smooth_normals(F, fn_raw, crease_deg)
-    N = np.array(vnormals, dtype=np.float64) if vnormals else np.zeros((0, 3))
-    for t, ni in enumerate(tri_n):
-        if ni is not None:
-            normals[3 * t : 3 * t + 3] = _normalize(N[list(ni)])
-    return _finish(positions, normals)
+    """Read ``v``, ``vn`` and ``f`` records into one mesh (all materials together); polygons
+    are split into fans.  Faces without normals get smoothed ones: the area-weighted average
+    of the face normals around the vertex that lie within ``crease_deg`` of the face's own (so
+    a cube stays faceted and a tessellated sphere becomes smooth).  The reader, its checks and
+    the per-material parts are in :mod:`pipegen.objfile` (``read_obj``)."""
+    from .objfile import read_obj
+    return read_obj(path, crease_deg).mesh
 
 
 def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> np.ndarray:
-    """Per-corner normals averaged over the faces at the corner's vertex within the crease."""
+    """Per-corner normals: at each corner, the sum of the raw (area-weighted) normals of the
+    faces around the corner's vertex whose unit normal is within ``crease_deg`` of the corner's
+    own face's, normalised.
+
+    Vectorised.  At a vertex whose face normals all lie within ``crease_deg / 2`` of their
+    mean, every pair is within the crease (triangle inequality on the sphere), so each corner
+    gets the vertex's whole sum; only the other vertices (creases, zero-area faces) list every
+    (corner, face) pair around them, a work of valence² each."""
     unit = _normalize(fn_raw)
     cos_crease = math.cos(math.radians(crease_deg))
     corners = faces.reshape(-1)
-    out = np.repeat(unit, 3, axis=0)
-    order = np.argsort(corners, kind="stable")
-    bounds = np.flatnonzero(np.diff(corners[order])) + 1
-    for group in np.split(order, bounds):
-        tris = group // 3
-        close = unit[tris] @ unit[tris].T >= cos_crease  # (k, k): which faces smooth together
-        out[group] = _normalize(close.astype(np.float64) @ fn_raw[tris])
+    n = len(corners)
+    if n == 0:
+        return np.zeros((0, 3))
+    nv = int(corners.max()) + 1
+    tri = np.arange(n) // 3
+    uc = unit[tri]
+
+    def per_vertex_sum(values, idx, length):
+        return np.stack([np.bincount(idx, weights=values[:, k], minlength=length)
+                         for k in range(3)], axis=1)
+
+    mean = _normalize(per_vertex_sum(uc, corners, nv))
+    dev = np.einsum("ij,ij->i", uc, mean[corners])
+    min_cos = np.full(nv, 2.0)
+    np.minimum.at(min_cos, corners, dev)
+    zero = np.zeros(nv, dtype=bool)
+    zero[corners[~np.any(uc != 0, axis=1)]] = True
+    half = math.radians(crease_deg) / 2.0 - 1e-9
+    easy = (min_cos >= math.cos(half)) & ~zero & (half > 0)
+    out = _normalize(per_vertex_sum(fn_raw[tri], corners, nv))[corners]
+
+    hard = np.flatnonzero(~easy[corners])        # corners at vertices needing every pair
+    if len(hard):
+        hv = corners[hard]
+        order = hard[np.argsort(hv, kind="stable")]
+        sorted_v = corners[order]
+        m = len(order)
+        starts = np.flatnonzero(np.r_[True, sorted_v[1:] != sorted_v[:-1]])
+        sizes = np.diff(np.r_[starts, m])
+        r_size = np.repeat(sizes, sizes)             # run size of every sorted corner
+        r_start = np.repeat(starts, sizes)
+        i = np.repeat(np.arange(m), r_size)          # pairs (i, j), j over i's run (i too)
+        offset = np.arange(len(i)) - np.repeat(np.cumsum(r_size) - r_size, r_size)
+        j = np.repeat(r_start, r_size) + offset
+        ti, tj = order[i] // 3, order[j] // 3
+        close = np.einsum("ij,ij->i", unit[ti], unit[tj]) >= cos_crease
+        acc = per_vertex_sum(fn_raw[tj[close]], i[close], m)
+        out[order] = _normalize(acc)
     return out
 
 
 # -- normal groups -----------------------------------------------------------------------------
+
+
+def _weld(positions: np.ndarray, tol: float) -> np.ndarray:
+    """Position id per vertex: positions equal after rounding to ``tol`` times the largest
+    coordinate share an id (ids ordered like ``np.unique(keys, axis=0)``)."""
+    scale = max(float(np.abs(positions).max()), 1e-30)
+    keys = np.round(positions / (scale * tol)).astype(np.int64)
+    lo = keys.min(axis=0)
+    span = keys.max(axis=0) - lo + 1
+    if float(span[0]) * float(span[1]) * float(span[2]) < 2.0 ** 62:
+        flat = ((keys[:, 0] - lo[0]) * span[1] + (keys[:, 1] - lo[1])) * span[2] + (keys[:, 2] - lo[2])
+        _, pid = np.unique(flat, return_inverse=True)
+    else:
+        _, pid = np.unique(keys, axis=0, return_inverse=True)
+    return pid.reshape(-1)
+
+
+def connected_components(count: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Component label per node of the undirected graph with edges ``a[k] -- b[k]``: the
+    smallest node index in the component.  Vectorised hook-and-shortcut (every tree's root is
+    its smallest node, so the label of a component is its first node)."""
+    parent = np.arange(count)
+    a, b = np.asarray(a, dtype=np.int64), np.asarray(b, dtype=np.int64)
+    while len(a):
+        pa, pb = parent[a], parent[b]
+        differ = pa != pb
+        if not differ.any():
+            break
+        pa, pb = pa[differ], pb[differ]
+        np.minimum.at(parent, np.maximum(pa, pb), np.minimum(pa, pb))
+        while True:                                  # shortcut: every node points at its root
+            pp = parent[parent]
+            if np.array_equal(pp, parent):
+                break
+            parent = pp
+        a, b = a[differ], b[differ]
+    return parent
 
 
 def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5) -> np.ndarray:
@@ -261,10 +286,7 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
     if tri_count == 0:
         return np.zeros(0, dtype=np.int64)
     # Weld positions so shared edges are found although the list is non-indexed.
-    scale = max(float(np.abs(positions).max()), 1e-30)
-    keys = np.round(positions / (scale * tol)).astype(np.int64)
-    _, pid = np.unique(keys, axis=0, return_inverse=True)
-    pid = pid.reshape(-1)
+    pid = _weld(positions, tol)
 
     corner = np.arange(3 * tri_count).reshape(-1, 3)
     a = corner.reshape(-1)                       # edge k of triangle t: corner k -> corner k+1
@@ -288,22 +310,9 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
         return np.einsum("ij,ij->i", _normalize(normals[c0]), _normalize(normals[c1])) > 1 - tol
 
     smooth = agree(lo[e0], lo[e1]) & agree(hi[e0], hi[e1])
-    parent = np.arange(tri_count)
-
-    def find(x: int) -> int:
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for t0, t1 in zip(e0[smooth] // 3, e1[smooth] // 3):
-        r0, r1 = find(int(t0)), find(int(t1))
-        if r0 != r1:
-            parent[max(r0, r1)] = min(r0, r1)
-    roots = np.array([find(t) for t in range(tri_count)])
-    _, first, inverse = np.unique(roots, return_index=True, return_inverse=True)
-    rank = np.argsort(np.argsort(first))         # number components by first triangle
-    return (rank[inverse] % 256).astype(np.int64)
+    roots = connected_components(tri_count, e0[smooth] // 3, e1[smooth] // 3)
+    _, inverse = np.unique(roots, return_inverse=True)   # roots are first triangles: in order
+    return (inverse.reshape(-1) % 256).astype(np.int64)
 
 
 # -- light volumes -----------------------------------------------------------------------------

@@ -250,6 +250,7 @@ class Scene:
     camera: Camera
     name: str = "scene"
     clear_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    notes: tuple[str, ...] = ()            # what the loaders ignored or changed, said once
 
     def with_size(self, width: int, height: int) -> "Scene":
         if width < 1 or height < 1:
@@ -498,7 +499,13 @@ _REQUIRED = object()
 
 
 def load_scene(path: str | Path) -> Scene:
+    """A scene file (TOML), or a glTF 2.0 file (``.gltf``, ``.glb``) rendered as it is: its
+    meshes, materials, first camera and ``KHR_lights_punctual`` lights at ``DEFAULT_SIZE``
+    (``pipegen.gltf``).  What a loader ignored is in ``Scene.notes`` (and warned once)."""
     path = Path(path)
+    if path.suffix.lower() in (".gltf", ".glb"):
+        from . import gltf
+        return gltf.load_gltf_scene(path)
     try:
         text = path.read_text()
     except OSError as e:
@@ -530,31 +537,97 @@ def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", na
         raise _toml_error(e, text, file) from None
 
     top = _Reader(data, (), loc)
-    top.check_keys({"width", "height", "ambient", "camera", "objects", "lights", "name"})
-    width = top.integer("width", minimum=1, maximum=16384)
-    height = top.integer("height", minimum=1, maximum=16384)
+    top.check_keys({"width", "height", "ambient", "camera", "objects", "lights", "name", "gltf"})
+    notes: list[str] = []
+    imported = None
+    if top.has("gltf"):
+        imported = _gltf_reference(top.sub("gltf"), Path(base_dir))
+        notes += imported.notes
+    from . import DEFAULT_SIZE
+    sized = imported is None
+    width = top.integer("width", None if sized else DEFAULT_SIZE[0], minimum=1, maximum=16384)
+    height = top.integer("height", None if sized else DEFAULT_SIZE[1], minimum=1, maximum=16384)
     ambient = np.array(top.vec3("ambient", [0.0, 0.0, 0.0]))
-    camera = _camera(top.sub("camera"))
+    if imported is not None and not top.has("camera"):
+        camera = imported.camera
+    else:
+        camera = _camera(top.sub("camera"))
 
     objects_raw = data.get("objects", [])
-    if not isinstance(objects_raw, list) or not objects_raw:
+    if not isinstance(objects_raw, list) or (not objects_raw and imported is None):
         top.fail("objects", "a scene needs at least one [[objects]] entry")
-    parsed = [_object(_Reader(o, ("objects", i), loc), i, Path(base_dir)) for i, o in enumerate(objects_raw)]
-    objects = assign_layers([o for o, _ in parsed], camera.position, [layer for _, layer in parsed])
+    parsed: list[tuple[SceneObject, Optional[int], int]] = []   # object, layer, TOML index
+    if imported is not None:
+        parsed += [(o, None, -1) for o in imported.objects]
+    for i, o in enumerate(objects_raw):
+        objs, layer = _object(_Reader(o, ("objects", i), loc), i, Path(base_dir), len(parsed) + 1,
+                              notes)
+        parsed += [(obj, layer, i) for obj in objs]
+    if len(parsed) > 255:
+        top.fail("objects", f"the scene has {len(parsed)} objects; object ids are 8-bit (1..255)",
+                 hint="an OBJ file gives one object per material, a glTF file one per mesh "
+                      "primitive")
+    objects = assign_layers([o for o, _, _ in parsed], camera.position, [l for _, l, _ in parsed])
     seen: dict[int, int] = {}
-    for i, o in enumerate(objects):
+    for (_, _, i), o in zip(parsed, objects):
         if o.id in seen:
+            j = seen[o.id]
+            where = lambda k: f"objects[{k}]" if k >= 0 else "the glTF file"  # noqa: E731
             raise PipegenError(loc.find(("objects", i, "id")) or loc.find(("objects", i)),
-                               f"object id {o.id} is used by objects[{seen[o.id]}] and objects[{i}]",
-                               hint="ids must be unique (1..255)")
+                               f"object id {o.id} is used by {where(j)} and {where(i)}",
+                               hint="ids must be unique (1..255); an OBJ file with N materials "
+                                    "takes N ids from its `id` on")
         seen[o.id] = i
 
     lights_raw = data.get("lights", [])
     if not isinstance(lights_raw, list):
         top.fail("lights", "'lights' must be an array of tables ([[lights]])")
     lights = [_light(_Reader(l, ("lights", i), loc)) for i, l in enumerate(lights_raw)]
+    if imported is not None:
+        lights = list(imported.lights) + lights
+    _report(notes)
     return Scene(width, height, ambient, tuple(objects), tuple(lights), camera,
-                 name=top.string("name", name))
+                 name=top.string("name", name), notes=tuple(notes))
+
+
+class SceneLoadWarning(UserWarning):
+    """What a loader ignored or changed (textures, unsupported statements, degenerate
+    triangles, defaults it had to pick); also kept in ``Scene.notes``."""
+
+
+def _report(notes: list[str]) -> None:
+    """Warn each note once, attributed to the first caller outside pipegen's loaders."""
+    import sys
+    import warnings
+    here = Path(__file__).parent
+    loaders = {here / "scene.py", here / "gltf.py", here / "objfile.py", here / "meshes.py"}
+    level, frame = 1, sys._getframe(0)
+    while frame is not None and Path(frame.f_code.co_filename) in loaders:
+        frame, level = frame.f_back, level + 1
+    for note in notes:
+        warnings.warn(note, SceneLoadWarning, stacklevel=level)
+
+
+def _gltf_reference(r: _Reader, base_dir: Path):
+    """``[gltf]``: a glTF file's objects, and its lights and camera unless turned off."""
+    from . import gltf
+    r.check_keys({"file", "lights", "camera", "light_intensity"})
+    rel = r.string("file")
+    path = (base_dir / rel) if not Path(rel).is_absolute() else Path(rel)
+    scale = r.number("light_intensity", 1.0, minimum=0.0)
+    try:
+        imported = gltf.load_gltf(path, intensity_scale=scale)
+    except OSError as e:
+        r.fail("file", f"cannot read glTF file '{path}': {e.strerror}")
+    except gltf.GltfError as e:
+        r.fail("file", f"bad glTF file: {path}: {e}")
+    if not r.boolean("lights", True):
+        imported = dataclasses.replace(imported, lights=())
+    if not r.boolean("camera", True):
+        imported = dataclasses.replace(imported, camera=None)
+    if imported.camera is None:
+        imported = dataclasses.replace(imported, camera=gltf.framing_camera(imported.objects))
+    return imported
 
 
 def _camera(r: _Reader) -> Camera:
@@ -611,12 +684,34 @@ def make_object(name: str, obj_id: int, mesh_name: str, mesh: meshes.Mesh, mater
     return SceneObject(name, obj_id, mesh_name, material, matrix, pos, nrm, mesh.groups.copy())
 
 
-def _object(r: _Reader, index: int, base_dir: Path) -> SceneObject:
+def _material(m: _Reader) -> Material:
+    m.check_keys({"albedo", "specular", "shininess", "alpha", "translucent"})
+    return Material(
+        albedo=m.vec3("albedo"),
+        specular=m.number("specular", 0.25, minimum=0.0),
+        shininess=m.number("shininess", 32.0, positive=True),
+        alpha=m.number("alpha", 1.0, minimum=0.0, maximum=1.0),
+        translucent=m.boolean("translucent", False),
+    )
+
+
+def mtl_material(m) -> Material:
+    """An :class:`pipegen.objfile.MtlMaterial` as the scene's material."""
+    return Material(albedo=tuple(float(x) for x in m.albedo), specular=float(m.specular),
+                    shininess=float(m.shininess), alpha=float(m.alpha), translucent=m.translucent)
+
+
+def _object(r: _Reader, index: int, base_dir: Path, next_id: int,
+            notes: list[str]) -> tuple[list[SceneObject], Optional[int]]:
+    """The objects of one ``[[objects]]`` entry: one, or for an OBJ file without a
+    ``material`` table one per ``usemtl`` material (ids from ``id`` on, or from ``next_id``:
+    the position among the scene's objects, 1-based), and the explicit stipple layer."""
     r.check_keys({"name", "id", "mesh", "obj", "translate", "rotate_deg", "scale", "material",
                   "segments", "rings", "divisions", "layer"})
     if r.has("mesh") == r.has("obj"):
         r.fail((), f"objects[{index}] needs exactly one of 'mesh' (plane, box, sphere, cylinder) "
                    "or 'obj' (a path)")
+    parts: list[tuple[str, meshes.Mesh, Optional[Material]]]   # name suffix, mesh, material
     if r.has("mesh"):
         kind = r.string("mesh", choices=tuple(meshes.PRIMITIVES))
         params = {"sphere": ("segments", "rings"), "cylinder": ("segments",), "plane": ("divisions",),
@@ -626,18 +721,34 @@ def _object(r: _Reader, index: int, base_dir: Path) -> SceneObject:
                 r.fail(p, f"'{p}' does not apply to a {kind}")
         kwargs = {p: r.integer(p, minimum=3 if p != "divisions" else 1, maximum=512)
                   for p in params if r.has(p)}
-        mesh, mesh_name = meshes.PRIMITIVES[kind](**kwargs), kind
+        parts, mesh_name = [("", meshes.PRIMITIVES[kind](**kwargs), None)], kind
     else:
+        from . import objfile
         rel = r.string("obj")
         obj_path = (base_dir / rel) if not Path(rel).is_absolute() else Path(rel)
         try:
-            mesh = meshes.load_obj(obj_path)
+            model = objfile.read_obj(obj_path)
         except OSError as e:
             r.fail("obj", f"cannot read OBJ file '{obj_path}': {e.strerror}")
         except meshes.ObjError as e:
             where = f"{obj_path}:{e.line}: " if e.line else f"{obj_path}: "
             r.fail("obj", f"bad OBJ file: {where}{e}")
         mesh_name = str(obj_path)
+        if r.has("material"):
+            parts = [("", model.mesh, None)]
+            named = [p.material.name for p in model.parts if p.material.name != "(default)"]
+            if named:
+                notes.append(f"{obj_path.name}: the scene's material replaces its "
+                             f"{len(named)} MTL material(s) ({', '.join(named[:6])}"
+                             f"{', ...' if len(named) > 6 else ''})")
+            notes += [n for n in model.notes if ".mtl:" not in n]
+        else:
+            parts = [(f"/{p.material.name}" if len(model.parts) > 1 else "", p.mesh,
+                      mtl_material(p.material)) for p in model.parts if p.mesh.triangle_count]
+            notes += model.notes
+            if not parts:
+                r.fail("obj", f"OBJ file '{obj_path}' has no triangle left after dropping "
+                              "degenerate ones")
 
     scale_raw = r.table.get("scale", 1.0)
     if isinstance(scale_raw, list):
@@ -649,24 +760,21 @@ def _object(r: _Reader, index: int, base_dir: Path) -> SceneObject:
         r.fail("scale", f"objects[{index}].scale must not have a zero component")
     matrix = transform_matrix(r.vec3("translate", [0, 0, 0]), r.vec3("rotate_deg", [0, 0, 0]), scale)
 
-    m = r.sub("material")
-    m.check_keys({"albedo", "specular", "shininess", "alpha", "translucent"})
-    material = Material(
-        albedo=m.vec3("albedo"),
-        specular=m.number("specular", 0.25, minimum=0.0),
-        shininess=m.number("shininess", 32.0, positive=True),
-        alpha=m.number("alpha", 1.0, minimum=0.0, maximum=1.0),
-        translucent=m.boolean("translucent", False),
-    )
-    obj_id = r.integer("id", index + 1, minimum=1, maximum=255)
+    material = _material(r.sub("material")) if r.has("material") or r.has("mesh") else None
+    first_id = r.integer("id", next_id, minimum=1, maximum=255)
+    if first_id + len(parts) - 1 > 255:
+        r.fail("id", f"objects[{index}] needs ids {first_id}..{first_id + len(parts) - 1} (one per "
+                     f"material of its OBJ file), past 255")
     name = r.string("name", f"{mesh_name if r.has('mesh') else 'obj'}{index}")
+    translucent = [(material or m).translucent for _, _, m in parts]
     layer = None
     if r.has("layer"):
-        if not material.translucent:
+        if not all(translucent):
             r.fail("layer", f"objects[{index}].layer is for translucent objects only",
                    hint="set `translucent = true` in its material, or remove the layer")
         layer = r.integer("layer", minimum=1, maximum=STIPPLE_LAYERS)
-    return make_object(name, obj_id, mesh_name, mesh, material, matrix), layer
+    return [make_object(name + suffix, first_id + k, mesh_name, mesh, material or m, matrix)
+            for k, (suffix, mesh, m) in enumerate(parts)], layer
 
 
 def assign_layers(objects: list[SceneObject], camera_position,
