@@ -217,7 +217,8 @@ def test_the_library_is_found_from_a_checkout():
 
 @pytest.mark.parametrize("written, value", [
     (r"a\nb", "a\nb"), (r"\x41\u00e9\101", "AéA"), (r"\q", r"\q"), (r"\x4", r"\x4"),
-    (r"\ud800", r"\ud800"), (r"\U00110000", r"\U00110000"), (r"common\lighting", r"common\lighting"),
+    (r"\ud800", r"\ud800"), (r"\U00110000", r"\U00110000"),
+    (r"common\lighting", r"common\lighting"),
 ])
 def test_string_escapes_never_fail(written, value, recwarn):
     module = syntax.parse(f'technique t "{written}"')
@@ -236,7 +237,8 @@ def test_errors_in_generated_packing_code_point_at_the_pack_declaration():
 @pytest.mark.parametrize("statement", ["vec4(1.0);", "float(1);", "ivec2(1, 2);",
                                        "load(color);"])
 def test_value_statements_without_effect_are_errors(statement):
-    source = FORWARD.replace("vec3 c = ambient * albedo;", f"vec3 c = ambient * albedo; {statement}")
+    source = FORWARD.replace("vec3 c = ambient * albedo;",
+                             f"vec3 c = ambient * albedo; {statement}")
     err = error(source, str(ROOT / "pipelines/forward.pipe"))
     assert "has no effect" in err.message or "reads target" in err.message
     assert err.span.line == C_LINE
