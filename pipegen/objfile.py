@@ -35,6 +35,7 @@ file defines, get the defaults above (reported).
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections import Counter
@@ -90,10 +91,16 @@ class ObjPart:
 class ObjModel:
     path: Path
     parts: list[ObjPart]
-    mesh: Mesh                              # all faces together (groups over the whole file)
+    positions: np.ndarray                   # (3T, 3) every triangle read, in file order
+    normals: np.ndarray                     # (3T, 3)
     notes: list[str] = field(default_factory=list)
     triangles_read: int = 0
     dropped: int = 0
+
+    @functools.cached_property
+    def mesh(self) -> Mesh:
+        """All faces as one mesh (normal groups over the whole file), made on first use."""
+        return meshes._finish(self.positions, self.normals)
 
 
 # -- OBJ ---------------------------------------------------------------------------------------
@@ -115,12 +122,12 @@ def _numbers(records: list[bytes], width: int, data: bytes, key: bytes) -> np.nd
     if not records:
         return np.zeros((0, width))
     joined = b" ".join(records)
-    tokens = joined.split()
-    if len(tokens) == width * len(records):
-        try:
-            return np.array(tokens, dtype=np.bytes_).astype(np.float64).reshape(-1, width)
-        except ValueError:
-            pass
+    try:
+        flat = np.fromstring(joined, dtype=np.float64, sep=" ")   # C parser; text mode is kept
+    except ValueError:
+        flat = None
+    if flat is not None and flat.size == width * len(records):
+        return flat.reshape(-1, width)
     out = np.empty((len(records), width))
     for k, rec in enumerate(records):     # slow path: extra components (w, colours) or an error
         parts = rec.split()
@@ -137,25 +144,44 @@ def _numbers(records: list[bytes], width: int, data: bytes, key: bytes) -> np.nd
     return out
 
 
+_SENTINEL = 9_999_999_999_999          # ends each face in the joined index text (13 digits)
+
+
 def _corner_indices(faces: list[bytes], data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per corner: vertex index and normal index as written (0 = none), and corners per face."""
+    """Per corner: vertex index and normal index as written (0 = none), and corners per face.
+
+    Fast path: every corner of the file in one format (``v``, ``v/vt``, ``v//vn`` or
+    ``v/vt/vn``: every corner's slashes alike and a number in each slot but an empty ``vt``),
+    parsed as one integer array with a sentinel after each face.  Anything else (mixed
+    formats, an error to locate) takes a per-corner loop."""
+    joined = b" ".join(faces)
+    tokens = joined.split()
+    first = tokens[0] if tokens else b""
+    cols = first.count(b"/") + 1
+    skeleton = set(joined.translate(None, b"0123456789-").split())
+    if cols <= 3 and skeleton <= {b"/" * (cols - 1)} and (cols > 1 or not skeleton):
+        text = b" 9999999999999 ".join(faces) + b" 9999999999999"
+        try:
+            flat = np.fromstring(text.replace(b"//", b"/0/").replace(b"/", b" "), dtype=np.int64,
+                                 sep=" ")
+        except ValueError:
+            flat = None
+        if flat is not None and flat.size == cols * len(tokens) + len(faces):
+            ends = np.flatnonzero(flat == _SENTINEL)
+            if len(ends) == len(faces) and not np.any(np.abs(flat[flat != _SENTINEL]) >= 10**12):
+                counts = (np.diff(np.r_[-1, ends]) - 1) // cols
+                small = np.flatnonzero(counts < 3)
+                if len(small):
+                    raise ObjError("a face needs at least three vertices",
+                                   _line_of(data, b"f", int(small[0])))
+                idx = flat[flat != _SENTINEL].reshape(-1, cols)
+                vn = idx[:, 2] if cols == 3 else np.zeros(len(idx), np.int64)
+                return idx[:, 0], vn, counts
     counts = np.fromiter((len(f.split()) for f in faces), dtype=np.int64, count=len(faces))
     small = np.flatnonzero(counts < 3)
     if len(small):
         raise ObjError("a face needs at least three vertices", _line_of(data, b"f", int(small[0])))
-    joined = b" ".join(faces)
     n = int(counts.sum())
-    slashes = joined.count(b"/")
-    cols = {0: 1, n: 2, 2 * n: 3}.get(slashes)
-    if cols is not None:
-        flat = joined.replace(b"//", b"/0/").replace(b"/", b" ").split()
-        if len(flat) == cols * n:
-            try:
-                idx = np.array(flat, dtype=np.bytes_).astype(np.int64).reshape(n, cols)
-                vn = idx[:, 2] if cols == 3 else np.zeros(n, np.int64)
-                return idx[:, 0], vn, counts
-            except ValueError:
-                pass
     v = np.zeros(n, np.int64)                  # slow path: mixed corner formats or an error
     vn = np.zeros(n, np.int64)
     k = 0
@@ -189,43 +215,66 @@ def _resolve(idx: np.ndarray, before: np.ndarray, total: int, what: str, counts:
     return out
 
 
+def _scan(data: bytes):
+    """The file's statements by kind: ``v``, ``vn`` and ``f`` records (their text after the
+    keyword), per face the ``v``/``vn`` records before it (for relative, negative, indices)
+    and its material (index into the material names, 0 = none), the ``mtllib`` names and a
+    count of every other statement.  Lines are classified by their first bytes with numpy;
+    Python touches only the lines it keeps."""
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    if b"#" in data:
+        data = re.sub(rb"#[^\n]*", b"", data)
+    if b"\t" in data:
+        data = data.replace(b"\t", b" ")
+    if data[:1] == b" " or b"\n " in data:
+        data = re.sub(rb"(?m)^ +", b"", data)
+    lines = data.split(b"\n")
+    arr = np.frombuffer(data + b"\n\n\n", dtype=np.uint8)
+    starts = np.r_[0, np.flatnonzero(arr[: len(data)] == 10) + 1]
+    c0, c1, c2 = arr[starts], arr[starts + 1], arr[starts + 2]
+    end1, end2 = (c1 == 32) | (c1 == 10), (c2 == 32) | (c2 == 10)
+    is_v = (c0 == ord("v")) & end1
+    is_vn = (c0 == ord("v")) & (c1 == ord("n")) & end2
+    is_f = (c0 == ord("f")) & end1
+    vi, vni, fi = np.flatnonzero(is_v), np.flatnonzero(is_vn), np.flatnonzero(is_f)
+    v_rec = [lines[i][1:] for i in vi.tolist()]
+    vn_rec = [lines[i][2:] for i in vni.tolist()]
+    f_rec = [lines[i][1:] for i in fi.tolist()]
+    rest = np.flatnonzero(~(is_v | is_vn | is_f) & (c0 != 10))
+    mi, libs, ignored = [], [], Counter()
+    names: list[str] = []
+    for i in rest.tolist():
+        key, _, tail = lines[i].partition(b" ")
+        if key == b"usemtl":
+            mi.append(i)
+            names.append(tail.decode(errors="replace").strip())
+        elif key == b"mtllib":
+            libs += tail.decode(errors="replace").split()
+        elif key.strip():
+            ignored[key.decode(errors="replace")] += 1
+    mat_names: list[Optional[str]] = [None]
+    mat_index: dict[Optional[str], int] = {None: 0}
+    of_stmt = []
+    for name in names:
+        if name not in mat_index:
+            mat_index[name] = len(mat_names)
+            mat_names.append(name)
+        of_stmt.append(mat_index[name])
+    run = np.searchsorted(np.asarray(mi, dtype=np.int64), fi)        # usemtl statements before
+    f_mat = np.r_[0, np.asarray(of_stmt, dtype=np.int64)][run]
+    f_v = np.searchsorted(vi, fi)
+    f_vn = np.searchsorted(vni, fi)
+    return v_rec, vn_rec, f_rec, f_v, f_vn, f_mat, mat_names, libs, ignored
+
+
 def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     """Read an OBJ file (and the MTL files its ``mtllib`` names, next to it)."""
     path = Path(path)
     data = path.read_bytes()
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
-    v_rec: list[bytes] = []
-    vn_rec: list[bytes] = []
-    f_rec: list[bytes] = []
-    f_v: list[int] = []                   # v records before each face (relative indices)
-    f_vn: list[int] = []
-    f_mat: list[int] = []                 # index into mat_names
-    mat_names: list[Optional[str]] = [None]
-    mat_index = {None: 0}
-    current = 0
-    libs: list[str] = []
-    ignored: Counter = Counter()
-    for key, rest in _STATEMENT.findall(data):
-        if key == b"v":
-            v_rec.append(rest)
-        elif key == b"f":
-            f_rec.append(rest)
-            f_v.append(len(v_rec))
-            f_vn.append(len(vn_rec))
-            f_mat.append(current)
-        elif key == b"vn":
-            vn_rec.append(rest)
-        elif key == b"usemtl":
-            name = rest.decode(errors="replace").strip()
-            if name not in mat_index:
-                mat_index[name] = len(mat_names)
-                mat_names.append(name)
-            current = mat_index[name]
-        elif key == b"mtllib":
-            libs += rest.decode(errors="replace").split()
-        else:
-            ignored[key.decode(errors="replace")] += 1
+    v_rec, vn_rec, f_rec, f_v, f_vn, f_mat, mat_names, libs, ignored = _scan(data)
     if not f_rec:
         raise ObjError("no faces")
 
@@ -239,10 +288,12 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     N = _numbers(vn_rec, 3, data, b"vn")
 
     vi, ni, counts = _corner_indices(f_rec, data)
-    per_corner = lambda a: np.repeat(np.asarray(a, dtype=np.int64), counts)  # noqa: E731
-    vi = _resolve(vi, per_corner(f_v), len(V), "vertex", counts, data)
+    def per_corner(before, total):
+        return np.repeat(np.asarray(before, dtype=np.int64), counts)
+
+    vi = _resolve(vi, per_corner(f_v, len(V)), len(V), "vertex", counts, data)
     has_vn = ni != 0
-    ni = _resolve(ni, per_corner(f_vn), len(N), "normal", counts, data, used=has_vn)
+    ni = _resolve(ni, per_corner(f_vn, len(N)), len(N), "normal", counts, data, used=has_vn)
 
     # fans: triangle (0, k, k+1) of each face, k = 1 .. count-2
     starts = np.cumsum(counts) - counts
@@ -294,8 +345,7 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     if dropped_total:
         notes.append(f"{path.name}: dropped {dropped_total} degenerate (zero-area) triangles of "
                      f"{len(F)}")
-    whole = meshes._finish(positions, normals)
-    return ObjModel(path, parts, whole, notes, len(F), dropped_total)
+    return ObjModel(path, parts, positions, normals, notes, len(F), dropped_total)
 
 
 # -- MTL ---------------------------------------------------------------------------------------

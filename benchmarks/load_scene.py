@@ -1,0 +1,161 @@
+"""Scene load time for a large OBJ: ``load_scene`` on a scene that references it, before and
+after issue 13 (vectorised OBJ reading, smooth normals and normal groups).
+
+    python benchmarks/load_scene.py [--before] [--repeat 3] [--obj FILE.obj ...]
+
+Without ``--obj`` it writes two generated OBJ files shaped like the Dabrovic Sponza the issue
+measured (no normals, 18 materials, about 2/3 of the faces quads, creased and smooth
+surfaces): 56k triangles, and the same surfaces at twice the resolution, 224k triangles.
+``--obj`` times your own files instead (the Sponza itself, say).  ``--before`` also times the
+loader as it was before (``pipegen/meshes.py`` at commit caa375c, read with ``git show``: its
+``load_obj`` plus the scene's transform, which is all that loading an OBJ object did), once
+per file: it takes about 40 µs per triangle.
+
+Prints triangles, the best of ``--repeat`` runs after, and before with the ratio.  Target (the
+issue): at most 1 s for 250k triangles.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+BEFORE_COMMIT = "caa375c"
+
+
+def sponza_like(path: Path, scale: int) -> int:
+    """Write an OBJ like the Sponza's statistics (``scale`` 1: ~56k triangles, 2: ~224k):
+    per material a smooth vault (quads), a stepped wall (quads, 90° creases) and a triangulated
+    patch written as triangles.  Returns the triangle count."""
+    lines = ["mtllib sponza_like.mtl"]
+    mtl = []
+    nv = 0
+    tris = 0
+    rng = np.random.default_rng(13)
+    for m in range(18):
+        mtl.append(f"newmtl mat{m}\nKd {rng.uniform(0.2, 0.9):.3f} {rng.uniform(0.2, 0.9):.3f} "
+                   f"{rng.uniform(0.2, 0.9):.3f}\nKs 0.2 0.2 0.2\nNs 24\nmap_Kd mat{m}.png\n")
+        lines.append(f"usemtl mat{m}")
+        ox = 12.0 * (m % 6)
+        oz = 12.0 * (m // 6)
+        # a vault: half cylinder, 30 x 40 quads per scale step
+        nu, nw = 30 * scale, 40 * scale
+        u = np.linspace(0, np.pi, nu + 1)
+        w = np.linspace(0, 10, nw + 1)
+        U, W = np.meshgrid(u, w, indexing="ij")
+        V = np.stack([ox + 4 * np.cos(U), 4 * np.sin(U), oz + W], axis=-1).reshape(-1, 3)
+        lines += [f"v {x:.5f} {y:.5f} {z:.5f}" for x, y, z in V]
+        idx = nv + 1 + np.arange((nu + 1) * (nw + 1)).reshape(nu + 1, nw + 1)
+        q = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], axis=-1).reshape(-1, 4)
+        lines += [f"f {a} {b} {c} {d}" for a, b, c, d in q]
+        nv += len(V)
+        tris += 2 * len(q)
+        # a stepped wall: a staircase profile, 90° creases every other column
+        ns, nh = 16 * scale, 12 * scale
+        xs = np.repeat(np.arange(ns // 2 + 1), 2)[1:-1] * (8.0 / ns) * 2
+        ys = np.tile([0.0, 0.5], ns // 2 + 1)[: len(xs)] + np.repeat(np.arange(ns // 2 + 1), 2)[1:-1] * 0.5
+        hs = np.linspace(0, 6, nh + 1)
+        P = np.array([[ox + x, y + 5, oz + h] for x, y in zip(xs, ys) for h in hs])
+        lines += [f"v {x:.5f} {y:.5f} {z:.5f}" for x, y, z in P]
+        idx = nv + 1 + np.arange(len(xs) * (nh + 1)).reshape(len(xs), nh + 1)
+        q = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)
+        lines += [f"f {a} {b} {c} {d}" for a, b, c, d in q]
+        nv += len(P)
+        tris += 2 * len(q)
+        # a wavy floor patch written as triangles
+        n = 13 * scale
+        t = np.linspace(0, 6, n + 1)
+        X, Z = np.meshgrid(t, t, indexing="ij")
+        F = np.stack([ox + X, 0.2 * np.sin(X) * np.cos(Z) - 1, oz + Z], axis=-1).reshape(-1, 3)
+        lines += [f"v {x:.5f} {y:.5f} {z:.5f}" for x, y, z in F]
+        idx = nv + 1 + np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+        a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+        lines += [f"f {i} {j} {k}" for i, j, k in zip(a, b, c)]
+        lines += [f"f {i} {j} {k}" for i, j, k in zip(a, c, d)]
+        nv += len(F)
+        tris += 2 * len(a)
+    path.write_text("\n".join(lines) + "\n")
+    path.with_name("sponza_like.mtl").write_text("\n".join(mtl))
+    return tris
+
+
+def scene_for(obj: Path) -> Path:
+    toml = obj.with_suffix(".toml")
+    toml.write_text(f"""width = 320
+height = 180
+[camera]
+position = [30, 20, 40]
+target = [30, 0, 10]
+fov_y_deg = 45
+[[objects]]
+obj = "{obj.resolve().as_posix()}"
+""")
+    return toml
+
+
+def old_meshes():
+    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{BEFORE_COMMIT}:pipegen/meshes.py"],
+                         check=True, capture_output=True, text=True).stdout
+    path = Path(tempfile.mkdtemp()) / "meshes_before.py"
+    path.write_text(src)
+    spec = importlib.util.spec_from_file_location("meshes_before", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--obj", nargs="*", type=Path, help="time these OBJ files instead")
+    ap.add_argument("--before", action="store_true", help="also time the loader of commit caa375c")
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args()
+    from pipegen.scene import load_scene, make_object, Material, transform_matrix
+
+    work = Path(tempfile.mkdtemp())
+    files = args.obj
+    if not files:
+        files = []
+        for scale in (1, 2):
+            p = work / f"sponza_like_{scale}" / "sponza_like.obj"
+            p.parent.mkdir()
+            sponza_like(p, scale)
+            files.append(p)
+    before = old_meshes() if args.before else None
+    print(f"{'file':<28} {'triangles':>9} {'after (best)':>13} {'before':>9} {'ratio':>6}")
+    for obj in files:
+        toml = scene_for(obj)
+        times = []
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                scene = load_scene(toml)
+            times.append(time.perf_counter() - t0)
+        tris = sum(o.triangle_count for o in scene.objects)
+        after = min(times)
+        b_text = r_text = "-"
+        if before is not None:
+            t0 = time.perf_counter()
+            mesh = before.load_obj(obj)
+            make_object("obj", 1, str(obj), mesh, Material((0.8, 0.8, 0.8)), transform_matrix())
+            b = time.perf_counter() - t0
+            b_text, r_text = f"{b:.2f} s", f"{b / after:.0f}x"
+        name = f"{obj.parent.name}/{obj.name}"[-28:]
+        print(f"{name:<28} {tris:>9} {after:>11.3f} s {b_text:>9} {r_text:>6}   "
+              f"({len(scene.objects)} objects; {1e6 * after / max(tris, 1):.1f} µs/triangle)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
