@@ -147,6 +147,9 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--size", type=size_arg, default=DEFAULT_SIZE, metavar="WxH",
                    help=f"output size the target sizes and bytes assume "
                         f"(default: {DEFAULT_SIZE_TEXT}; each side 1..{MAX_SIZE})")
+
+    from .sweep import add_parser as add_sweep          # `pipegen sweep`: pipegen/sweep.py
+    add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
     return parser
 
 
