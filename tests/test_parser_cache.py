@@ -50,7 +50,14 @@ def test_the_parser_is_saved_once_and_then_loaded(tmp_path, monkeypatch, builds)
     assert len(builds) == 1, "the second parser was built, not loaded"
     for path in SOURCES:
         text = path.read_text()
-        assert loaded.parse(text) == built.parse(text), path
+        a, b = loaded.parse(text), built.parse(text)
+        assert a == b, path
+        assert positions(a) == positions(b), path     # spans come from these
+
+
+def positions(tree) -> list:
+    return [(t.data, t.meta.line, t.meta.column, t.meta.end_line, t.meta.end_column)
+            for t in tree.iter_subtrees() if not t.meta.empty]
 
 
 def test_a_corrupt_cache_file_is_replaced(tmp_path, monkeypatch, builds):
