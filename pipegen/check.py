@@ -148,7 +148,10 @@ def write_error_images(rows: list[TargetComparison], out_dir) -> None:
             save_png(tmp / safe_name(f"error_{r.name}", ".png"), error_image(r))
 
 
-def main_check(compiled, scene, out_dir: Path) -> int:
+def main_check(compiled, scene, out_dir: Path, mismatches: Optional[list] = None) -> int:
+    """``pipegen check``; ``mismatches``: what the technique will not render of the scene
+    (``Compiled.mismatches``, already printed as warnings), recalled under the table: GL and
+    CL agreeing says nothing about what neither draws."""
     def say(msg: str) -> None:
         print(f"  … {msg}", file=sys.stderr)
 
@@ -157,6 +160,12 @@ def main_check(compiled, scene, out_dir: Path) -> int:
           + " vs ".join(registry.get(b).title for b in CHECKED))
     print(result.table())
     print(f"error images: {out_dir}/error_<target>.png")
+    if mismatches:
+        n = len(mismatches)
+        print(f"note: {n} thing{'s' if n != 1 else ''} in this scene the technique does not "
+              f"render, on either backend (the warnings above):")
+        for m in mismatches:
+            print(f"  {m.message}")
     if result.passed:
         print("all targets agree")
         return 0

@@ -29,6 +29,8 @@ EXAMPLES = {
       GLSL + pipeline_gl.py, OpenCL C + pipeline_cl.py, and report.txt in build/lidr/
   pipegen compile pipelines/inferred.pipe -p lbuffer_scale=0.5 --size 1920x1080 -o build/inferred
       with a parameter overridden; the report's memory figures at 1920x1080
+  pipegen compile pipelines/inferred.pipe --scene examples/scenes/small.toml -o build/inferred-small
+      specialised for the scene's features; report.txt says what was culled and why
 """,
     "run": """\
   pipegen run pipelines/forward.pipe -o out/forward
@@ -37,24 +39,50 @@ EXAMPLES = {
   pipegen run pipelines/forward.pipe --backend cl -o out/forward-cl
       the same technique on the PoCL software reference
   pipegen run pipelines/inferred.pipe -p lbuffer_scale=0.5 -o out/inferred
+  pipegen run pipelines/lidr_bitplanes.pipe --scene examples/scenes/mixed_lights.toml --strict -o out/lidr
+      exit 1, listing what the technique will not render of this scene (a warning without --strict)
+  pipegen run pipelines/deferred_calver.pipe --scene examples/scenes/small.toml --specialise -o out/calver
+      render the variant specialised for the scene (culled passes and targets never run)
 """,
     "check": """\
   pipegen check pipelines/lidr_bitplanes.pipe
       GL vs CL on the built-in scene, one row per target; error images in build/check/lidr_bitplanes/
   pipegen check pipelines/lidr_max_stencil.pipe --scene examples/scenes/stress_overlap.toml
       exit 1 and the first divergent pass on disagreement
+  pipegen check pipelines/inferred.pipe --scene examples/scenes/small.toml --specialise
+      GL vs CL on the variant specialised for the scene
 """,
     "info": """\
   pipegen info pipelines/inferred.pipe
       parameters, targets (bytes at 1280x720), passes and packing schemes
   pipegen info pipelines/inferred.pipe -p lbuffer_scale=0.5 --size 1920x1080
 """,
+    "specialise": """\
+  pipegen specialise pipelines/inferred.pipe --scene examples/scenes/small.toml
+      the scene's features, what is culled and why, passes and targets before and after
+  pipegen specialise pipelines/deferred_calver.pipe --scene examples/scenes/small.toml --verify
+      render general and specialised on GL and CL, compare bit for bit (exit 1 if they differ)
+""",
+    "graph": """\
+  pipegen graph pipelines/deferred.pipe -o deferred.svg
+      passes, targets and their read/write/depth edges (an SVG with Graphviz, else DOT text)
+  pipegen graph pipelines/inferred.pipe --scene examples/scenes/small.toml -o inferred.svg
+      culled passes and targets greyed, each with its reason
+""",
 }
+
+COMMANDS = ("compile", "run", "check", "specialise", "graph", "info")
 
 OUTPUT_NOTE = """\
 output folders (-o): created if missing; pipegen writes a manifest (.pipegen-manifest.json) of
 the files it wrote, replaces only those on the next run, and never deletes or overwrites a file
 it did not write.  A non-empty folder it did not write is refused unless --force.
+"""
+
+MISMATCH_NOTE = """\
+what a technique will not render of a scene (a light type it cannot draw, translucent objects
+it never draws, more lights per pixel than its packing holds) is printed as a warning before
+rendering; --strict makes it an error (exit 1).
 """
 
 
@@ -81,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from . import __version__
     fmt = argparse.RawDescriptionHelpFormatter
-    everything = "".join(EXAMPLES[c] for c in ("compile", "run", "check", "info"))
+    everything = "".join(EXAMPLES[c] for c in COMMANDS)
     parser = argparse.ArgumentParser(
         prog="pipegen",
         description="Compile real-time rendering techniques (.pipe files) to GLSL + moderngl "
@@ -90,18 +118,33 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pipegen {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    def command(name: str, summary: str, func, output_note: bool = True):
+    def command(name: str, summary: str, func, output_note: bool = True,
+                mismatch_note: bool = False):
         p = sub.add_parser(name, help=summary, description=summary[0].upper() + summary[1:] + ".",
                            epilog="examples:\n" + EXAMPLES[name]
-                           + ("\n" + OUTPUT_NOTE if output_note else ""),
+                           + ("\n" + OUTPUT_NOTE if output_note else "")
+                           + ("\n" + MISMATCH_NOTE if mismatch_note else ""),
                            formatter_class=fmt)
         p.add_argument("file", help="the technique, a .pipe file")
         p.add_argument("-p", "--param", action="append", default=[], metavar="NAME=VALUE",
                        type=param_arg,
                        help="override a parameter, checked against its allowed values "
                             "(repeatable; default: the values the file declares)")
-        p.set_defaults(func=func)
+        p.set_defaults(func=func, parser=p)
         return p
+
+    def strict(p: argparse.ArgumentParser, needs_scene: bool = False) -> None:
+        p.add_argument("--strict", action="store_true",
+                       help="what the technique will not render of the scene is an error "
+                            "(exit 1) instead of a warning"
+                            + (" (needs --scene)" if needs_scene else "")
+                            + " (default: warn)")
+
+    def specialise(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--specialise", action="store_true",
+                       help="render the variant compiled for this scene's features (culled "
+                            "passes and targets never run; see pipegen specialise) "
+                            "(default: the general technique)")
 
     def force(p: argparse.ArgumentParser) -> None:
         p.add_argument("--force", action="store_true",
@@ -117,9 +160,15 @@ def build_parser() -> argparse.ArgumentParser:
                         f"(default: {DEFAULT_SIZE_TEXT}; each side 1..{MAX_SIZE})")
     c.add_argument("--backend", choices=[*registry.BACKENDS, "all"], default="all",
                    help="which backends to emit (default: all)")
+    c.add_argument("--scene", metavar="FILE",
+                   help="specialise for this scene's features: light types, light count, "
+                        "translucent objects; report.txt lists every cut and its reason "
+                        "(default: the general technique)")
+    strict(c, needs_scene=True)
     force(c)
 
-    r = command("run", "render a scene, one PNG + .npy per target", cmd_run)
+    r = command("run", "render a scene, one PNG + .npy per target", cmd_run,
+                mismatch_note=True)
     r.add_argument("-o", "--out", required=True, metavar="DIR",
                    help="output folder (required; only files pipegen wrote are replaced)")
     r.add_argument("--scene", metavar="FILE",
@@ -130,9 +179,12 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--backend", choices=list(registry.BACKENDS), default="gl",
                    help="; ".join(f"{b.name}: {b.description}" for b in registry.BACKENDS.values())
                    + " (default: gl)")
+    specialise(r)
+    strict(r)
     force(r)
 
-    k = command("check", "render on GL and CL, compare every target", cmd_check)
+    k = command("check", "render on GL and CL, compare every target", cmd_check,
+                mismatch_note=True)
     k.add_argument("--scene", metavar="FILE",
                    help="scene .toml (default: the built-in default scene)")
     k.add_argument("--size", type=size_arg, metavar="WxH",
@@ -140,7 +192,38 @@ def build_parser() -> argparse.ArgumentParser:
                         f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
     k.add_argument("-o", "--out", metavar="DIR",
                    help="folder for the error images (default: build/check/<technique>)")
+    specialise(k)
+    strict(k)
     force(k)
+
+    sp = command("specialise", "show what a scene lets a technique cut, and why", cmd_specialise,
+                 output_note=False, mismatch_note=True)
+    sp.add_argument("--scene", metavar="FILE", required=True,
+                    help="scene .toml whose features the technique is specialised for "
+                         "(required)")
+    sp.add_argument("--size", type=size_arg, metavar="WxH",
+                    help=f"output size for the memory figures and --verify's renders "
+                         f"(default: the scene file's width x height; each side 1..{MAX_SIZE})")
+    sp.add_argument("--verify", action="store_true",
+                    help="render general and specialised and compare every target the "
+                         "specialised pipeline produces, bit for bit; exit 1 naming the first "
+                         "differing pass (default: no rendering)")
+    sp.add_argument("--backend", choices=[*registry.BACKENDS, "all"], default="all",
+                    help="backends --verify renders on (default: all)")
+    strict(sp)
+
+    g = command("graph", "draw passes and targets as a graph (SVG, PNG or DOT)", cmd_graph,
+                output_note=False)
+    g.add_argument("-o", "--out", required=True, metavar="G.svg", type=graph_path_arg,
+                   help="the graph file: .svg, .png or .pdf rendered with Graphviz's dot "
+                        "when installed (otherwise the DOT text is written beside, as .dot), "
+                        ".dot or .gv for the DOT text (required)")
+    g.add_argument("--scene", metavar="FILE",
+                   help="specialise for this scene and grey out what is culled, with the "
+                        "reason (default: the general technique)")
+    g.add_argument("--size", type=size_arg, default=DEFAULT_SIZE, metavar="WxH",
+                   help=f"output size the target sizes and memory assume "
+                        f"(default: {DEFAULT_SIZE_TEXT}; each side 1..{MAX_SIZE})")
 
     i = command("info", "list parameters, targets, passes and packing schemes", cmd_info,
                 output_note=False)
@@ -166,6 +249,15 @@ def size_arg(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(
             f"bad size {text!r}: width and height must each be 1..{MAX_SIZE} pixels")
     return w, h
+
+
+def graph_path_arg(text: str) -> str:
+    from .graph import SUFFIXES
+    if Path(text).suffix.lower() not in SUFFIXES:
+        raise argparse.ArgumentTypeError(
+            f"bad graph file {text!r}: name it with one of {', '.join(SUFFIXES)}, "
+            f"e.g. -o graph.svg")
+    return text
 
 
 def param_arg(text: str) -> tuple[str, object]:
@@ -228,8 +320,14 @@ def _join_negative_sizes(argv: list[str]) -> list[str]:
 
 def cmd_compile(args) -> int:
     from .outdir import OutputDir
+    if args.strict and not args.scene:
+        args.parser.error("--strict needs --scene: a scene to check the technique against")
     out = OutputDir(args.out, "compile", args.force)          # before any work
     compiled = _compile(args)
+    if args.scene:
+        scene = _scene(args, size=False)
+        compiled = _specialise(args, compiled, scene)
+        report_mismatches(compiled, scene, args.strict, _scene_label(args))
     backends = tuple(registry.BACKENDS) if args.backend == "all" else (args.backend,)
     compiled.write(out, backends, args.size)
     print(compiled.report(args.size), end="")
@@ -242,6 +340,9 @@ def cmd_run(args) -> int:
     out = OutputDir(args.out, "run", args.force)              # before any work
     compiled = _compile(args)
     scene = _scene(args)
+    if args.specialise:
+        compiled = _specialise(args, compiled, scene, say_variant=True)
+    report_mismatches(compiled, scene, args.strict, _scene_label(args))
     from .outputs import file_name, write_render
     pipeline = compiled.pipeline(args.backend)
     print(f"rendering {compiled.name} on {args.backend} at {scene.width}x{scene.height} "
@@ -260,8 +361,87 @@ def cmd_check(args) -> int:
     scene = _scene(args)
     if out is None:
         out = OutputDir(Path("build/check") / compiled.name, "check", args.force)
+    if args.specialise:
+        compiled = _specialise(args, compiled, scene, say_variant=True)
+    found = report_mismatches(compiled, scene, args.strict, _scene_label(args))
     from .check import main_check
-    return main_check(compiled, scene, out)
+    return main_check(compiled, scene, out, mismatches=found)
+
+
+def cmd_specialise(args) -> int:
+    from .graph import human_bytes, target_memory
+    compiled = _compile(args)
+    scene = _scene(args)
+    special = _specialise(args, compiled, scene)
+    spec = special.specialisation
+    general = spec.general
+    w, h = scene.width, scene.height
+    found = special.mismatches(scene)
+    if found and args.strict:
+        raise mismatch_error(special, found, _scene_label(args))
+    culled_passes = {c.name for c in spec.cuts if c.kind == "pass"}
+    culled_targets = {c.name for c in spec.cuts if c.kind == "target"}
+    before_p = [p.name for p in general.passes]
+    after_p = [n for n in before_p if n not in culled_passes]
+    before_t = [t.name for t in general.targets]
+    after_t = [n for n in before_t if n not in culled_targets]
+    before_m, after_m = target_memory(general, w, h), target_memory(special.technique, w, h)
+    lines = [f"{compiled.name} on {_scene_label(args)} ({len(scene.objects)} objects, "
+             f"{len(scene.lights)} lights)", "", "scene features",
+             *[f"  {x}" for x in spec.features.describe()], "",
+             "not rendered for this scene" + (" (--strict makes this an error)" if found else ""),
+             *([f"  {m.message}" for m in found]
+               or ["  nothing: the technique renders everything this scene has"]), "",
+             f"specialised for: {spec.facts.describe()}",
+             *([f"  {c.describe()}" for c in spec.cuts] or ["  nothing to cut"]),
+             *[f"  parameter {k} = {v}" for k, v in spec.params], "",
+             f"passes   before ({len(before_p)}): {', '.join(before_p)}",
+             f"         after  ({len(after_p)}): {', '.join(after_p)}",
+             f"targets  before ({len(before_t)}): {', '.join(before_t)}",
+             f"         after  ({len(after_t)}): {', '.join(after_t)}",
+             f"target memory at {w}x{h}: {human_bytes(before_m)} -> {human_bytes(after_m)} "
+             f"({human_bytes(before_m - after_m)} saved)"]
+    print("\n".join(lines))
+    if not args.verify:
+        return 0
+    from .specialise import verify
+    backends = tuple(registry.BACKENDS) if args.backend == "all" else (args.backend,)
+    print(f"  … rendering general and specialised on {', '.join(backends)} at {w}x{h}",
+          file=sys.stderr)
+    result = verify(compiled, special, scene, backends)
+    print("", f"verify at {w}x{h}: every target the specialised pipeline produces, bit for bit",
+          sep="\n")
+    for b in backends:
+        names, bad = result.compared[b], result.differences[b]
+        title = registry.get(b).title
+        if not bad:
+            print(f"  {title}: {len(names)} targets identical ({', '.join(names)})")
+        else:
+            print(f"  {title}: {len(bad)} of {len(names)} targets differ ({', '.join(bad)}); "
+                  f"first differing pass: {result.first_difference[b] or 'not localised'}")
+    if result.identical:
+        print("identical: the specialised pipeline renders what the general one renders")
+        return 0
+    first = next(result.first_difference[b] for b in backends if result.differences[b])
+    print(f"error: the specialised pipeline differs from the general one; first differing "
+          f"pass: {first or 'not localised'}", file=sys.stderr)
+    return 1
+
+
+def cmd_graph(args) -> int:
+    from .graph import build_dot, write_graph
+    compiled = _compile(args)
+    if args.scene:
+        compiled = _specialise(args, compiled, _scene(args, size=False))
+    path, rendered = write_graph(build_dot(compiled, args.size), args.out)
+    if rendered or Path(args.out).suffix.lower() == path.suffix.lower():
+        print(f"wrote {path}")
+    else:
+        print(f"wrote {path} (the DOT text: Graphviz's dot is not installed, so no "
+              f"{Path(args.out).suffix} was drawn)")
+        print(f"hint: install Graphviz (apt-get install graphviz), or draw it with "
+              f"dot -T{Path(args.out).suffix[1:].lower()} {path} -o {args.out}", file=sys.stderr)
+    return 0
 
 
 def cmd_info(args) -> int:
@@ -289,7 +469,47 @@ def _compile(args):
         raise
 
 
-def _scene(args):
+def _specialise(args, compiled, scene, say_variant: bool = False):
+    """``compiled`` specialised for ``scene`` (the light table recompiled smaller, as
+    ``compile_file(..., scene=)`` does); with ``say_variant``, whether the variant was compiled
+    or reused from this process's cache, on stderr."""
+    from .compiler import compile_file
+    from .specialise import specialise
+    special = specialise(compiled, scene,
+                         recompile=lambda ps: compile_file(args.file, ps))
+    if say_variant:
+        spec = special.specialisation
+        culled = sum(c.kind == "pass" for c in spec.cuts)
+        print(f"variant: {'reused' if spec.reused else 'compiled'} (specialised for "
+              f"{spec.facts.describe()}; {len(spec.cuts)} cuts, passes "
+              f"{len(spec.general.passes)} -> {len(spec.general.passes) - culled})",
+              file=sys.stderr)
+    return special
+
+
+def mismatch_error(compiled, found, label: str) -> PipegenError:
+    return PipegenError(None, f"{compiled.name} will not render all of {label} (--strict):\n"
+                        + "\n".join(f"  {m.message}" for m in found),
+                        hint="without --strict these are warnings and the scene is rendered "
+                             "anyway; or choose a technique that renders what the scene has")
+
+
+def report_mismatches(compiled, scene, strict: bool, label: str) -> list:
+    """What ``compiled`` will not render of ``scene``: a warning line each on stderr, or with
+    ``strict`` a ``PipegenError`` listing them all (never a silently wrong image)."""
+    found = compiled.mismatches(scene)
+    if found and strict:
+        raise mismatch_error(compiled, found, label)
+    for m in found:
+        print(f"warning: part of {label} will not be rendered: {m.message}", file=sys.stderr)
+    return found
+
+
+def _scene_label(args) -> str:
+    return args.scene if args.scene else "the built-in default scene"
+
+
+def _scene(args, size: bool = True):
     from .scene import default_scene, load_scene
     if args.scene:
         if Path(args.scene).suffix.lower() == ".pipe":
@@ -300,7 +520,7 @@ def _scene(args):
         scene = load_scene(args.scene)
     else:
         scene = default_scene().with_size(*DEFAULT_SIZE)
-    if args.size:
+    if size and getattr(args, "size", None):
         scene = scene.with_size(*args.size)
     return scene
 
