@@ -100,7 +100,13 @@ def _fold_conversion(t: ir.Type, c: ir.Const):
 
 
 def _fold_stmt(s: ir.Stmt):
-    """``if (true) A else B`` -> A;  ``if (false) A`` -> nothing."""
+    """``if (true) A else B`` -> A;  ``if (false) A`` -> nothing.  A branch that declares
+    locals keeps its own scope (``if (true) { A }``): spliced into the enclosing block, its
+    names could clash with the block's own (``{ float r; return r; } float r;``)."""
     if isinstance(s, ir.If) and isinstance(s.cond, ir.Const):
-        return list(s.then if s.cond.value else s.other)
+        branch = s.then if s.cond.value else s.other
+        if any(isinstance(x, ir.Declare) for x in branch):
+            kept = ir.If(ir.Const(ir.BOOL, True), tuple(branch))
+            return None if kept == s else [kept]
+        return list(branch)
     return None

@@ -6,6 +6,7 @@ text is intended, and say why in the commit:  python tests/golden/make_emitted_s
 from __future__ import annotations
 
 import hashlib
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -22,10 +23,19 @@ def emitted_hashes() -> dict[str, str]:
     from pipegen.compiler import compile_file
 
     out: dict[str, str] = {}
+    here = os.getcwd()
     with tempfile.TemporaryDirectory() as tmp:
+        # compiled by their path relative to the repository, which shaders and reports quote:
+        # the hashes must not depend on where the repository is cloned
+        os.chdir(ROOT)
+        try:
+            for pipe in sorted(Path("pipelines").glob("*.pipe")):
+                folder = Path(tmp) / pipe.stem
+                compile_file(pipe).write(folder)
+        finally:
+            os.chdir(here)
         for pipe in sorted((ROOT / "pipelines").glob("*.pipe")):
             folder = Path(tmp) / pipe.stem
-            compile_file(pipe).write(folder)
             for f in sorted(folder.rglob("*")):
                 if f.is_file() and f.suffix in (".vert", ".frag", ".cl", ".txt"):
                     rel = f"{pipe.stem}/{f.relative_to(folder).as_posix()}"
