@@ -481,3 +481,12 @@ def test_cornell_gltf_matches_its_generator():
         np.testing.assert_allclose(o.positions, part.mesh.positions * 0.01, rtol=1e-6, atol=1e-6)
         assert o.material.albedo == part.material.albedo
     assert s.notes == ()
+
+
+def test_shipped_gltf_scene_file():
+    s = load_scene(ROOT / "examples/scenes/cornell_box_gltf.toml")
+    assert [o.id for o in s.objects] == [1, 2, 3, 4] and (s.width, s.height) == (320, 240)
+    assert [l.type for l in s.lights] == ["point", "spot", "directional", "point", "spot"]
+    assert s.camera.position == (1.2, 3.6, -3.5)                     # the TOML's camera
+    file_lights = load_scene(CORNELL / "cornell_box.gltf").lights
+    assert s.lights[0].color == pytest.approx(tuple(0.8 * c for c in file_lights[0].color))

@@ -69,14 +69,15 @@ def main() -> None:
         {"type": "point", "name": "warm bulb", "color": [1.0, 0.8, 0.55], "intensity": 1.6,
          "range": 3.2},
         {"type": "spot", "name": "ceiling spot", "color": [0.55, 0.75, 1.0], "intensity": 4.0,
-         "spot": {"innerConeAngle": math.radians(14), "outerConeAngle": math.radians(24)}},
+         "spot": {"innerConeAngle": math.radians(20), "outerConeAngle": math.radians(32)}},
         {"type": "directional", "name": "fill", "color": [0.9, 0.9, 1.0], "intensity": 0.25},
     ]
     light_nodes = [
         gl.Node(name="warm bulb", translation=[4.4, 1.5, 1.8],
                 extensions={"KHR_lights_punctual": {"light": 0}}),
-        gl.Node(name="ceiling spot", translation=[3.7, 5.3, 3.5], rotation=turn_minus_z_to([-0.15, -1, 0.25]),
-                extensions={"KHR_lights_punctual": {"light": 1}}),     # -z turned down, a little back
+        gl.Node(name="ceiling spot", translation=[1.2, 5.3, 4.0],
+                rotation=turn_minus_z_to([0.05, -1, 0.05]),
+                extensions={"KHR_lights_punctual": {"light": 1}}),     # -z turned down
         gl.Node(name="fill", rotation=turn_minus_z_to([-0.3, -0.5, 1.0]),
                 extensions={"KHR_lights_punctual": {"light": 2}}),
     ]
