@@ -300,3 +300,41 @@ def test_check_gl_against_cl(technique, name, tmp_path):
     from pipegen.check import check
     result = check(compiled(technique), scene(name), tmp_path)
     assert result.passed, "\n" + result.table() + f"\nfirst divergence: {result.first_divergence}"
+
+
+# ---------------------------------------------------------------------------------------------
+# the error table: python tests/test_light_types.py [gl|cl]
+# ---------------------------------------------------------------------------------------------
+
+def error_table(backend: str = "gl") -> str:
+    """Per technique and scene: max / mean / p99 rgba8 codes against the reference each test
+    above uses (shared equation, light-buffer equation, composite), on the same masks."""
+    rows = [f"{'technique':28s} {'reference':13s} " + " ".join(
+        f"{name + ' max/mean/p99':>28s}" for name in SCENES)]
+    variants = [(t, {}, "shared") for t in SHARED_EQUATION] + [
+        ("light_prepass", {}, "light buffer"), ("light_prepass", {}, "shared"),
+        ("inferred", {"lbuffer_scale": 1.0}, "light buffer"), ("inferred", {}, "composite")]
+    for technique, params, kind in variants:
+        cells = []
+        for name in SCENES:
+            s = scene(name)
+            c = compiled(technique, **params)
+            img = c.pipeline(backend).render(s)[c.technique.output]
+            if kind == "shared":
+                ref, gb = shared_reference(name)
+                mask = ~gb.silhouette
+            elif kind == "light buffer":
+                ref, mask = light_buffer_reference(s)[0], _light_buffer_mask(s)
+            else:
+                ref, mask = reference_composite(s)[0], None
+            e = rgb_error(img, ref, mask)
+            cells.append(f"{e['max']:.0f} / {e['mean']:.3f} / {e['p99']:.0f}"
+                         + (f" (rmse {e['rmse']:.2f})" if kind == "composite" else ""))
+        label = technique + "".join(f" {k}={v}" for k, v in params.items())
+        rows.append(f"{label:28s} {kind:13s} " + " ".join(f"{cell:>28s}" for cell in cells))
+    return "\n".join(rows)
+
+
+if __name__ == "__main__":
+    import sys
+    print(error_table(sys.argv[1] if len(sys.argv) > 1 else "gl"))
