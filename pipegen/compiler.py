@@ -57,9 +57,21 @@ class Compiled:
             self._plans[backend] = registry.get(backend).emit(self.technique)
         return self._plans[backend]
 
-    def pipeline(self, backend: str = "gl", size: Optional[tuple[int, int]] = None):
-        """A runnable pipeline: ``.render(scene) -> {target: numpy array}``."""
-        return registry.get(backend).runtime_class()(self.plan(backend), size)
+    def pipeline(self, backend: str = "gl", size: Optional[tuple[int, int]] = None,
+                 precision: str = "f32"):
+        """A runnable pipeline: ``.render(scene) -> {target: numpy array}``.
+
+        ``precision="f64"`` (CL): the float64 evaluation of the technique, whose ``render``
+        gives ``{target: float64 values}`` (unquantised; docs/internals.md); a backend without
+        it raises a ``PipegenError``."""
+        b = registry.get(backend)
+        if precision == "f32":
+            return b.runtime_class()(self.plan(backend), size)
+        b.check_precision(precision)
+        key = (backend, precision)
+        if key not in self._plans:
+            self._plans[key] = b.emit(self.technique, precision)
+        return b.runtime_class()(self._plans[key], size)
 
     def report(self, output_size: tuple[int, int] = (1280, 720)) -> str:
         from .report import render_report

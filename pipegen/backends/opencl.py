@@ -63,6 +63,7 @@ folded to ``x * 2.1``).
 
 from __future__ import annotations
 
+import math
 import re
 import textwrap
 from dataclasses import replace
@@ -184,6 +185,9 @@ class OpenCLLanguage(CStyleLanguage):
     nan_literal = "NAN"
     function_qualifier = "static inline "
     reserved = CL_RESERVED
+    real = "float"                 # the scalar type of the language's float
+    inputs = INPUTS                # stage input -> OpenCL expression
+    matrix_prefix = "pg_"          # prelude matrix functions: pg_m4_mul_v4 ...
 
     def __init__(self, tech: Optional[ir.Technique] = None, pass_: Optional[ir.Pass] = None):
         super().__init__()
@@ -258,17 +262,18 @@ class OpenCLLanguage(CStyleLanguage):
 
     def _construct_matrix(self, t: Type, args: list[str], types: list[Type]) -> str:
         n = t.mat
+        m = self.matrix_prefix
         if len(args) == 1 and types[0].is_matrix:
             if types[0].mat == n:
                 return args[0]
-            return f"pg_m{n}_from_m{types[0].mat}({args[0]})"
+            return f"{m}m{n}_from_m{types[0].mat}({args[0]})"
         if len(args) == 1 and types[0].is_scalar:
-            return f"pg_m{n}_diag((float)({args[0]}))"
+            return f"{m}m{n}_diag(({self.real})({args[0]}))"
         if len(args) == n and all(a.is_vector and a.size == n for a in types):
-            return f"pg_m{n}_cols({', '.join(args)})"
+            return f"{m}m{n}_cols({', '.join(args)})"
         if len(args) == n * n:
-            cols = [f"(float{n})({', '.join(args[i * n:(i + 1) * n])})" for i in range(n)]
-            return f"pg_m{n}_cols({', '.join(cols)})"
+            cols = [f"({self.real}{n})({', '.join(args[i * n:(i + 1) * n])})" for i in range(n)]
+            return f"{m}m{n}_cols({', '.join(cols)})"
         raise AssertionError(f"matrix constructor {t} from {[str(x) for x in types]}")
 
     def render_index(self, base: str, index: str, base_type: Type) -> str:
@@ -282,20 +287,21 @@ class OpenCLLanguage(CStyleLanguage):
         return f"pg_index({base}, {index})"
 
     def render_matrix_op(self, op, left, right, lt, rt, result) -> str:
+        m = self.matrix_prefix
         if op == "*":
             if lt.is_matrix and rt.is_matrix:
-                return f"pg_m{lt.mat}_mul_m{rt.mat}({left}, {right})"
+                return f"{m}m{lt.mat}_mul_m{rt.mat}({left}, {right})"
             if lt.is_matrix and rt.is_vector:
-                return f"pg_m{lt.mat}_mul_v{rt.size}({left}, {right})"
+                return f"{m}m{lt.mat}_mul_v{rt.size}({left}, {right})"
             if lt.is_vector and rt.is_matrix:
-                return f"pg_v{lt.size}_mul_m{rt.mat}({left}, {right})"
+                return f"{m}v{lt.size}_mul_m{rt.mat}({left}, {right})"
             if lt.is_matrix:
-                return f"pg_m{lt.mat}_scale({left}, {right})"
-            return f"pg_m{rt.mat}_scale({right}, {left})"
+                return f"{m}m{lt.mat}_scale({left}, {right})"
+            return f"{m}m{rt.mat}_scale({right}, {left})"
         if op == "/" and lt.is_matrix and rt.is_scalar:
-            return f"pg_m{lt.mat}_scale({left}, 1.0f / ({right}))"
+            return f"{m}m{lt.mat}_scale({left}, {self.literal(1.0, ir.FLOAT)} / ({right}))"
         if op in ("+", "-") and lt.is_matrix and rt.is_matrix:
-            return f"pg_m{lt.mat}_{'add' if op == '+' else 'sub'}({left}, {right})"
+            return f"{m}m{lt.mat}_{'add' if op == '+' else 'sub'}({left}, {right})"
         raise AssertionError(f"matrix operation {lt} {op} {rt}")
 
     # -- hooks ---------------------------------------------------------------------------------------
@@ -307,7 +313,7 @@ class OpenCLLanguage(CStyleLanguage):
         return self.literal(default, t)
 
     def render_input(self, name: str, t: Type) -> str:
-        return INPUTS.get(name, f"in->{name}")
+        return self.inputs.get(name, f"in->{name}")
 
     def render_current_light(self) -> str:
         return "in->light"
@@ -330,6 +336,80 @@ class OpenCLLanguage(CStyleLanguage):
 
     def render_output(self, target: str, value: str) -> str:
         return f"out->o_{target} = {value};"
+
+
+# ---- the float64 evaluation (``precision="f64"``) ---------------------------------------------
+#
+# The same dialect with another type map: ``float`` is ``double`` (vectors ``doubleN``, matrices
+# the prelude's ``pg_dmatN``), literals are the decimal value itself (not its float32), and the
+# builtins whose OpenCL spelling mirrors llvmpipe's float32 arithmetic (gallivm's exp2/log2
+# polynomials, pow through them) are the library's double functions.  The fragment context
+# reads the frame (matrices, camera, ambient) and the light table in double.
+
+PRECISIONS = ("f32", "f64")
+
+_TYPE_NAMES64 = dict(_TYPE_NAMES)
+_TYPE_NAMES64[ir.FLOAT] = "double"
+for _k in (2, 3, 4):
+    _TYPE_NAMES64[_T(Scalar.FLOAT, _k)] = f"double{_k}"
+_TYPE_NAMES64[ir.MAT3] = "pg_dmat3"
+_TYPE_NAMES64[ir.MAT4] = "pg_dmat4"
+
+INPUTS64 = {k: v.replace("in->frame->", "in->frame64->") for k, v in INPUTS.items()}
+INPUTS64["frag_coord"] = "in->frag_coord"
+
+# scene varyings in the float64 kernel: (type, value) over the parent triangle's attributes
+# interpolated at the pixel with exact perspective-correct weights (``P``: position, ``N``:
+# normal, double3) and its provoking vertex ``pv`` (flat values); a varying that is an affine
+# function of an attribute (view-space position, view-space normal) is that function of the
+# interpolated attribute -- the same value as interpolating it per vertex, without rounding
+SCENE_VARYINGS64 = {
+    "world_pos": ("double3", "P"),
+    "view_pos": ("double3", "pg_dm4_mul_v4(frame64->view, (double4)(P, 1.0)).xyz"),
+    "normal": ("double3", "N"),
+    "view_normal": ("double3", "pg_dm3_mul_v3(pg_dm3_from_m4(frame64->view), N)"),
+    "albedo": ("double3", "convert_double3(a_albedo[pv].xyz)"),
+    "specular": ("double", "(double)a_material[pv].x"),
+    "shininess": ("double", "(double)a_material[pv].y"),
+    "alpha": ("double", "(double)a_material[pv].z"),
+}
+
+
+class OpenCLLanguage64(OpenCLLanguage):
+    """The float64 evaluation's dialect: ``OpenCLLanguage`` with double types (data only, plus
+    the literal spelling)."""
+
+    type_names = _TYPE_NAMES64
+    builtin_map = {
+        **OpenCLLanguage.builtin_map,
+        "inversesqrt": "(1.0 / sqrt({0}))", "cross": "cross",
+        "pow": "pow({0}, {1})", "exp2": "exp2", "log2": "log2", "exp": "exp", "log": "log",
+    }
+    # mix(x, y, t) = x + (y - x) t, the same value as llvmpipe's split in exact arithmetic
+    builtin_lowerings: dict = {}
+    float_suffix = ""
+    real = "double"
+    inputs = INPUTS64
+    matrix_prefix = "pg_d"
+
+    def render_float(self, x: float) -> str:
+        """The literal's own value (the shortest decimal that reads back as the same double)."""
+        x = float(x)
+        if math.isnan(x):
+            return self.nan_literal
+        if math.isinf(x):
+            return self.inf_literal if x > 0 else "-" + self.inf_literal
+        s = repr(x)
+        if "." not in s and "e" not in s:
+            s += ".0"
+        return s
+
+
+def dialect(precision: str = "f32") -> type[OpenCLLanguage]:
+    """The dialect class of a precision (``PRECISIONS``)."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision {precision!r}: expected one of {', '.join(PRECISIONS)}")
+    return OpenCLLanguage64 if precision == "f64" else OpenCLLanguage
 
 
 # ---- formats on the device --------------------------------------------------------------------------
@@ -390,6 +470,41 @@ def cl_format(name: str) -> dict:
     assert fmt.encode is F.Encode.UNORM16, f"{name}: no OpenCL conversion for {fmt.encode}"
     narrow = any(b < 16 for b in fmt.bits)
     return {**out, "cls": "unorm", "code": f"pg_{name}_code4" if narrow else "pg_unorm16_code4"}
+
+
+def cl_format64(name: str) -> dict:
+    """``cl_format`` for the float64 evaluation: every non-integer target holds its values as
+    doubles (one ``double``/``double2``/``double4`` per pixel, ``cls`` "f64"; depth ``cls``
+    "d64", the window depth), unquantised; integer formats keep their codes (``cl_format``).
+    ``src_clamp``: the function applied to a shader output (and the blend constant) before
+    blending and storing, ``store_clamp`` to the stored result: the format's value range
+    ([0, 1] unorm, [-1, 1] snorm, +-65504 for finite half values; none for float32)."""
+    fmt = F.get(name)
+    if fmt.kind is F.Kind.UINT:
+        return cl_format(name)
+    if fmt.kind in (F.Kind.DEPTH, F.Kind.DEPTH_STENCIL):
+        return {"name": name, "cls": "d64", "storage": "double", "reg": "double",
+                "np": "float64", "load": "b[i]", "store": "b[i] = r;",
+                "read": "(double4)(b[i], 0.0, 0.0, 1.0)", "vec": "double4"}
+    n = fmt.channels
+    assert n in (1, 2, 4), name
+    if n == 1:
+        load, store = "(double4)(b[i], 0.0, 0.0, 1.0)", "b[i] = r.x;"
+    elif n == 2:
+        load, store = "(double4)(b[i], 0.0, 1.0)", "b[i] = r.xy;"
+    else:
+        load, store = "b[i]", "b[i] = r;"
+    if fmt.kind is F.Kind.UNORM:
+        src = store_clamp = "pg_dclamp01"
+    elif fmt.kind is F.Kind.SNORM:
+        src = store_clamp = "pg_dclamp11"
+    elif max(fmt.bits) == 16:
+        src, store_clamp = "", "pg_dclamp_half"
+    else:
+        src = store_clamp = ""
+    return {"name": name, "cls": "f64", "storage": "double" if n == 1 else f"double{n}",
+            "reg": "double4", "np": "float64", "load": load, "store": store, "read": load,
+            "vec": "double4", "src_clamp": src, "store_clamp": store_clamp}
 
 
 def _four(values: list, n: int) -> list:
@@ -524,10 +639,11 @@ def c_comment(text: str, width: int = 95) -> str:
     return "\n".join(lines)
 
 
-def prelude_source(tile: int = TILE) -> str:
-    """The prelude every pass program starts with (``templates/cl_prelude.cl.j2``)."""
+def prelude_source(tile: int = TILE, precision: str = "f32") -> str:
+    """The prelude every pass program starts with (``templates/cl_prelude.cl.j2``); with
+    ``precision="f64"`` followed by the float64 evaluation's building blocks."""
     return templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines(),
-                             scaled16=scaled16_conversions())
+                             scaled16=scaled16_conversions(), f64=precision == "f64")
 
 
 def _rcp(maxima) -> str:
@@ -613,8 +729,9 @@ def state_words(pass_: PassPlan) -> list[int]:
     return out
 
 
-def _state_defines(pass_: PassPlan, dynamic: bool) -> list[tuple[str, str]]:
-    lang = OpenCLLanguage()
+def _state_defines(pass_: PassPlan, dynamic: bool,
+                   precision: str = "f32") -> list[tuple[str, str]]:
+    lang = dialect(precision)()
     out = []
     for k, (name, kind, value) in enumerate(state_values(pass_)):
         if dynamic:
@@ -664,67 +781,83 @@ def varying_slots(pass_: PassPlan) -> list[dict]:
 
 
 def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int = TILE) -> str:
-    """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument)."""
+    """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument),
+    in the plan's precision (``plan.precision``: "f32", or "f64" for the float64 evaluation:
+    the same program with double arithmetic and storage, docs/internals.md)."""
     if not 1 <= int(tile) <= 64:       # pg_raster keeps a row's drawn pixels in a ulong mask
         raise ValueError(f"tile size {tile}: the raster kernel supports 1 to 64")
+    precision = getattr(plan, "precision", "f32")
+    f64 = precision == "f64"
+    fmt_of = cl_format64 if f64 else cl_format
     code = pass_.code if pass_.code is not None else CLPassCode("", None)
     writes = []
     for k, name in enumerate(pass_.writes):
-        f = cl_format(plan.target(name).format.name)
+        f = fmt_of(plan.target(name).format.name)
         writes.append({**f, "k": k, "name": name, "format": f["name"]})
     depth = None
     stencil = False
     if pass_.depth_target:
         fmt = plan.target(pass_.depth_target).format
-        depth = cl_format(fmt.name)
+        depth = fmt_of(fmt.name)
         stencil = fmt.has_stencil
     reads = []
     for name in pass_.reads:
-        f = cl_format(plan.target(name).format.name)
+        f = fmt_of(plan.target(name).format.name)
         reads.append({**f, "name": name, "format": f["name"], "decoded": _read_expr(f),
                       "integer": f["cls"] == "uint",
-                      "linear": f["cls"] in ("unorm8", "unorm", "snorm", "half", "float"),
+                      "linear": f["cls"] in ("unorm8", "unorm", "snorm", "half", "float", "f64"),
                       "sampled": name in code.sampled})
     inputs = set(code.inputs)
     draw = pass_.draw
     fields = [f[0] for f in plan.lights.fields]
     volume = (draw.volume or ir.Volume.SPHERE).value
     slots = {f: k for k, f in enumerate(fields)}
-    prelude = prelude_source(tile)
+    prelude = prelude_source(tile, precision)
     samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
+    varyings = varying_slots(pass_)
+    if f64:
+        for v in varyings:
+            v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
     return templating.render(
         "cl_pass.cl.j2",
         technique=plan.technique, pass_name=pass_.name, prelude=prelude,
-        dynamic=dynamic, state=_state_defines(pass_, dynamic),
+        dynamic=dynamic, state=_state_defines(pass_, dynamic, precision),
         kind=draw.kind.value, volume=volume, slots=slots, light_fields=len(fields),
-        varyings=varying_slots(pass_),
+        varyings=varyings,
         flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
         writes=writes, depth=depth, stencil=stencil, reads=reads,
         fragment=code.fragment, discard=code.discard,
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
-        inside=_inside_func(pass_) is not None)
+        inside=_inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float")
 
 
 # ---- emission from the IR -----------------------------------------------------------------------------
 
 
-def emit_cl(tech: ir.Technique) -> Plan:
-    """The plan of ``tech`` with one OpenCL program (``CLPassCode.kernel``) per pass."""
-    tech = lower_mix_constant.run(tech)         # llvmpipe's split of mix(x, y, constant)
-    frags = [emit_fragment(tech, p) for p in tech.passes]
+def emit_cl(tech: ir.Technique, precision: str = "f32") -> Plan:
+    """The plan of ``tech`` with one OpenCL program (``CLPassCode.kernel``) per pass;
+    ``precision="f64"``: the float64 evaluation of the technique (``plan.precision``)."""
+    lang = dialect(precision)
+    if precision == "f32":
+        tech = lower_mix_constant.run(tech)     # llvmpipe's split of mix(x, y, constant)
+    frags = [emit_fragment(tech, p, lang) for p in tech.passes]
     codes = [CLPassCode("", f["fragment"], tuple(f["inputs"]), f["discard"], tuple(f["sampled"]))
              for f in frags]
     sampled = [tuple(r for r in p.reads if r in f["sampled"]) for p, f in zip(tech.passes, frags)]
     plan = planlib.technique_plan(tech, "cl", codes, sampled)
+    if precision != "f32":
+        plan = replace(plan, precision=precision)
     return replace(plan, passes=tuple(
         replace(p, code=replace(p.code, kernel=pass_program(plan, p))) for p in plan.passes))
 
 
-def emit_fragment(tech: ir.Technique, p: ir.Pass) -> dict:
-    """The fragment function of a pass (OpenCL C) and what it reads."""
-    lang = OpenCLLanguage(tech, p)
+def emit_fragment(tech: ir.Technique, p: ir.Pass,
+                  language: type[OpenCLLanguage] = OpenCLLanguage) -> dict:
+    """The fragment function of a pass (OpenCL C) and what it reads (``language``: the
+    dialect, ``OpenCLLanguage64`` for the float64 evaluation)."""
+    lang = language(tech, p)
     functions = planlib.pass_functions(tech, p.body)
     inputs = planlib.stage_inputs(p.body, functions)
     kind = p.draw.kind

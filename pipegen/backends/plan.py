@@ -105,6 +105,8 @@ class Plan:
     passes: tuple[PassPlan, ...]
     light_sets: Mapping[str, int] = field(default_factory=dict)   # channel_slots: slots
     scene: Optional[ir.SceneFacts] = None     # specialised: what every scene must satisfy
+    # "f32", or "f64": the float64 evaluation of the technique (CL only; docs/internals.md)
+    precision: str = "f32"
 
     def target(self, name: str) -> TargetPlan:
         for t in self.targets:
@@ -176,6 +178,8 @@ def plan_to_dict(plan: Plan) -> dict:
         f = plan.scene
         out["scene"] = {"light_types": list(f.light_types), "lights": f.lights,
                         "translucent": f.translucent, "opaque": f.opaque}
+    if plan.precision != "f32":
+        out["precision"] = plan.precision
     return out
 
 
@@ -265,7 +269,8 @@ def plan_from_dict(d: Union[Mapping, Plan]) -> Plan:
         targets=tuple(_target_from_dict(t) for t in d.get("targets") or []),
         passes=tuple(_pass_from_dict(p) for p in d.get("passes") or []),
         light_sets={k: int(v) for k, v in (d.get("light_sets") or {}).items()},
-        scene=_facts_from_dict(d.get("scene")))
+        scene=_facts_from_dict(d.get("scene")),
+        precision=str(d.get("precision") or "f32"))
 
 
 def _facts_from_dict(f: Optional[Mapping]) -> Optional[ir.SceneFacts]:

@@ -35,13 +35,29 @@ class Backend:
     runtime: str                  # "module:class", ``(plan, size) -> pipeline``
     module_template: str          # the generated pipeline module (templates/)
     pass_files: Callable[[str, PassPlan], dict[str, str]]   # per pass: {file name: text}
+    # the arithmetic precisions its emitter and runtime offer: "f32" (what the backend runs),
+    # "f64" (the float64 evaluation of the technique, docs/internals.md)
+    precisions: tuple[str, ...] = ("f32",)
 
     @property
     def module_name(self) -> str:
         return self.module_template.removesuffix(".j2")
 
-    def emit(self, tech):
-        return _resolve(self.emitter)(tech)
+    def emit(self, tech, precision: str = "f32"):
+        if precision == "f32":
+            return _resolve(self.emitter)(tech)
+        self.check_precision(precision)
+        return _resolve(self.emitter)(tech, precision=precision)
+
+    def check_precision(self, precision: str) -> None:
+        """A ``PipegenError`` when this backend cannot evaluate at ``precision``."""
+        if precision not in self.precisions:
+            from ..diagnostics import PipegenError
+            others = [b.name for b in BACKENDS.values() if precision in b.precisions]
+            raise PipegenError(None, f"the {self.name} backend has no precision {precision!r} "
+                                     f"(it offers {', '.join(self.precisions)})",
+                               hint=(f"use --backend {others[0]} for the {precision} evaluation"
+                                     if others else "use precision \"f32\""))
 
     def runtime_class(self):
         return _resolve(self.runtime)
@@ -67,7 +83,8 @@ BACKENDS: dict[str, Backend] = {b.name: b for b in (
             "pipegen.runtime.gl_pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files),
     Backend("cl", "CL (PoCL)", "the OpenCL software reference on PoCL's CPU device",
             "pipegen.backends.opencl:emit_cl",
-            "pipegen.runtime.cl_pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files),
+            "pipegen.runtime.cl_pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files,
+            precisions=("f32", "f64")),
 )}
 
 

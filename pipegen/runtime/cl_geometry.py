@@ -63,6 +63,62 @@ class Bins:
         self.tile_tris = pipe._buffer(tile_tris)
 
 
+def homogeneous_planes(clip64: np.ndarray, parent: np.ndarray, width: int, height: int,
+                       polygon_offset=None, depth_format: Optional[str] = None) -> np.ndarray:
+    """The float64 evaluation's per-triangle planes (N, 4, 4) float64, from the clip positions
+    in double (``clip64`` (V, 4), the vertex kernel's ``o_clip64``) of each set-up triangle's
+    *parent* (the input triangle ``parent[n]``, vertices 3p, 3p + 1, 3p + 2: clipping makes
+    pieces of it, and interpolating over the parent is what clipping then interpolating
+    means).
+
+    With M = [[x0, x1, x2], [y0, y1, y2], [w0, w1, w2]] (clip x, y, w of the vertices), the
+    window point (x, y) has NDC (xn, yn) = (2x/W - 1, 2y/H - 1) and u = M^-1 (xn, yn, 1):
+    the perspective-correct weights are u / (u0 + u1 + u2), 1/w = u0 + u1 + u2 and NDC depth
+    u . (z0, z1, z2) (homogeneous rasterisation: no division by a vertex's w, so vertices
+    behind the eye are fine).  Rows 0-2: u_k = A x + B y + C as (A, B, C, 0); row 3: the
+    window depth 0.5 u . z + 0.5 as (A, B, C, polygon offset), the offset ``factor * max(|dz/dx|,
+    |dz/dy|) + units * r`` in double with the format's r (d24: 2/(2^24 - 1), as the float32
+    run; d32f: 2^(e - 23), e the exponent of the parent's largest |window z|)."""
+    p = np.asarray(parent, np.int64)
+    n = len(p)
+    out = np.zeros((n, 4, 4), np.float64)
+    if n == 0:
+        return out
+    v = np.asarray(clip64, np.float64)[(3 * p)[:, None] + np.arange(3)[None, :]]   # (N, 3, 4)
+    x, y, z, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
+    m = np.stack([x, y, w], axis=1)                                 # (N, 3 rows, 3 vertices)
+    cof = np.empty_like(m)                  # the adjugate's transpose, row by row
+    for i in range(3):
+        for j in range(3):
+            r0, r1 = [k for k in range(3) if k != i]
+            c0, c1 = [k for k in range(3) if k != j]
+            cof[:, i, j] = (-1) ** (i + j) * (m[:, r0, c0] * m[:, r1, c1]
+                                              - m[:, r0, c1] * m[:, r1, c0])
+    det = np.einsum("nj,nj->n", m[:, 0, :], cof[:, 0, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(det[:, None, None] != 0,
+                       np.transpose(cof, (0, 2, 1)) / det[:, None, None], 0.0)
+    a = inv[:, :, 0] * (2.0 / width)
+    b = inv[:, :, 1] * (2.0 / height)
+    c = inv[:, :, 2] - inv[:, :, 0] - inv[:, :, 1]
+    out[:, :3, 0], out[:, :3, 1], out[:, :3, 2] = a, b, c
+    zx = 0.5 * np.einsum("nk,nk->n", a, z)
+    zy = 0.5 * np.einsum("nk,nk->n", b, z)
+    out[:, 3, 0], out[:, 3, 1] = zx, zy
+    out[:, 3, 2] = 0.5 * np.einsum("nk,nk->n", c, z) + 0.5
+    if polygon_offset is not None:
+        factor, units = float(polygon_offset[0]), float(polygon_offset[1])
+        if depth_format == "d32f":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                zmax = np.max(np.abs(0.5 * z / w + 0.5), axis=1)
+                e = np.where(zmax > 0, np.floor(np.log2(np.where(zmax > 0, zmax, 1.0))), -126)
+            r = np.exp2(np.maximum(e, -126) - 23)
+        else:
+            r = 2.0 / 16777215.0
+        out[:, 3, 3] = factor * np.maximum(np.abs(zx), np.abs(zy)) + units * r
+    return out
+
+
 def select_triangles(tris, index: np.ndarray):
     """The set-up triangles ``index`` names (int indices, in that order): per-triangle arrays
     are indexed; the varyings, which the triangles index, are kept whole."""
@@ -346,6 +402,8 @@ class DrawGeometry:
         else:
             nverts = 3
         inst_buf = pipe._buffer(inst)
+        f64 = pipe.f64
+        clip64 = None
         clip = None
         vary = np.empty((len(names), nverts, 4), np.float32) if names else None
         vary_buf = None
@@ -355,13 +413,20 @@ class DrawGeometry:
             clip_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
             vbuf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
             kern = pipe._kernel(kp, "pg_vertex")
+            extra = []
+            if f64:      # the float64 evaluation: clip positions in double too
+                clip64_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 32)
+                extra = [pipe._frame64_buf, clip64_buf]
             kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
-                          pipe._frame_buf, pipe._lights_buf, clip_buf, vbuf)
+                          pipe._frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
             ev = cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,))
             if clip is None:
                 clip = np.empty((nverts, 4), np.float32)
                 cl.enqueue_copy(pipe.queue, clip, clip_buf)
+                if f64:
+                    clip64 = np.empty((nverts, 4), np.float64)
+                    cl.enqueue_copy(pipe.queue, clip64, clip64_buf)
             if S:
                 out = np.empty((S, nverts, 4), np.float32)
                 cl.enqueue_copy(pipe.queue, out, vbuf)
@@ -379,6 +444,8 @@ class DrawGeometry:
                                vary=vary, scissor=scissor,
                                smooth=[i for i, f in enumerate(flats) if not f],
                                pixel_center=center, w_plane=w_plane)
+        if f64:
+            tris.h = homogeneous_planes(clip64, tris.parent, width, height, _offset(p), dfmt)
         timing["setup"] = (time.perf_counter() - t0) * 1e3
         if tris.count == 0:
             self.frame[key] = None
@@ -400,6 +467,9 @@ class DrawGeometry:
                 "w": buf(tris.w), "coef": buf(tris.coef), "zp": buf(tris.zp),
                 "zq": buf(tris.zq), "flat": buf(tris.flat), "vtx": buf(tris.vtx),
                 "scissor": buf(tris.scissor), "bbox": buf(tris.bbox), "vary": vary_buf}
+        if tris.h is not None:       # the float64 evaluation's planes and parent triangles
+            bufs["h"] = buf(np.ascontiguousarray(tris.h))
+            bufs["parent"] = buf(np.asarray(tris.parent, np.int32))
         return Geo(tris, bufs)
 
     def _cull_auto(self, tris, p: PassPlan, lights: list):

@@ -46,6 +46,13 @@ draws cut them from the (triangle, tile) pairs of all their lights).  Raster ker
 queued without waiting (the host sets up the next pass meanwhile); target and blend-count
 buffers are reused from frame to frame (cleared as before).
 
+The float64 evaluation (a plan emitted with ``precision="f64"``, ``Compiled.pipeline("cl",
+precision="f64")``): the same schedule, coverage and primitive order, the technique's
+arithmetic in double and every target stored unquantised (``cl_targets``); ``render``
+returns ``{target: float64 values}`` (docs/internals.md, "The float64 evaluation").  The
+frame's matrices, camera and ambient reach the fragment function in double
+(``FRAME64_DTYPE``), the light table as doubles of the scene's float32 table.
+
 ``CLPipeline(..., dynamic_state=True)`` is for tests: every pass program reads its
 fixed-function state from a kernel argument instead of baked constants, so one compiled program
 serves all the states a parametrised test sweeps (production plans bake the state).
@@ -81,6 +88,13 @@ FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
                         ("output_size", "<f4", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
                         ("light_fields", "<u4"), ("pad", "<u4")])
 assert FRAME_DTYPE.itemsize == 320
+# host image of the prelude's pg_frame64 (the float64 evaluation), padded to its alignment
+FRAME64_DTYPE = np.dtype([("view", "<f8", (16,)), ("proj", "<f8", (16,)),
+                          ("inv_view", "<f8", (16,)), ("inv_proj", "<f8", (16,)),
+                          ("camera_pos", "<f8", (4,)), ("ambient", "<f8", (4,)),
+                          ("output_size", "<f8", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
+                          ("light_fields", "<u4"), ("pad", "<u4"), ("pad2", "<u4", (4,))])
+assert FRAME64_DTYPE.itemsize == 640
 
 
 def _colmajor(m: np.ndarray) -> np.ndarray:
@@ -98,6 +112,8 @@ class CLPipeline:
             p if p.code is not None else replace(p, code=CLPassCode("", None))
             for p in plan.passes))
         self.size = size
+        self.precision = plan.precision
+        self.f64 = plan.precision == "f64"       # the float64 evaluation
         self.dynamic_state = dynamic_state
         self.tile = tile
         self.ctx, self.queue = cl_context.get_context(
@@ -192,6 +208,17 @@ class CLPipeline:
         self._view, self._proj = view, proj
         fr["light"] = light
         fr["light_fields"] = len(self.plan.lights.fields)
+        if self.f64:
+            f8 = np.zeros((), FRAME64_DTYPE)
+            for name, m in (("view", view), ("proj", proj), ("inv_view", np.linalg.inv(view)),
+                            ("inv_proj", np.linalg.inv(proj))):
+                f8[name] = np.asarray(m, np.float64).T.reshape(16)
+            f8["camera_pos"][:3] = np.asarray(cam.position, np.float64)
+            f8["ambient"][:3] = np.asarray(scene.ambient, np.float64)
+            f8["output_size"][:2] = (out_w, out_h)
+            for name in ("num_lights", "light", "light_fields"):
+                f8[name] = fr[name]
+            self._frame64_np = f8
         return fr
 
     # -- rendering ----------------------------------------------------------------------------------
@@ -206,6 +233,7 @@ class CLPipeline:
         self._events = []
         self._frame_np = self._frame(scene)
         self._frame_buf = self._buffer(self._frame_np)
+        self._frame64_buf = self._buffer(self._frame64_np) if self.f64 else None
         captures: list[dict] = []
         for k, light in draws.schedule(self.plan, self._selection):
             self._run_pass(k, light)
@@ -235,6 +263,9 @@ class CLPipeline:
                  else np.zeros((0, 4), np.float32))
         self._lights_buf = self._buffer(table.reshape(-1, 4) if table.size
                                         else np.zeros((1, 4), np.float32))
+        if self.f64:     # the fragment function's light table in double
+            self._lights64_buf = self._buffer(table.reshape(-1, 4).astype(np.float64)
+                                              if table.size else np.zeros((1, 4), np.float64))
 
     def _run_pass(self, k: int, light: Optional[int]) -> None:
         import pyopencl as cl
@@ -279,6 +310,11 @@ class CLPipeline:
             rt = self._targets[name]
             self.store.resolve(rt)                # reads see the resolved texture, like GL
             args += [rt.res, cl.cltypes.make_int2(rt.width, rt.height)]
+        if self.f64:
+            attrs = [self._zeros4] * 4
+            if p.draw.kind is ir.DrawKind.SCENE:
+                attrs = self.geometry.attributes(p.draw.material)[1]
+            args += [bufs["h"], bufs["parent"], self._frame64_buf, self._lights64_buf, *attrs]
         kern = self._kernel(k, "pg_raster")
         kern.set_args(*args)
         T = self.tile

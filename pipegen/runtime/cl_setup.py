@@ -84,6 +84,9 @@ class Triangles:
     vary: Optional[np.ndarray]   # (S, V', 4) float32 varyings incl. clipping's new vertices
     nverts: int
     samples: Optional[int] = None    # samples per pixel the boxes are for (None: any)
+    parent: Optional[np.ndarray] = None   # (N,) int64: the input triangle each one comes from
+    h: Optional[np.ndarray] = None   # (N, 4, 4) float64: the float64 evaluation's planes
+                                     #   (cl_geometry.homogeneous_planes), or None
 
     @property
     def count(self) -> int:
@@ -576,7 +579,8 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     bbox = np.empty((n, 4), np.int32)
     bbox[:, 0], bbox[:, 1], bbox[:, 2], bbox[:, 3] = x0, y0, x1, y1
     return Triangles(tri_a, tri_b, tri_c, tri_z, tri_w, tri_coef, tri_zp, tri_zq, tri_flat,
-                     tri_vtx, tri_sc, bbox, vary_v, len(clip_v), samples)
+                     tri_vtx, tri_sc, bbox, vary_v, len(clip_v), samples,
+                     np.asarray(parent, np.int64))
 
 
 def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,

@@ -7,6 +7,12 @@ every target for a frame; ``targets[name]`` is a ``Target``.  Multisampled targe
 plane per sample and a resolved plane that reads and read-back see (``resolve``).
 ``blend_count(t)`` is the per-pixel count of fragments blended into a colour target this
 frame, which ``pipegen check`` turns into a per-pixel tolerance.
+
+The float64 evaluation (a plan of precision "f64") stores every non-integer target as doubles
+(one per channel; depth: the window depth), unquantised: clears write the clear values in the
+format's range ([0, 1] unorm, [-1, 1] snorm, finite half values within +-65504), the
+multisample resolve averages the samples in double, and ``read`` gives float64 values (integer
+targets their codes as float64; stencil stays uint8 codes).
 """
 
 from __future__ import annotations
@@ -26,6 +32,20 @@ def device_buffer(ctx, array: np.ndarray):
     if a.nbytes == 0:
         a = np.zeros(16, np.uint8)
     return cl.Buffer(ctx, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+
+
+def value_range(fmt: F.Format, values: np.ndarray) -> np.ndarray:
+    """Values (float64) limited to what format ``fmt`` can hold, without quantising: the float64
+    evaluation's stores and clears (unorm [0, 1], snorm [-1, 1], NaN to the low end; half:
+    finite values within +-65504; depth [0, 1]; float32: unchanged)."""
+    v = np.asarray(values, np.float64)
+    if fmt.kind is F.Kind.UNORM or fmt.has_depth:
+        return np.clip(np.nan_to_num(v, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    if fmt.kind is F.Kind.SNORM:
+        return np.clip(np.nan_to_num(v, nan=-1.0, posinf=1.0, neginf=-1.0), -1.0, 1.0)
+    if fmt.kind is F.Kind.FLOAT and max(fmt.bits) == 16:
+        return np.where(np.isfinite(v), np.clip(v, -65504.0, 65504.0), v)
+    return v
 
 
 def d24_resolve(codes: np.ndarray) -> np.ndarray:
@@ -60,6 +80,7 @@ class TargetStore:
     def __init__(self, ctx, queue, plan: Plan):
         self.ctx, self.queue = ctx, queue
         self.specs = {t.name: t for t in plan.targets}
+        self.f64 = getattr(plan, "precision", "f32") == "f64"
         self.targets: dict[str, Target] = {}
         self.blend_counts: dict = {}        # target name -> this frame's count buffer
         self._count_pool: dict = {}         # count buffers, reused every frame
@@ -94,6 +115,8 @@ class TargetStore:
         import pyopencl as cl
         fmt = t.fmt
         nbytes = fmt.element_dtype.itemsize * fmt.elements     # stencil: a buffer apart
+        if self._doubles(fmt):
+            nbytes = 8 * (1 if fmt.has_depth else fmt.channels)
         return cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
                          size=max(16, t.pixels * nbytes * planes))
 
@@ -119,10 +142,30 @@ class TargetStore:
                    depth_given=not partial or c.depth is not None,
                    stencil_given=not partial or c.stencil is not None)
 
+    def _doubles(self, fmt: F.Format) -> bool:
+        """Whether the target's values live as doubles (the float64 evaluation, non-integer)."""
+        return self.f64 and not fmt.is_integer
+
     def _fill(self, t: Target, buf, sbuf, n: int, color, depth, stencil, depth_given: bool,
               stencil_given: bool) -> None:
         import pyopencl as cl
         fmt = t.fmt
+        if self._doubles(fmt):
+            if fmt.has_depth:
+                if depth_given:
+                    v = value_range(fmt, depth if depth is not None else 0.0)
+                    cl.enqueue_fill_buffer(self.queue, buf, np.float64(v), 0, n * 8)
+                if fmt.kind is F.Kind.DEPTH_STENCIL and stencil_given:
+                    s = np.uint8(int(stencil or 0) & 0xFF)
+                    cl.enqueue_fill_buffer(self.queue, sbuf, s, 0, n)
+                return
+            col = np.zeros(4) if color is None else np.asarray(color, np.float64)
+            if col.ndim == 0:
+                col = np.full(4, float(col))
+            col = np.concatenate([col, np.zeros(4)])[:4]
+            pattern = value_range(fmt, col[:fmt.channels]).astype(np.float64)
+            cl.enqueue_fill_buffer(self.queue, buf, pattern.view(np.uint8), 0, n * pattern.nbytes)
+            return
         if fmt.kind is F.Kind.DEPTH_STENCIL:
             if depth_given:
                 code = np.uint32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
@@ -158,6 +201,16 @@ class TargetStore:
         import pyopencl as cl
         fmt = t.fmt
         h, w = t.height, t.width
+        if self._doubles(fmt):
+            shape = (planes, h, w) + ((fmt.channels,) if fmt.channels > 1 and fmt.is_color
+                                      else ())
+            d = np.empty(shape, np.float64)
+            cl.enqueue_copy(self.queue, d, buf)
+            st = None
+            if fmt.kind is F.Kind.DEPTH_STENCIL:
+                st = np.empty((planes, h, w), np.uint8)
+                cl.enqueue_copy(self.queue, st, sbuf)
+            return d, st
         if fmt.kind in (F.Kind.DEPTH_STENCIL, F.Kind.DEPTH):
             d = np.empty((planes, h, w), np.uint32 if fmt.kind is F.Kind.DEPTH_STENCIL
                          else np.float32)
@@ -182,6 +235,14 @@ class TargetStore:
             return
         codes, st = self._read_planes(t, t.buf, t.stencil, t.samples)
         fmt = t.fmt
+        if self._doubles(fmt):
+            # the float64 evaluation: colour the mean of the samples, depth sample 0
+            res = codes[0] if fmt.has_depth else codes.sum(axis=0) / t.samples
+            cl.enqueue_copy(self.queue, t.res, np.ascontiguousarray(res, np.float64))
+            if st is not None:
+                cl.enqueue_copy(self.queue, t.res_stencil, np.ascontiguousarray(st[0]))
+            t.dirty = False
+            return
         if fmt.kind in (F.Kind.UNORM, F.Kind.FLOAT):
             if fmt.kind is F.Kind.UNORM:
                 top = np.array([(1 << b) - 1 for b in fmt.bits], np.float32)
@@ -213,7 +274,7 @@ class TargetStore:
     def read(self, t: Target) -> dict:
         self.resolve(t)
         codes, st = self._read_planes(t, t.res, t.res_stencil, 1)
-        out = {t.name: codes[0]}
+        out = {t.name: codes[0].astype(np.float64) if self.f64 else codes[0]}
         if st is not None:
             out[t.name + ".stencil"] = st[0]
         return out
@@ -228,7 +289,10 @@ class TargetStore:
         """Overwrite a target of the current frame with codes (GL row order): every sample."""
         import pyopencl as cl
         t = self.targets[name]
-        data = np.ascontiguousarray(t.fmt.pack(np.asarray(codes)))
+        if self._doubles(t.fmt):     # the float64 evaluation: values, not codes
+            data = np.ascontiguousarray(value_range(t.fmt, codes), np.float64)
+        else:
+            data = np.ascontiguousarray(t.fmt.pack(np.asarray(codes)))
         cl.enqueue_copy(self.queue, t.buf, np.ascontiguousarray(
             np.broadcast_to(data, (t.samples,) + data.shape)))
         if t.res is not t.buf:
