@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Optional
 
@@ -95,16 +96,19 @@ def scene_features(scene) -> SceneFeatures:
         normal_groups=len(groups))
 
 
-def lights_per_pixel_bound(scene) -> int:
-    """The most lights whose volumes a light-index pass may write at one pixel: lights whose
-    circumscribing volume has a back face at or behind the visible surface (or the sky) along
-    the pixel's ray, directional lights everywhere (``reference.lighting.lights_per_pixel``,
-    conservative, at the scene's resolution)."""
+def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None) -> int:
+    """The most lights (of ``types``; None: all) whose volumes a light-index pass may write
+    at one pixel: lights whose circumscribing volume has a back face at or behind the visible
+    surface (or the sky) along the pixel's ray, directional lights everywhere
+    (``reference.lighting.lights_per_pixel``, conservative, at the scene's resolution;
+    ``gbuffer``: its rasterisation, when the caller has one)."""
     from .reference.lighting import lights_per_pixel
     from .reference.raster import rasterize
-    if not scene.lights:
+    lights = tuple(l for l in scene.lights if types is None or l.type in types)
+    if not lights:
         return 0
-    counts = lights_per_pixel(rasterize(scene), scene, conservative=True)
+    counts = lights_per_pixel(gbuffer if gbuffer is not None else rasterize(scene),
+                              dataclasses.replace(scene, lights=lights), conservative=True)
     return int(counts.max()) if counts.size else 0
 
 
@@ -116,8 +120,9 @@ class Capabilities:
     light_types: tuple[tuple[str, str], ...]   # type -> RENDERED or what happens instead
     has_light_table: bool
     translucent: bool                          # draws translucent objects
-    index_packing: Optional[tuple[str, str, int]]   # (pack, scheme, lights per pixel)
-    slot_packing: Optional[tuple[str, int]]         # channel_slots: (pack, sets)
+    index_packings: tuple[tuple[str, str, int, frozenset], ...]   # (pack, scheme, lights
+    #                                             per pixel, the light types it holds)
+    slot_packings: tuple[tuple[str, int, frozenset], ...]   # channel_slots: (pack, sets, types)
 
     def light_type(self, t: str) -> str:
         return dict(self.light_types)[t]
@@ -177,11 +182,27 @@ def capabilities(tech: ir.Technique) -> Capabilities:
     translucent = any(p.draw.kind is ir.DrawKind.SCENE and
                       (not p.draw.material or "translucent" in p.draw.material)
                       for p in tech.passes)
-    index = next(((k.name, k.scheme, int(k.capacity)) for k in tech.packings
-                  if k.scheme in INDEX_SCHEMES and k.capacity), None)
-    slots = next(((k.name, int(dict(k.options).get("slots", 4))) for k in tech.packings
-                  if k.scheme == "channel_slots"), None)
+    index = tuple((k.name, k.scheme, int(k.capacity), _packing_types(tech, k))
+                  for k in tech.packings if k.scheme in INDEX_SCHEMES and k.capacity)
+    slots = tuple((k.name, int(dict(k.options).get("slots", 4)), _packing_types(tech, k))
+                  for k in tech.packings if k.scheme == "channel_slots")
     return Capabilities(tuple(out), has_table, translucent, index, slots)
+
+
+def _packing_types(tech: ir.Technique, k: ir.Packing) -> frozenset:
+    """The light types whose indices a light-index packing holds: those instanced by the
+    passes that write through it (call its functions, or draw ``in PACK[k]``)."""
+    names = {f.name for f in k.functions}
+    types: set[str] = set()
+    for p in tech.passes:
+        calls = {e.name for e in irwalk.walk_exprs(p.body) if isinstance(e, ir.Call)}
+        if not (calls & names or (p.draw.light_set and p.draw.light_set[0] == k.name)):
+            continue
+        if p.draw.kind is not ir.DrawKind.LIGHTS and not p.repeat_per_light:
+            continue        # a reader (the shading pass), not a writer
+        chosen = set(p.draw.light_types or LIGHT_TYPES) & set(p.repeat_types or LIGHT_TYPES)
+        types |= chosen
+    return frozenset(types or LIGHT_TYPES)
 
 
 # ---- where they disagree -----------------------------------------------------------------------
@@ -215,19 +236,28 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
         out.append(Mismatch("translucent", f"{_n(n, 'translucent object')} "
                                            f"{'is' if n == 1 else 'are'} not drawn "
                                            f"(no pass draws scene.translucent)"))
-    if cap.index_packing and f.lights:
-        pack, scheme, capacity = cap.index_packing
-        bound = lights_per_pixel_bound(scene) if per_pixel is None else per_pixel
+    gbuffer = None
+    for pack, scheme, capacity, types in cap.index_packings:
+        if not any(f.count(t) for t in types):
+            continue
+        if per_pixel is None and gbuffer is None:
+            from .reference.raster import rasterize
+            gbuffer = rasterize(scene)
+        bound = (lights_per_pixel_bound(scene, types, gbuffer) if per_pixel is None
+                 else per_pixel)
         if bound > capacity:
-            out.append(Mismatch("capacity", f"up to {bound} lights reach a pixel, the packing "
-                                            f"`{pack}` ({scheme}) holds {capacity}: lights "
-                                            f"will be dropped"))
-    if cap.slot_packing and f.lights:
+            kinds = "/".join(t for t in LIGHT_TYPES if t in types)
+            out.append(Mismatch("capacity", f"up to {bound} {kinds} lights reach a pixel, the "
+                                            f"packing `{pack}` ({scheme}) holds {capacity}: "
+                                            f"lights will be dropped"))
+    for pack, slots, types in cap.slot_packings:
         from .packing import sort_lights_into_slots
-        pack, slots = cap.slot_packing
-        _, dropped = sort_lights_into_slots([tuple(l.position) for l in scene.lights],
-                                            [float(l.radius) for l in scene.lights], slots)
-        if len(dropped):
+        members = [i for i, l in enumerate(scene.lights) if l.type in types]
+        _, dropped = sort_lights_into_slots([tuple(scene.lights[i].position) for i in members],
+                                            [float(scene.lights[i].radius) for i in members],
+                                            slots)
+        dropped = [members[j] for j in dropped]
+        if dropped:
             out.append(Mismatch("capacity", f"{_n(len(dropped), 'light')} overlap more than "
                                             f"the {slots} light sets of `{pack}` hold: "
                                             f"{'it is' if len(dropped) == 1 else 'they are'} "

@@ -311,3 +311,39 @@ def test_specialised_plan_carries_its_facts_through_plain_data():
         assert plan.scene == c.specialisation.facts
         assert plan_from_dict(plan.to_dict()) == plan
     assert "scene" not in compile_file(ROOT / "pipelines/deferred.pipe").plan("gl").to_dict()
+
+
+def test_folded_branch_keeps_its_scope():
+    """``if (type_ != 1u) { float r …; return …; } float r …``: folded to always-true, the
+    branch must stay a block (spliced, ``r`` would be declared twice)."""
+    src = f"""
+technique scoped "a folded branch that declares a local"
+{SCHEMA}
+target color : rgba8 clear 0
+output color
+float reach(uint type_, float radius) {{
+  if (type_ != 1u) {{
+    float r = radius * 2.0;
+    return r;
+  }}
+  float r = radius * 0.5;
+  return r;
+}}
+repeat per light {{
+  pass p {{ draw fullscreen writes color blend color add(one, one)
+           fragment {{ color = vec4(reach(light.type, light.radius) * 0.01); }} }}
+}}
+"""
+    out = _phases(compile_source(src).technique, ir.SceneFacts(("point",), 8, False))
+    assert [c.name for c in out.cuts] == ["type_ != spot"]
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_mismatch_report_of_every_shipped_technique_on_mixed_lights(path):
+    """Every shipped technique draws every light type (issue 12); all but inferred lighting
+    leave translucent objects out, and none runs out of light-index capacity here (the LIDRs
+    keep directional lights in a buffer of their own, so 2 point + 2 spot lights fit in 4)."""
+    got = [m.message for m in compile_file(path).mismatches(scene("mixed_lights"))]
+    expected = [] if path.stem == "inferred" else [
+        "1 translucent object is not drawn (no pass draws scene.translucent)"]
+    assert got == expected

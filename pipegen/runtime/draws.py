@@ -63,14 +63,23 @@ class LightSelection:
         return idx
 
     def _sets(self, pack: str) -> list[list[int]]:
+        """The CPU-sorted sets of ``pack``, over the lights its draws take: the light types
+        of the draws ``in pack[k]`` (a directional light drawn elsewhere takes no place)."""
         if pack not in self.sets:
             from ..packing import sort_lights_into_slots
             slots = int(self.plan.light_sets.get(pack, 4))
-            centers = [tuple(getattr(l, "position", (0.0, 0.0, 0.0))) for l in self.lights]
-            radii = [float(getattr(l, "radius", 0.0)) for l in self.lights]
+            types = set()
+            for p in self.plan.passes:
+                if p.draw.light_set and p.draw.light_set[0] == pack:
+                    types |= set(p.draw.light_types) or {"*"}
+            members = [i for i, l in enumerate(self.lights)
+                       if "*" in types or not types or light_type(l) in types]
+            centers = [tuple(getattr(self.lights[i], "position", (0.0, 0.0, 0.0)))
+                       for i in members]
+            radii = [float(getattr(self.lights[i], "radius", 0.0)) for i in members]
             sets, dropped = sort_lights_into_slots(centers, radii, slots)
-            self.sets[pack] = [list(map(int, s)) for s in sets]
-            self.dropped[pack] = [int(i) for i in dropped]
+            self.sets[pack] = [[members[int(j)] for j in s] for s in sets]
+            self.dropped[pack] = [members[int(j)] for j in dropped]
         return self.sets[pack]
 
     def instance(self, p: PassPlan, light: Optional[int]) -> list[int]:
