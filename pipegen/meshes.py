@@ -197,8 +197,7 @@ def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) ->
     if n == 0:
         return np.zeros((0, 3))
     nv = int(corners.max()) + 1
-    tri = np.arange(n) // 3
-    uc = unit[tri]
+    uc = np.repeat(unit, 3, axis=0)
 
     def per_vertex_sum(values, idx, length):
         return np.stack([np.bincount(idx, weights=values[:, k], minlength=length)
@@ -212,7 +211,7 @@ def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) ->
     zero[corners[~np.any(uc != 0, axis=1)]] = True
     half = math.radians(crease_deg) / 2.0 - 1e-9
     easy = (min_cos >= math.cos(half)) & ~zero & (half > 0)
-    out = _normalize(per_vertex_sum(fn_raw[tri], corners, nv))[corners]
+    out = _normalize(per_vertex_sum(np.repeat(fn_raw, 3, axis=0), corners, nv))[corners]
 
     hard = np.flatnonzero(~easy[corners])        # corners at vertices needing every pair
     if len(hard):
@@ -294,8 +293,9 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
     swap = pid[a] > pid[b]                       # orient each edge by position id
     lo, hi = np.where(swap, b, a), np.where(swap, a, b)
     edge_key = pid[lo] * (pid.max() + 1) + pid[hi]
-    order = np.argsort(edge_key, kind="stable")
-    same = edge_key[order][1:] == edge_key[order][:-1]
+    order = np.argsort(edge_key)
+    sorted_key = edge_key[order]
+    same = sorted_key[1:] == sorted_key[:-1]
     e0, e1 = order[:-1][same], order[1:][same]   # pairs of triangle-edges on the same edge
     # A non-manifold edge (3+ triangles) needs every pair, not only neighbours in the sort.
     starts = np.flatnonzero(np.r_[True, ~same])
@@ -306,8 +306,10 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
         e0 = np.concatenate([e0, [p[0] for p in extra]])
         e1 = np.concatenate([e1, [p[1] for p in extra]])
 
+    unit = _normalize(np.asarray(normals, dtype=np.float64))
+
     def agree(c0, c1):
-        return np.einsum("ij,ij->i", _normalize(normals[c0]), _normalize(normals[c1])) > 1 - tol
+        return np.einsum("ij,ij->i", unit[c0], unit[c1]) > 1 - tol
 
     smooth = agree(lo[e0], lo[e1]) & agree(hi[e0], hi[e1])
     roots = connected_components(tri_count, e0[smooth] // 3, e1[smooth] // 3)
