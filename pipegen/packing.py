@@ -564,10 +564,16 @@ class _Split16(_Scheme):
                                   "use rg8; a 16-bit value fits a single r16 channel directly")
             if fmt.kind is Kind.UNORM and min(fmt.bits[:2]) < 8:
                 raise _cannot_fit(span, f"split16 needs 8-bit channels, {fmt.name} has fewer")
-        self.error = 0.5 / 65535       # rounding to 16 bits (≈ 2^-17); the split itself is exact
+            if _exact_bits(fmt) < 8:
+                raise _cannot_fit(span, f"split16 needs 8 exact bits per channel, {fmt.name} "
+                                  f"holds {_exact_bits(fmt)} for values in [0,1]",
+                                  "use rg8, rg16 or rg16f")
+        self.error = SPLIT16_ERROR     # measured: measure_split16_error()
         self.notes = [
             "split16: x in [0,1] rounded to 16 bits, high byte in the first channel, low "
-            f"byte in the second; max error 0.5/65535 = {self.error:.3g} (≈ 2^-17)",
+            f"byte in the second (every code round-trips exactly); max error {self.error:.4g} "
+            f"= {self.error * 65535:.4g} of a 16-bit step, measured at every code's rounding "
+            "boundaries (float32 rounding of x*65535+0.5 adds to the ideal 0.5)",
         ]
 
     def functions(self, name):
@@ -594,6 +600,39 @@ class _Split16(_Scheme):
             return ((hi << 8) | lo).astype(F32) / F32(65535)
 
         return {"pack": pack, "unpack": unpack}
+
+
+# max |unpack(store(pack(x))) - x| over x in [0,1]: measure_split16_error() (the same for every
+# target split16 accepts, all of which store its 65536 codes exactly).  Generated with
+# NORMAL_ERRORS by benchmarks/encoding_errors.py --write.
+# BEGIN SPLIT16_ERROR
+SPLIT16_ERROR = 7.68899917602539e-06
+# END SPLIT16_ERROR
+
+
+def measure_split16_error(target: Format | str = "rg8") -> tuple[float, float]:
+    """(max error, the x where it occurs) of split16's round trip through ``target``.
+
+    The round trip is exact for every 16-bit code, so the error of an x is |c/65535 - x| for
+    the code c it rounds to: within one code's interval it is largest at the interval's ends.
+    Evaluated exhaustively at those ends: for every code, the float32 values within 4 ulps of
+    both rounding boundaries (c ± 0.5)/65535 (the float32 products x*65535 + 0.5 decide a
+    boundary to within 2 ulps), and the codes themselves."""
+    fmt = formats.get(target) if isinstance(target, str) else target
+    f = numpy_impl("split16", {})
+    c = np.arange(65536, dtype=np.float64)
+    base = np.concatenate([(c - 0.5) / 65535, (c + 0.5) / 65535, c / 65535]).astype(F32)
+    xs, up, down = [base], base, base
+    for _ in range(4):
+        up, down = np.nextafter(up, F32(2)), np.nextafter(down, F32(-1))
+        xs += [up, down]
+    x = np.clip(np.concatenate(xs), F32(0), F32(1))
+    pad = np.zeros((len(x), fmt.channels), F32)
+    pad[:, :2] = f["pack"](x)
+    stored = fmt.dequantize(fmt.quantize(pad))[:, :2].astype(F32)
+    err = np.abs(f["unpack"](stored).astype(np.float64) - x.astype(np.float64))
+    i = int(np.argmax(err))
+    return float(err[i]), float(x[i])
 
 
 # Names a bitfield field may not take: its functions use them as parameter names.
@@ -624,6 +663,36 @@ def _exact_bits(fmt: Format) -> int:
         # the product x * (2^24 - 1) rounds to whole numbers and misses).
         return 10 if b == 16 else 23
     return 0
+
+
+def bitfield_round_trip_failure(fmt: Format | str, bits: int,
+                                 chunk: int = 1 << 20) -> Optional[int]:
+    """The first ``bits``-bit value that does not survive bitfield's ``to_unorm`` → a channel
+    of ``fmt`` → ``from_unorm``, or None: every value 0 .. 2^bits - 1 is tried (in chunks,
+    stopping at the first failure)."""
+    fmt = formats.get(fmt) if isinstance(fmt, str) else fmt
+    f = numpy_impl("bitfield", {"fields": [("v", bits)]})
+    for lo in range(0, 1 << bits, chunk):
+        v = np.arange(lo, min(lo + chunk, 1 << bits), dtype=np.uint32)
+        pad = np.zeros((len(v), fmt.channels), F32)
+        pad[:, 0] = f["to_unorm"](v)
+        stored = fmt.dequantize(fmt.quantize(pad))[:, 0].astype(F32)
+        bad = np.nonzero(f["from_unorm"](stored) != v)[0]
+        if len(bad):
+            return int(v[bad[0]])
+    return None
+
+
+def measure_exact_bits(fmt: Format | str, limit: int = 24) -> tuple[int, Optional[int]]:
+    """(the widest bitfield every value of which round-trips through a channel of ``fmt``,
+    the first value of one bit more that does not): exhaustive over every width up to the
+    answer + 1 (at most ``limit``)."""
+    fmt = formats.get(fmt) if isinstance(fmt, str) else fmt
+    for bits in range(1, limit + 1):
+        bad = bitfield_round_trip_failure(fmt, bits)
+        if bad is not None:
+            return bits - 1, bad
+    return limit, None
 
 
 class _Bitfield(_Scheme):
@@ -759,14 +828,15 @@ class _Normals(_Scheme):
         if fmt is None:
             self.notes.append("no target given: quantisation error not measured")
         else:
-            self.error = normal_error(self.SCHEME, fmt.name)
+            self.error, mean = normal_error_figures(self.SCHEME, fmt.name)
             where = "hemisphere z >= 0" if self.DOMAIN == "hemisphere" else "whole sphere"
-            self.notes.append(f"max angular error {self.error:.4g} degrees through {fmt.name} "
-                              f"(encode, quantise, decode; {where})")
+            self.notes.append(f"angular error through {fmt.name}: max {self.error:.4g}, mean "
+                              f"{mean:.4g} degrees (encode, quantise, decode; {where}; "
+                              "measured, docs/encodings.md)")
             if self.DOMAIN == "sphere":
-                half = normal_error(self.SCHEME, fmt.name, hemisphere=True)
-                self.notes.append(f"over the camera-facing hemisphere z >= 0 only: "
-                                  f"{half:.4g} degrees")
+                half, half_mean = normal_error_figures(self.SCHEME, fmt.name, hemisphere=True)
+                self.notes.append(f"over the camera-facing hemisphere z >= 0 only: max "
+                                  f"{half:.4g}, mean {half_mean:.4g} degrees")
 
 
 class _Kircher(_Normals):
@@ -919,9 +989,16 @@ def fibonacci_sphere(count: int, hemisphere: bool = False) -> np.ndarray:
 
 
 def _special_normals(hemisphere: bool) -> np.ndarray:
-    """Axes, equator, diagonals and (for the sphere) the octahedral seams near them."""
+    """The hard spots of the normal encodings, added to the Fibonacci grid.
+
+    Both domains: the axes, the equator's diagonals, (1,1,1)-style octant centres.  Whole
+    sphere: (0,0,-1) (the singular point of Kircher and spheremap) and the normals around it
+    down to 1e-5 degrees, on rings (the error of spheremap peaks at a distance from -z that
+    depends on the format's step, too close to the pole for an even grid to find), and both
+    sides of the octahedral seams (x = 0 or y = 0 below the equator, which map to the edges of
+    the square) at offsets 1e-7 .. 1e-2."""
     pts = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (1, 1, 0), (-1, 1, 0),
-           (1, -1, 0), (-1, -1, 0), (1, 1, 1), (-1, -1, 1)]
+           (1, -1, 0), (-1, -1, 0), (1, 1, 1), (-1, -1, 1), (1e-7, 0, 1), (1, 1e-7, 1e-7)]
     if not hemisphere:
         pts += [(0, 0, -1), (1, 1, -1), (-1, 1, -1), (1e-6, 0, -1), (0, -1e-6, -1),
                 (0, 1, -1), (0, -1, -1), (1, 0, -1), (-1, 0, -1), (-1e-7, 1, -1), (1e-7, 1, -1)]
@@ -929,14 +1006,24 @@ def _special_normals(hemisphere: bool) -> np.ndarray:
     p /= np.linalg.norm(p, axis=1, keepdims=True)
     if hemisphere:
         return p
-    # The error of spheremap peaks at a distance from -z that depends on the format's step,
-    # too close to the pole for an even sample to find: sample rings around it.
+    golden = math.pi * (3.0 - math.sqrt(5.0))
     t = np.radians(np.geomspace(1e-5, 30.0, 2000))[:, None]
     a = (np.linspace(0.0, 2 * math.pi, 256, endpoint=False)[None, :]
-         + np.arange(2000)[:, None] * math.pi * (3.0 - math.sqrt(5.0)))
+         + np.arange(2000)[:, None] * golden)
     ring = np.stack([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a),
-                     np.broadcast_to(-np.cos(t), a.shape)], -1)
-    return np.concatenate([p, ring.reshape(-1, 3)])
+                     np.broadcast_to(-np.cos(t), a.shape)], -1).reshape(-1, 3)
+    # Octahedral seams: the great half-circles x = 0 and y = 0 below the equator, nudged off
+    # them to both sides.
+    u = np.linspace(-math.pi / 2, math.pi / 2, 1001)[:, None]          # along the seam
+    off = np.array([0.0, 1e-7, -1e-7, 1e-5, -1e-5, 1e-3, -1e-3, 1e-2, -1e-2])[None, :]
+    s, c = np.broadcast_arrays(np.sin(u), -np.cos(u))                   # z = -cos(u) <= 0
+    along = np.broadcast_to(s, (1001, off.shape[1]))
+    down = np.broadcast_to(c, (1001, off.shape[1]))
+    side = np.broadcast_to(off, (1001, off.shape[1]))
+    seams = np.concatenate([np.stack([side, along, down], -1).reshape(-1, 3),
+                            np.stack([along, side, down], -1).reshape(-1, 3)])
+    seams /= np.linalg.norm(seams, axis=1, keepdims=True)
+    return np.concatenate([p, ring, seams])
 
 
 def angular_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -946,27 +1033,195 @@ def angular_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
                                  np.sum(a * b, axis=-1)))
 
 
-@functools.lru_cache(maxsize=None)
-def normal_error(scheme: str, format_name: str, samples: int = 1 << 18,
-                 hemisphere: Optional[bool] = None) -> float:
-    """Max angular error (degrees) of encode → quantise to ``format_name`` → decode, in the
-    float32 arithmetic of the mirrors.  The domain is the whole sphere, except for ``kircher``
-    (and when ``hemisphere`` is true): the hemisphere z >= 0 of camera-facing view-space
-    normals, which is all Kircher's mapping is meant for.
+def _angle_to_unit_deg(n: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """``angular_error_deg(n, d)`` for unit ``n`` (float64), faster: 2 asin(|n - d/|d|| / 2),
+    as accurate near 0 and exact to float64 rounding up to 180 degrees."""
+    d = np.asarray(d, np.float64)
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    inv = 1.0 / np.sqrt(x * x + y * y + z * z)
+    dx, dy, dz = n[..., 0] - x * inv, n[..., 1] - y * inv, n[..., 2] - z * inv
+    half = np.minimum(np.sqrt(dx * dx + dy * dy + dz * dz) * 0.5, 1.0)
+    return np.degrees(2.0 * np.arcsin(half))
 
-    A sampled maximum: ``samples`` Fibonacci normals, the axes and seams, and (whole sphere)
-    half a million normals in rings around -z, where spheremap is worst.  It is close to the
-    true supremum but not above it (random sampling around -z finds spheremap/rg8 up to 2%
-    worse)."""
-    fmt = formats.get(format_name)
+
+# ---- measured error of the normal encodings --------------------------------------------------
+
+NORMAL_GRID = 1 << 20            # Fibonacci normals per domain (whole sphere or hemisphere)
+_REFINE_WORST, _REFINE_ROUNDS, _REFINE_CANDIDATES = 48, 14, 192
+NORMAL_FORMATS = ("rg8", "rgb10a2", "rg16", "rg8_snorm", "rg16_snorm", "rg16f", "rg32f")
+
+
+def normal_storage(fmt: Format | str) -> str:
+    """The format in ``NORMAL_FORMATS`` that stores a normal's two [0,1] values exactly as
+    ``fmt`` does (same kind, bits and conversion in its first two channels): rgba8 -> rg8,
+    rgba16f -> rg16f, …"""
+    fmt = formats.get(fmt) if isinstance(fmt, str) else fmt
+    for name in NORMAL_FORMATS:
+        g = formats.get(name)
+        if (g.kind, g.bits[:2], g.encode) == (fmt.kind, fmt.bits[:2], fmt.encode):
+            return name
+    raise KeyError(fmt.name)
+
+
+@dataclass(frozen=True)
+class NormalError:
+    """Angular error (degrees) of encode → store in ``storage`` → decode over one domain."""
+    scheme: str
+    storage: str
+    domain: str                  # "sphere" or "hemisphere" (z >= 0)
+    max: float                   # over the grid, the hard spots and the local search
+    mean: float                  # over the (equal-area) Fibonacci grid only
+    worst: tuple[float, float, float]   # the normal where the maximum was found
+    points: int                  # normals evaluated (grid + hard spots + search)
+
+
+@functools.lru_cache(maxsize=4)
+def _normal_grid(hemisphere: bool, samples: int) -> np.ndarray:
+    return np.concatenate([fibonacci_sphere(samples, hemisphere), _special_normals(hemisphere)])
+
+
+def _store_normals(e: np.ndarray, fmt: Format) -> np.ndarray:
+    """What a shader reads back after writing encoded normals ``e`` (..., 2) into ``fmt``."""
+    pad = np.zeros(e.shape[:-1] + (fmt.channels,), np.float32)
+    pad[..., :2] = e
+    return fmt.dequantize(fmt.quantize(pad))[..., :2].astype(F32)
+
+
+@functools.lru_cache(maxsize=None)
+def measure_normal_error(scheme: str, storage: str, hemisphere: bool,
+                         samples: int = NORMAL_GRID) -> NormalError:
+    """Measure the angular error of encode → quantise to ``storage`` → decode (the float32
+    arithmetic of the mirrors, the stores of ``formats``), in degrees.
+
+    The normals: ``samples`` Fibonacci points on the domain, the hard spots of
+    ``_special_normals`` and a deterministic local search: from each of the 48 worst
+    normals (on the whole sphere, one of them replaced by the hemisphere's worst), 14 rounds
+    of 192 random steps with a radius that starts at twice the grid spacing and shrinks by 0.6
+    per round, keeping the worst.  The maximum is a lower bound of the supremum; the search
+    adds up to ~3 % to the grid's maximum (it finishes the climb into the worst quantisation
+    cell), a ten times heavier search at most 0.2 % more, and fresh random normals stay below
+    it (tests/test_packing_exhaustive.py).  The mean is over the Fibonacci points alone (they
+    are equal-area, so it is the mean over the domain)."""
+    fmt = formats.get(storage)
+    impl = numpy_impl(scheme, {})
+
+    def errors(n):
+        d = impl["decode"](_store_normals(impl["encode"](n.astype(F32)), fmt))
+        return _angle_to_unit_deg(n, d)
+
+    n = _normal_grid(hemisphere, samples)
+    err = errors(n)
+    mean = float(np.mean(err[:samples]))
+    k = _REFINE_WORST
+    idx = np.argpartition(err, -k)[-k:]
+    best, best_err = n[idx].copy(), err[idx].copy()
+    if not hemisphere:
+        # The hemisphere is part of the sphere: start one search where its measurement found
+        # its maximum, so that the sphere's figure is never below the hemisphere's.
+        half = measure_normal_error(scheme, storage, True, samples)
+        j = int(np.argmin(best_err))
+        best[j] = half.worst
+        best_err[j] = errors(np.array([half.worst]))[0]
+    rng = np.random.default_rng(20140417)
+    radius = 2.0 * math.sqrt((2 if hemisphere else 4) * math.pi / samples)
+    for _ in range(_REFINE_ROUNDS):
+        cand = best[:, None, :] + rng.normal(size=(k, _REFINE_CANDIDATES, 3)) * radius
+        cand /= np.linalg.norm(cand, axis=-1, keepdims=True)
+        if hemisphere:
+            cand[..., 2] = np.abs(cand[..., 2])
+        e = errors(cand.reshape(-1, 3)).reshape(k, _REFINE_CANDIDATES)
+        j = np.argmax(e, axis=1)
+        top = e[np.arange(k), j]
+        better = top > best_err
+        best[better] = cand[np.arange(k), j][better]
+        best_err[better] = top[better]
+        radius *= 0.6
+    i = int(np.argmax(best_err))
+    worst = float(best_err[i])
+    if err.max() > worst:                     # cannot happen (the search keeps the start)
+        i, worst, best = int(np.argmax(err)), float(err.max()), n
+    return NormalError(scheme, storage, "hemisphere" if hemisphere else "sphere", worst, mean,
+                       tuple(float(x) for x in best[i]),
+                       len(n) + _REFINE_ROUNDS * k * _REFINE_CANDIDATES)
+
+
+def _sig(x: float, digits: int = 4) -> float:
+    """``x`` rounded to ``digits`` significant digits (how the table stores it)."""
+    return float(f"{x:.{digits}g}")
+
+
+# The measured figures: (scheme, storage, domain) -> (max, mean) in degrees, 4 significant
+# digits.  Generated by `python benchmarks/encoding_errors.py --write` (which also writes
+# docs/encodings.md) from measure_normal_error; tests/test_packing_exhaustive.py checks that a
+# fresh measurement reproduces every entry.  Do not edit by hand.
+# BEGIN NORMAL_ERRORS
+NORMAL_ERRORS: dict[tuple[str, str, str], tuple[float, float]] = {
+    ('kircher', 'rg8', 'hemisphere'): (0.8992, 0.3525),
+    ('kircher', 'rgb10a2', 'hemisphere'): (0.3339, 0.1038),
+    ('kircher', 'rg16', 'hemisphere'): (0.003481, 0.001371),
+    ('kircher', 'rg8_snorm', 'hemisphere'): (1.807, 0.7074),
+    ('kircher', 'rg16_snorm', 'hemisphere'): (0.006958, 0.002743),
+    ('kircher', 'rg16f', 'hemisphere'): (0.2231, 0.06515),
+    ('kircher', 'rg32f', 'hemisphere'): (3.746e-05, 5.521e-06),
+    ('spheremap', 'rg8', 'sphere'): (11.59, 0.4922),
+    ('spheremap', 'rg8', 'hemisphere'): (0.8992, 0.3525),
+    ('spheremap', 'rgb10a2', 'sphere'): (7.816, 0.1986),
+    ('spheremap', 'rgb10a2', 'hemisphere'): (0.3339, 0.1038),
+    ('spheremap', 'rg16', 'sphere'): (0.7474, 0.001946),
+    ('spheremap', 'rg16', 'hemisphere'): (0.003481, 0.001371),
+    ('spheremap', 'rg8_snorm', 'sphere'): (16.77, 0.9804),
+    ('spheremap', 'rg8_snorm', 'hemisphere'): (1.807, 0.7074),
+    ('spheremap', 'rg16_snorm', 'sphere'): (1.055, 0.003898),
+    ('spheremap', 'rg16_snorm', 'hemisphere'): (0.006936, 0.002743),
+    ('spheremap', 'rg16f', 'sphere'): (6.004, 0.08555),
+    ('spheremap', 'rg16f', 'hemisphere'): (0.2231, 0.06515),
+    ('spheremap', 'rg32f', 'sphere'): (0.0755, 9.37e-06),
+    ('spheremap', 'rg32f', 'hemisphere'): (3.054e-05, 5.208e-06),
+    ('octahedral', 'rg8', 'sphere'): (0.9532, 0.3356),
+    ('octahedral', 'rg8', 'hemisphere'): (0.953, 0.3355),
+    ('octahedral', 'rgb10a2', 'sphere'): (0.3951, 0.1205),
+    ('octahedral', 'rgb10a2', 'hemisphere'): (0.3177, 0.1005),
+    ('octahedral', 'rg16', 'sphere'): (0.00372, 0.001306),
+    ('octahedral', 'rg16', 'hemisphere'): (0.003702, 0.001306),
+    ('octahedral', 'rg8_snorm', 'sphere'): (1.914, 0.6736),
+    ('octahedral', 'rg8_snorm', 'hemisphere'): (1.913, 0.6735),
+    ('octahedral', 'rg16_snorm', 'sphere'): (0.007405, 0.00261),
+    ('octahedral', 'rg16_snorm', 'hemisphere'): (0.007405, 0.002613),
+    ('octahedral', 'rg16f', 'sphere'): (0.2373, 0.06054),
+    ('octahedral', 'rg16f', 'hemisphere'): (0.2372, 0.06338),
+    ('octahedral', 'rg32f', 'sphere'): (2.597e-05, 4.767e-06),
+    ('octahedral', 'rg32f', 'hemisphere'): (2.396e-05, 4.687e-06),
+}
+# END NORMAL_ERRORS
+
+
+def normal_error_figures(scheme: str, format_name: str,
+                         hemisphere: Optional[bool] = None) -> tuple[float, float]:
+    """(max, mean) angular error in degrees of ``scheme`` through ``format_name``: the
+    tabulated measurement (``NORMAL_ERRORS``), measured now if the table lacks it.  The
+    domain is the whole sphere, except for ``kircher`` (and when ``hemisphere`` is true): the
+    hemisphere z >= 0 of camera-facing view-space normals, all Kircher's mapping is meant
+    for."""
     if hemisphere is None:
         hemisphere = scheme == "kircher"
-    n = np.concatenate([fibonacci_sphere(samples, hemisphere), _special_normals(hemisphere)])
-    impl = numpy_impl(scheme, {})
-    e = impl["encode"](n.astype(F32))
-    stored = fmt.dequantize(fmt.quantize(np.concatenate(
-        [e, np.zeros(e.shape[:-1] + (fmt.channels - 2,), F32)], -1)))[..., :2]
-    return float(angular_error_deg(n, impl["decode"](stored.astype(F32))).max())
+    key = (scheme, normal_storage(format_name), "hemisphere" if hemisphere else "sphere")
+    if key not in NORMAL_ERRORS:
+        m = measure_normal_error(key[0], key[1], hemisphere)
+        return _sig(m.max), _sig(m.mean)
+    return NORMAL_ERRORS[key]
+
+
+def normal_error(scheme: str, format_name: str, samples: Optional[int] = None,
+                 hemisphere: Optional[bool] = None) -> float:
+    """Max angular error (degrees) of encode → quantise to ``format_name`` → decode: the
+    tabulated figure (``normal_error_figures``), or with ``samples`` a fresh measurement on a
+    grid of that many normals."""
+    if samples is None:
+        return normal_error_figures(scheme, format_name, hemisphere)[0]
+    if hemisphere is None:
+        hemisphere = scheme == "kircher"
+    return measure_normal_error(scheme, normal_storage(format_name), bool(hemisphere),
+                                samples).max
 
 
 # =============================================================================================

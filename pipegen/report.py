@@ -26,7 +26,7 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
             if p.capacity is not None:
                 lines.append(f"    capacity      {p.capacity} lights per pixel")
             if p.error is not None:
-                lines.append(f"    error bound   {p.error:.3g}")
+                lines.append(f"    error bound   {_error_bound(p)}")
             lines += [f"    {n}" for n in p.notes]
     spec = getattr(compiled, "specialisation", None)
     if spec is not None:
@@ -36,6 +36,15 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
                   *[f"  {x}" for x in spec.summary()],
                   f"  target memory saved at {w}x{h}: {_mib(saved)}"]
     return "\n".join(lines) + "\n"
+
+
+def _error_bound(p: ir.Packing) -> str:
+    """The packing's static error as measured (pipegen/packing.py, docs/encodings.md)."""
+    if p.scheme in ("kircher", "spheremap", "octahedral"):
+        return f"{p.error:.4g} degrees (max angular error, measured)"
+    if p.scheme == "split16":
+        return f"{p.error:.4g} (max |unpack(pack(x)) - x|, measured)"
+    return "0 (exact)" if p.error == 0 else f"{p.error:.4g}"
 
 
 def _memory(tech: ir.Technique, w: int, h: int) -> int:
