@@ -14,8 +14,12 @@ A scene file::
     near = 0.1                       # optional
     far = 100                        # optional
 
+    [gltf]                           # optional: a glTF file's objects, camera and lights
+    file = "model.glb"               # (then [camera], [[objects]], width/height are optional)
+
     [[objects]]
     mesh = "box"                     # plane | box | sphere | cylinder, or: obj = "model.obj"
+                                     # (an OBJ without `material`: one object per MTL material)
     name = "crate"                   # optional
     id = 3                           # optional, 1..255, default: position in the file (1-based)
     translate = [0, 0.5, 0]          # optional transform: scale, then rotate, then translate
@@ -36,8 +40,11 @@ A scene file::
     inner_deg = 20                   # spot: full intensity inside, zero outside outer_deg
     outer_deg = 30
 
-Procedural meshes fit in the unit cube (see ``pipegen.meshes``).  Errors are ``PipegenError``
-with the file position of the offending key where it can be found.
+Procedural meshes fit in the unit cube (see ``pipegen.meshes``); OBJ + MTL files are read by
+``pipegen.objfile``, glTF 2.0 files (also loadable on their own: ``load_scene("x.glb")``) by
+``pipegen.gltf``.  Errors are ``PipegenError`` with the file position of the offending key
+where it can be found; what a loader ignored is in ``Scene.notes`` and warned once as a
+``SceneLoadWarning``.
 
 Stipple layers (inferred lighting, Kircher & Lawrance 2009, §4)
 ----------------------------------------------------------------
