@@ -181,8 +181,12 @@ class _Doc:
                 data = self.g.binary_blob()
                 if data is None:
                     raise GltfError(f"buffer {i} has no uri and the file has no binary chunk")
-            elif uri.startswith("data:"):
-                data = self.g.decode_data_uri(uri)
+            elif uri.startswith("data:"):          # any media type (pygltflib knows one)
+                import base64
+                from urllib.parse import unquote_to_bytes
+                header, _, payload = uri.partition(",")
+                data = (base64.b64decode(payload) if header.endswith(";base64")
+                        else unquote_to_bytes(payload))
             else:
                 from urllib.parse import unquote
                 data = (self.path.parent / unquote(uri)).read_bytes()

@@ -490,3 +490,37 @@ def test_shipped_gltf_scene_file():
     assert s.camera.position == (1.2, 3.6, -3.5)                     # the TOML's camera
     file_lights = load_scene(CORNELL / "cornell_box.gltf").lights
     assert s.lights[0].color == pytest.approx(tuple(0.8 * c for c in file_lights[0].color))
+
+
+def test_gltf_sparse_normalized_and_data_uri_media_types(tmp_path):
+    import json
+    pos = np.float32([[0, 0, 0], [1, 0, 0], [0, 1, 0]]).tobytes()           # 36 bytes
+    nrm = np.int8([[0, 0, 127, 0]] * 3).tobytes()                          # 12: normalised
+    sparse_idx = np.uint16([2, 0]).tobytes()                               # 4
+    sparse_val = np.float32([[0, 3, 0]]).tobytes()                         # 12
+    blob = pos + nrm + sparse_idx + sparse_val
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}}]}],
+        "buffers": [{"byteLength": len(blob),
+                     "uri": "data:application/gltf-buffer;base64," + base64.b64encode(blob).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                        {"buffer": 0, "byteOffset": 36, "byteLength": 12, "byteStride": 4},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 2},
+                        {"buffer": 0, "byteOffset": 52, "byteLength": 12}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "sparse": {"count": 1, "indices": {"bufferView": 2, "componentType": 5123},
+                                  "values": {"bufferView": 3}}},
+                      {"bufferView": 1, "componentType": 5120, "normalized": True, "count": 3,
+                       "type": "VEC3"}],
+    }
+    (tmp_path / "s.gltf").write_text(json.dumps(doc))
+    imp = load_gltf(tmp_path / "s.gltf")
+    (o,) = imp.objects
+    np.testing.assert_allclose(o.positions, [[0, 0, 0], [1, 0, 0], [0, 3, 0]])   # sparse applied
+    np.testing.assert_allclose(o.normals, [[0, 0, 1]] * 3)                       # 127 -> 1.0
+    assert any("default (white, metallic 1, roughness 1)" in n for n in imp.notes)
+    doc["bufferViews"][0]["byteLength"] = 30                                     # too short
+    (tmp_path / "bad.gltf").write_text(json.dumps(doc))
+    with pytest.raises(GltfError, match="accessor 0 reads past the end of bufferView 0"):
+        load_gltf(tmp_path / "bad.gltf")
