@@ -179,6 +179,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--backend", choices=list(registry.BACKENDS), default="gl",
                    help="; ".join(f"{b.name}: {b.description}" for b in registry.BACKENDS.values())
                    + " (default: gl)")
+    r.add_argument("--precision", choices=("f32", "f64"), default="f32",
+                   help="f64: the float64 evaluation of the technique (with --backend cl): "
+                        "its arithmetic in double, targets unquantised; the PNGs and .npy "
+                        "files hold it quantised to each target's format (default: f32)")
     specialise(r)
     strict(r)
     force(r)
@@ -192,6 +196,10 @@ def build_parser() -> argparse.ArgumentParser:
                         f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
     k.add_argument("-o", "--out", metavar="DIR",
                    help="folder for the error images (default: build/check/<technique>)")
+    k.add_argument("--precision", choices=("f32", "f64"), default="f32",
+                   help="f64: instead of GL against CL, each float32 backend against the "
+                        "technique's float64 evaluation (CL), the precision error per target "
+                        "in codes/ulps (a measurement: exit status 0) (default: f32)")
     specialise(k)
     strict(k)
     force(k)
@@ -344,10 +352,13 @@ def cmd_run(args) -> int:
         compiled = _specialise(args, compiled, scene, say_variant=True)
     report_mismatches(compiled, scene, args.strict, _scene_label(args))
     from .outputs import file_name, write_render
-    pipeline = compiled.pipeline(args.backend)
+    pipeline = compiled.pipeline(args.backend, precision=args.precision)
     print(f"rendering {compiled.name} on {args.backend} at {scene.width}x{scene.height} "
           f"({len(scene.objects)} objects, {len(scene.lights)} lights)", file=sys.stderr)
     targets = pipeline.render(scene)
+    if args.precision != "f32":      # float64 values: written as the codes they quantise to
+        from .precision import quantize_targets
+        targets = quantize_targets(compiled.technique, targets)
     write_render(compiled, scene, targets, out)
     for name in sorted(targets):
         print(f"  {out.path / file_name(name, '.png')}")
@@ -364,6 +375,9 @@ def cmd_check(args) -> int:
     if args.specialise:
         compiled = _specialise(args, compiled, scene, say_variant=True)
     found = report_mismatches(compiled, scene, args.strict, _scene_label(args))
+    if args.precision != "f32":      # the float32 backends against the float64 evaluation
+        from .precision import main_precision_check
+        return main_precision_check(compiled, scene, out)
     from .check import main_check
     return main_check(compiled, scene, out, mismatches=found)
 
