@@ -115,9 +115,9 @@ def test_scene_has_every_light_type_within_the_lidr_capacities(name):
     assert {"point", "spot", "directional"} <= set(types)
     assert local_lights_per_point(s).max() <= INDEX_CAPACITY
     assert types.count("directional") <= min(DIRECTIONAL_CAPACITY.values())
-    # lidr_cpu_sort: every point and spot light finds a set of non-overlapping spheres.  (The
-    # sort sees a directional light as a zero-radius sphere at the origin; it is drawn from its
-    # own index buffer, not from a set, so where it lands does not matter here.)
+    # lidr_cpu_sort: every point and spot light finds a set of non-overlapping spheres (the
+    # runtime sorts only the light types the set draws take: directional lights have their own
+    # index buffer)
     local = [i for i, light in enumerate(s.lights) if light.type != "directional"]
     _, dropped = sort_lights_into_slots([s.lights[i].position for i in local],
                                         [s.lights[i].radius for i in local], INDEX_CAPACITY)
@@ -231,26 +231,14 @@ def test_directional_lights_keep_the_four_slots_for_local_lights(technique):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("technique", ["lidr_bitplanes", "lidr_max_stencil"])
+@pytest.mark.parametrize("technique", LIDRS)
 def test_directional_lights_first_in_the_table(technique):
+    """The same with the directional lights first: they take no slot of lightidx, and
+    lidr_cpu_sort's CPU sort (runtime/draws.LightSelection) leaves them out of its sets (they
+    are drawn from their own buffer), so they keep no point light out of a set."""
     s = _small_with_suns(first=True)
     ref, gb = reference_image(s)
     e = rgb_error(render(technique, s), ref, ~gb.silhouette)
-    assert e["max"] <= 2, e
-
-
-@pytest.mark.gl
-@pytest.mark.xfail(strict=True, reason="the CPU sort (packing.sort_lights_into_slots, called by "
-                   "runtime/draws.LightSelection) takes every light as a sphere: a directional "
-                   "light, position 0 and radius 0, takes a place in set 0 and keeps out every later "
-                   "light whose sphere contains the origin, although no set draws it; small.toml's "
-                   "four mutually overlapping point lights then need a fifth set and one is dropped")
-def test_cpu_sort_with_directional_lights_first_in_the_table():
-    s = _small_with_suns(first=True)
-    centres = [light.position for light in s.lights]
-    assert sort_lights_into_slots(centres, [light.radius for light in s.lights], 4)[1] == []
-    ref, gb = reference_image(s)
-    e = rgb_error(render("lidr_cpu_sort", s), ref, ~gb.silhouette)
     assert e["max"] <= 2, e
 
 
