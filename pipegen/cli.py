@@ -393,12 +393,10 @@ def cmd_specialise(args) -> int:
     found = special.mismatches(scene)
     if found and args.strict:
         raise mismatch_error(special, found, _scene_label(args))
-    culled_passes = {c.name for c in spec.cuts if c.kind == "pass"}
-    culled_targets = {c.name for c in spec.cuts if c.kind == "target"}
     before_p = [p.name for p in general.passes]
-    after_p = [n for n in before_p if n not in culled_passes]
+    after_p = [p.name for p in special.technique.passes]
     before_t = [t.name for t in general.targets]
-    after_t = [n for n in before_t if n not in culled_targets]
+    after_t = [t.name for t in special.technique.targets]
     before_m, after_m = target_memory(general, w, h), target_memory(special.technique, w, h)
     lines = [f"{compiled.name} on {_scene_label(args)} ({len(scene.objects)} objects, "
              f"{len(scene.lights)} lights)", "", "scene features",

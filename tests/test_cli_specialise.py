@@ -52,11 +52,13 @@ def test_run_strict_is_an_error_before_anything_renders(capsys, tmp_path):
 
 
 def test_check_strict_lists_every_mismatch(capsys, tmp_path):
-    assert main(["check", tech("lidr_bitplanes"), "--scene", scene("mixed_lights"),
+    assert main(["check", tech("lidr_bitplanes"), "--scene", scene("translucent_layers"),
                  "--size", "48x27", "--strict", "-o", str(tmp_path / "c")]) == 1
     err = capsys.readouterr().err
-    assert TRANSLUCENT_NOT_DRAWN in err
-    assert "the packing `slots` (bitplanes) holds 4: lights will be dropped" in err
+    listed = [l for l in err.splitlines() if l.startswith("  ")]
+    assert len(listed) == 2, err
+    assert listed[0] == "  15 translucent objects are not drawn (no pass draws scene.translucent)"
+    assert listed[1].endswith("the packing `slots` (bitplanes) holds 4: lights will be dropped")
     assert not (tmp_path / "c").exists()
 
 
