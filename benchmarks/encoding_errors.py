@@ -200,15 +200,16 @@ variants of a format store a normal like the rg format (same bits and conversion
 
 {normals_table(measured)}
 
-Reading the table: spheremap (Lambert azimuthal) puts (0,0,-1) on the rim of the disk, where
-a code step spans a large angle: its whole-sphere maximum is at normals a fraction of a degree
-to a few degrees from -z; over the camera-facing hemisphere it is as good as octahedral.
+Reading the table: spheremap (Lambert azimuthal) spreads (0,0,-1) over the whole rim of the
+disk, where a code step spans a large angle: its whole-sphere maximum lies within 12° of -z
+(for rg8 at 11.6° from it, a normal that decodes to -z itself); over the camera-facing
+hemisphere it is as good as octahedral.
 Kircher's encoding is the same map (the tables agree over z ≥ 0 to the last digit or two;
 float32 rounding differs). Octahedral's error is nearly uniform over the sphere; its seams
 decode identically from both sides and are no worse than the rest. The snorm formats lose a
 bit per component (the encoders write [0,1]) and so double the error of the unorm format of
-their width; 16-bit floats keep 11 significant bits near 1 but fewer steps near 0.5 than
-rg16, and round toward zero.
+their width. Half floats space values 2^-11 apart in [0.5, 1) and 2^-12 in [0.25, 0.5)
+(where the encoders put most normals: about an 11-bit unorm) and round toward zero.
 
 ### Published figures
 
@@ -222,8 +223,12 @@ compare against the paper itself. Note the differences when doing so: our octahe
 encoding stores `p * 0.5 + 0.5` in unorm (the survey's `oct16` stores `p` in 8-bit snorm, a
 lattice that contains 0; ours contains ±1 instead); the survey's `P` variants search the
 neighbouring codes for the best decode, which ours do not; and our figures include llvmpipe's
-store conversions (rg16, rgb10a2, half floats round toward zero). Kircher and Lawrance 2009
-give no error figures for their hemisphere mapping, to our knowledge.
+store conversions (rg16, rgb10a2, half floats round toward zero). Meyer, Süßmuth, Sußner,
+Stamminger and Greiner, "On Floating-Point Normal Vectors", *Computer Graphics Forum* 2010
+(EGSR), who introduced octahedron normal vectors, state in their abstract that these need
+only 1 bit more than the theoretically optimal discretization with the same error; their
+tables are not quoted here either. Kircher and Lawrance 2009 give no error figures for their
+hemisphere mapping, to our knowledge.
 
 ## split16
 
@@ -256,10 +261,11 @@ rounding of values that are not half values.
   reads chunk c of the k-th newest light from channel c alone (checked in GLSL for every
   code of every channel). So a sequence of L ≤ capacity indices decodes correctly if and only
   if, in every channel, its sequence of chunks does; the tests run every chunk sequence of
-  every length 0..capacity through the blend (llvmpipe's fixed-point blend and the float
-  blend rounded once), and decode it; and whole index sequences assembled from them so that
-  every channel sees every chunk sequence, plus, where there are few enough, every index
-  sequence outright:
+  every length 0..capacity through the blend (the numpy models of llvmpipe's fixed-point
+  blend and of the float blend rounded once) and decode it, as whole index sequences
+  assembled so that every channel sees every chunk sequence (for rgba8 also blended by
+  llvmpipe itself and decoded by the generated GLSL), plus, where there are few enough,
+  every index sequence outright:
 
 {bitplane_rows()}
 
