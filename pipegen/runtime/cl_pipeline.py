@@ -172,7 +172,8 @@ class CLPipeline:
 
     def preset(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None) -> None:
         """Start the next renders with target ``name`` holding ``codes`` (GL row order, like
-        the arrays ``render`` returns) instead of its clear value; ``stencil`` for d24s8."""
+        the arrays ``render`` returns) instead of its clear value; ``stencil`` for d24s8.  In
+        the float64 evaluation ``codes`` are values (as its ``render`` returns them)."""
         self._presets[name] = (np.asarray(codes), None if stencil is None else np.asarray(stencil))
 
     def prepare(self, scene) -> None:
