@@ -310,3 +310,27 @@ def test_f64_plan_is_plain_data_and_f32_kernels_unchanged():
     assert [p.code.kernel for p in compiled.plan("cl").passes] == before
     assert all("pg_frame64" not in k and "tri_h" not in k for k in before)
     assert all("pg_frame64" in p.code.kernel for p in pipe.plan.passes)
+
+
+@pytest.mark.gl
+def test_cli_check_and_run_with_precision_f64(tmp_path, capsys):
+    try:
+        from pipegen.runtime.gl_context import get_context
+        get_context()
+    except Exception as exc:   # no EGL / llvmpipe here
+        pytest.skip(f"no OpenGL context: {exc}")
+    from pipegen.cli import main
+    tech = str(ROOT / "pipelines/forward.pipe")
+    scene = str(ROOT / "examples/scenes/small.toml")
+    assert main(["check", tech, "--scene", scene, "--precision", "f64",
+                 "-o", str(tmp_path / "check")]) == 0
+    out = capsys.readouterr().out
+    assert "float64 evaluation" in out and "GL (llvmpipe)" in out and "CL (PoCL)" in out
+    assert (tmp_path / "check" / "error_gl_color.png").is_file()
+    assert main(["run", tech, "--scene", scene, "--precision", "f64", "--backend", "cl",
+                 "-o", str(tmp_path / "run")]) == 0
+    codes = np.load(tmp_path / "run" / "color.npy")     # the f64 image, quantised
+    assert codes.dtype == np.uint8 and codes.shape == (64, 96, 4)
+    assert main(["run", tech, "--scene", scene, "--precision", "f64",
+                 "-o", str(tmp_path / "run_gl")]) == 1
+    assert "--backend cl" in capsys.readouterr().err
