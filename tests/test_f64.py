@@ -334,3 +334,43 @@ def test_cli_check_and_run_with_precision_f64(tmp_path, capsys):
     assert main(["run", tech, "--scene", scene, "--precision", "f64",
                  "-o", str(tmp_path / "run_gl")]) == 1
     assert "--backend cl" in capsys.readouterr().err
+
+
+BUILTINS = """
+technique builtins64 "the language's types and builtins in double"
+target color : rgba8 clear 0
+output color
+pass p {
+  draw fullscreen
+  writes color
+  fragment {
+    vec3 v = vec3(frag_coord.x * 0.01, 0.0, 1.0);
+    bvec3 b = bvec3(v);
+    bvec3 c = bvec3(ivec3(v * 3.0));
+    mat3 m = mat3(1.0) * 0.5;
+    mat4 m4 = mat4(vec4(1.0, 0.0, 0.0, 0.0), vec4(0.0, 1.0, 0.0, 0.0),
+                   vec4(0.0, 0.0, 1.0, 0.0), vec4(0.0, 0.0, 0.0, 1.0));
+    vec3 w = m * v + (m4 * vec4(v, 1.0)).xyz / 2.0 + (vec4(v, 1.0) * m4).xyz;
+    int k = int(frag_coord.x) % 3;
+    float s = b.x ? 1.0 : 0.0;
+    float t = c.z ? 0.5 : 0.0;
+    color = vec4(s, t,
+                 w[k] * 0.2 + smoothstep(0.0, 1.0, v.x) * mod(v.x, 0.3) + fract(v.x) + sign(-v.x),
+                 exp(-v.x) * log(2.0 + v.x) + atan(v.x, 1.0) + inversesqrt(2.0 + v.x)
+                 + pow(v.x, 2.5) + exp2(-v.x) + log2(1.0 + v.x) - cross(v, w).y * 0.1);
+  }
+}
+"""
+
+
+def test_builtins_and_bool_vectors_in_double(small):
+    compiled = compile_source(BUILTINS)
+    scene = small.with_size(16, 4)
+    f64 = compiled.pipeline("cl", precision="f64").render(scene)
+    f32 = compiled.pipeline("cl").render(scene)
+    q = quantize_targets(compiled.technique, f64)["color"]
+    assert np.abs(q.astype(int) - f32["color"].astype(int)).max() <= 1
+    # the dynamic-state programs (the tests' mode) build in double too
+    from pipegen.runtime.cl_pipeline import CLPipeline
+    pipe = CLPipeline(compiled.pipeline("cl", precision="f64").plan, dynamic_state=True)
+    assert np.array_equal(pipe.render(scene)["color"], f64["color"])

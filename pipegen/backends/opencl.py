@@ -392,6 +392,12 @@ class OpenCLLanguage64(OpenCLLanguage):
     inputs = INPUTS64
     matrix_prefix = "pg_d"
 
+    def _convert_vec(self, a: str, at: Type, t: Type) -> str:
+        if t.scalar is Scalar.BOOL and at.scalar is Scalar.FLOAT:
+            # double comparisons give long masks; bvecs are int masks
+            return f"convert_{self.type_name(t)}(({a}) != 0)"
+        return super()._convert_vec(a, at, t)
+
     def render_float(self, x: float) -> str:
         """The literal's own value (the shortest decimal that reads back as the same double)."""
         x = float(x)
