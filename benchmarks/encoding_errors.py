@@ -179,7 +179,12 @@ and `octahedral` (their numpy mirrors, float32 like the shaders; `tests/test_pac
 checks the mirrors against the generated GLSL on llvmpipe) write two values in [0, 1], the
 target's store quantises them as llvmpipe does (`formats.Format.quantize`: round to nearest
 for unorm/snorm, llvmpipe's 16-bit conversion for rg16 and rgb10a2, round toward zero for
-half floats), and the decoder reads them back.
+half floats), and the decoder reads them back. `tests/test_packing_exhaustive.py` checks
+that model end to end on llvmpipe for every storage in the table (rg8, rgb10a2, rg16,
+rg8_snorm, rg16_snorm, rg16f, rg32f): the generated encode drawn into a real target of the format stores the model's codes
+(a code apart on fewer than 0.1 % of the values, where the shader's float32 rounding differs
+by an ulp), the generated decode reads them back as the mirror does, and the error of 100,000
+normals stays below the table's maximum with the grid's mean.
 
 Normals measured, per encoding, format and domain:
 

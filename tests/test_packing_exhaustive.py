@@ -55,6 +55,22 @@ def store(values, target):
     return out[..., :n].astype(F32)
 
 
+def store_codes(values, target):
+    """The codes ``target`` stores for ``values`` (N, 2) in its first two channels."""
+    f = fmt(target)
+    pad = np.zeros((len(values), f.channels))
+    pad[:, :2] = values
+    return f.quantize(pad)[:, :2]
+
+
+def store_values(codes, target):
+    """What ``codes`` (N, 2) of the first two channels of ``target`` read as (float64)."""
+    f = fmt(target)
+    pad = np.zeros((len(codes), f.channels), f.dtype)
+    pad[:, :2] = codes
+    return f.dequantize(pad)[:, :2]
+
+
 def decode_all(unpack, v, capacity):
     return np.stack([unpack(v, k) for k in range(capacity)]).astype(np.int64)
 
@@ -480,8 +496,8 @@ class TestPerturbation:
 
 
 VERTEX = "#version 330\nin vec2 p;\nvoid main() { gl_Position = vec4(p, 0.0, 1.0); }\n"
-TEX_DTYPES = {"f4": (F32, "sampler2D"), "f1": (np.uint8, "sampler2D"),
-              "nu2": (np.uint16, "sampler2D")}
+NP_TYPES = {"f4": F32, "u4": np.uint32, "f1": np.uint8, "nu2": np.uint16, "f2": np.float16,
+            "ni1": np.int8, "ni2": np.int16}
 
 
 @pytest.fixture(scope="module")
@@ -506,19 +522,41 @@ class Runner:
     def texture(self, inputs, dtype="f4"):
         n = len(inputs)
         h = (n + self.W - 1) // self.W
-        np_type, _ = TEX_DTYPES[dtype]
-        data = np.zeros((h * self.W, 4), np_type)
+        data = np.zeros((h * self.W, 4), NP_TYPES[dtype])
         data[:n] = inputs
         return self.ctx.texture((self.W, h), 4, data.tobytes(), dtype=dtype)
 
-    def run(self, source, main, inputs, in_dtype="f4", out="f4", comps=4, target=None):
+    def format_texture(self, name, h):
+        """A texture of pipegen format ``name`` made as the GL runtime makes it (moderngl's
+        'ni1'/'ni2' dtypes make unorm RG8/RG16 textures, not snorm ones)."""
+        import os
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+        from OpenGL import GL
+        from pipegen.runtime.gl_formats import gl_format
+        g = gl_format(name)
+        while GL.glGetError() != GL.GL_NO_ERROR:    # PyOpenGL checks glGetError after each
+            pass                                    # call: clear what moderngl left
+        tex = int(GL.glGenTextures(1))
+        GL.glBindTexture(GL.GL_TEXTURE_2D, tex)
+        GL.glTexStorage2D(GL.GL_TEXTURE_2D, 1, g.internal, self.W, h)
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST)
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST)
+        internal = GL.glGetTexLevelParameteriv(GL.GL_TEXTURE_2D, 0, GL.GL_TEXTURE_INTERNAL_FORMAT)
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+        assert int(internal) == g.internal, (name, internal)
+        return self.ctx.external_texture(tex, (self.W, h), formats.get(name).channels, 0, "f1")
+
+    def run(self, source, main, inputs, in_dtype="f4", out="f4", comps=4, target=None,
+            keep=False):
         """Run ``main`` (reads ``vec4 a``, writes ``o``) per pixel; returns the values read
         back from a ``comps``-channel ``out`` texture (dtype f4, u4, f1, nu2 or f2), or
-        draws into ``target`` (a framebuffer) if given."""
+        draws into ``target`` (a framebuffer) if given.  ``inputs`` may be a texture (a
+        previous ``keep=True`` result: the render target itself, not read back)."""
         import moderngl
-        n = len(inputs)
+        given = isinstance(inputs, moderngl.Texture)
+        n = inputs.width * inputs.height if given else len(inputs)
         h = (n + self.W - 1) // self.W
-        src = self.texture(inputs, in_dtype)
+        src = inputs if given else self.texture(inputs, in_dtype)
         out_type = {"u4": "uvec4"}.get(out, "vec4")
         fs = ("#version 330\nuniform sampler2D src;\nout " + out_type + " o;\n" + source +
               "\nvoid main() {\n    vec4 a = texelFetch(src, ivec2(gl_FragCoord.xy), 0);\n" +
@@ -527,7 +565,11 @@ class Runner:
         vbo = self.ctx.buffer(np.array([-1, -1, 3, -1, -1, 3], dtype="f4"))
         vao = self.ctx.vertex_array(prog, [(vbo, "2f", "p")])
         dst = fbo = None
-        if target is None:
+        if target is None and out in formats.FORMATS:
+            dst = self.format_texture(out, h)
+            fbo = self.ctx.framebuffer([dst])
+            target = fbo
+        elif target is None:
             dst = self.ctx.texture((self.W, h), comps, dtype=out)
             fbo = self.ctx.framebuffer([dst])
             target = fbo
@@ -537,11 +579,11 @@ class Runner:
             prog["src"] = 0
         vao.render(moderngl.TRIANGLES)
         result = None
-        if dst is not None:
-            np_type = {"f4": F32, "u4": np.uint32, "f1": np.uint8, "nu2": np.uint16,
-                       "f2": np.float16}[out]
-            result = np.frombuffer(dst.read(), np_type).reshape(-1, comps)[:n]
-        for obj in (vao, vbo, prog, fbo, dst, src):
+        if dst is not None and keep:
+            result = dst
+        elif dst is not None:
+            result = np.frombuffer(dst.read(), NP_TYPES[out]).reshape(-1, comps)[:n]
+        for obj in (vao, vbo, prog, fbo, None if keep else dst, None if given else src):
             if obj is not None:
                 obj.release()
         return result
@@ -704,6 +746,53 @@ class TestAgainstGL:
             assert len(wrong) == 0
         else:
             assert wrong[0] == packing.bitfield_round_trip_failure(target, bits)
+
+    @pytest.mark.parametrize("scheme", NORMAL_SCHEMES)
+    @pytest.mark.parametrize("storage, dtype", [("rg8", "f1"), ("rg16", "nu2"), ("rg16f", "f2"),
+                                                ("rg8_snorm", "rg8_snorm"),
+                                                ("rg16_snorm", "rg16_snorm"),
+                                                ("rgb10a2", "rgb10a2"), ("rg32f", "f4")])
+    def test_normals_through_real_stores(self, gl, scheme, storage, dtype):
+        """The model the table is measured on, end to end on llvmpipe: the generated encode
+        stored into a real target gives the model's codes (up to one code where float32
+        rounding in the shader puts a value on the other side of a rounding boundary), the
+        generated decode reads them back as the mirror does, and the angular error over the
+        sample stays below the tabulated maximum, its grid mean near the tabulated mean."""
+        hemi = scheme == "kircher"
+        grid = packing.fibonacci_sphere(1 << 16, hemi)
+        n = np.concatenate([grid, packing._special_normals(hemi)[::16]])
+        src = packing.build("nm", scheme, {}, fmt(storage), None).functions_source
+        f = impl(scheme)
+        run = Runner(gl)
+        n4 = np.concatenate([n, np.zeros((len(n), 1))], -1).astype(F32)
+        stored = run.run(src, "o = vec4(nm_encode(a.xyz), 0.0, 0.0);", n4, out=dtype, comps=2,
+                         keep=True)
+        try:
+            # What a shader reads from the target (glReadPixels would convert snorm codes
+            # with its own formula, so the codes are taken from the values shaders read).
+            read = run.run("", "o = a;", stored)[:len(n), :2]
+            got = run.run(src, "o = vec4(nm_decode(a.xy), 0.0);", stored)[:len(n), :3]
+        finally:
+            stored.release()
+        model = store_codes(f["encode"](n.astype(F32)), storage)
+        if dtype == "f2":
+            codes = read.astype(np.float16)
+            diff = np.abs(codes.view(np.int16).astype(int) - model.view(np.int16).astype(int))
+        elif dtype == "f4":        # float32: the shader's arithmetic differs by an ulp of 0.5
+            codes = read
+            diff = (np.abs(codes.astype(np.float64) - model) > 2.4e-7).astype(int)
+        else:
+            top = fmt(storage).max_codes[0]
+            codes = np.rint(read.astype(np.float64) * top).astype(int)
+            diff = np.abs(codes - model.astype(int))
+        assert diff.max() <= 1 and np.mean(diff > 0) < 1e-3, (diff.max(), np.mean(diff > 0))
+        # llvmpipe reads code * (1/max) in float32: within an ulp of code/max
+        assert np.allclose(read, store_values(codes, storage), rtol=2.5e-7, atol=0)
+        assert np.allclose(got, f["decode"](read), atol=2e-6)
+        err = packing.angular_error_deg(n, got)
+        mx, mean = packing.NORMAL_ERRORS[(scheme, storage, domains(scheme)[0])]
+        assert err.max() <= mx * 1.002
+        assert abs(err[:len(grid)].mean() - mean) < 0.02 * mean
 
     def test_perturbation_floor_survives_ceil_does_not(self, gl):
         """Item 4 on llvmpipe: the generated decode (channel_slots' unpack) and Trebilco's
