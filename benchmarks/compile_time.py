@@ -5,7 +5,9 @@ exactly what a user waits for (interpreter start, imports, parser, lowering, emi
 
 Prints the best and the median wall time of ``--repeat`` runs per technique (the best is the
 figure to compare on a shared machine: other load only ever adds time); ``--parse-only`` times
-``syntax.parse`` of the technique in a fresh process instead.  Target: < 0.3 s per technique.
+``syntax.parse`` of the technique in a fresh process instead; ``--stages`` prints where the time
+of one ``compile`` goes, in a fresh process (imports, parser, front end, emission).  Target:
+< 0.3 s per technique.
 
 The runs use compiled bytecode, as an installed pipegen does (pip writes the ``.pyc`` files):
 ``PYTHONDONTWRITEBYTECODE`` is unset and ``PYTHONPYCACHEPREFIX`` points at a temporary folder,
@@ -58,12 +60,34 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
+STAGES = r"""
+import sys, time
+T = [("start", time.perf_counter())]
+def mark(name): T.append((name, time.perf_counter()))
+import pipegen.cli as cli; mark("import pipegen.cli")
+cli.build_parser(); mark("cli.build_parser()")
+import numpy; mark("import numpy (rest)")
+import jinja2; mark("import jinja2 (rest)")
+import lark; mark("import lark (rest)")
+import pipegen.compiler as C; mark("import pipegen.compiler (rest)")
+from pipegen import syntax; syntax._parser(); mark("parser (cache or build)")
+c = C.compile_file(sys.argv[1]); mark("parse, lower, IR phases")
+c.write(sys.argv[2]); mark("emit GL + CL, write files")
+c.report(); mark("report")
+for (_, t0), (name, t1) in zip(T, T[1:]):
+    print(f"  {name:<32} {1000 * (t1 - t0):7.1f} ms")
+print(f"  {'total (after interpreter start)':<32} {1000 * (T[-1][1] - T[0][1]):7.1f} ms")
+"""
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--parse-only", action="store_true",
                     help="time `import pipegen.syntax; parse(file)` in a fresh process")
+    ap.add_argument("--stages", action="store_true",
+                    help="where the time of one compile goes (after the timed runs)")
     ap.add_argument("--no-bytecode", action="store_true",
                     help="compile every module from source in every run")
     ap.add_argument("techniques", nargs="*", default=ALL)
@@ -98,6 +122,11 @@ def main() -> int:
                   f"{min(cpu for _, cpu in runs):>11.3f}")
         print(f"slowest technique (best of {args.repeat}): {worst:.3f} s "
               f"({'meets' if worst < 0.3 else 'misses'} the 0.3 s target)")
+        if args.stages:
+            name = args.techniques[0]
+            print(f"stages of one compile of {name} (in-process, bytecode cached):")
+            subprocess.run([sys.executable, "-c", STAGES, f"pipelines/{name}.pipe",
+                            f"{tmp}/stages"], cwd=ROOT, env=env, check=True)
     return 0
 
 
