@@ -56,11 +56,13 @@ def read_source(path: str) -> str:
 
 def decode(data: bytes, filename: str) -> str:
     """UTF-8 bytes as text (a BOM is dropped); a ``PipegenError`` at the first bad byte."""
+    if data.startswith(b"\xef\xbb\xbf"):
+        data = data[3:]
     try:
-        return data.decode("utf-8-sig")
+        return data.decode("utf-8")
     except UnicodeDecodeError as e:
-        text = data.decode("utf-8-sig", errors="replace")
-        good = data[:e.start].decode("utf-8-sig")       # what precedes the bad byte is valid
+        text = data.decode("utf-8", errors="replace")
+        good = data[:e.start].decode("utf-8")       # what precedes the bad byte is valid
         span = Span.at_offset(filename, text, len(good))
         raise PipegenError(span, f"the file is not valid UTF-8 (byte 0x{data[e.start]:02x})",
                            "save it as UTF-8") from None

@@ -242,3 +242,10 @@ def test_value_statements_without_effect_are_errors(statement):
     err = error(source, str(ROOT / "pipelines/forward.pipe"))
     assert "has no effect" in err.message or "reads target" in err.message
     assert err.span.line == C_LINE
+
+
+def test_bad_utf8_after_a_byte_order_mark_is_located():
+    with pytest.raises(PipegenError) as info:
+        sources.decode(b"\xef\xbb\xbfab\ncd\xffe", "f.pipe")
+    assert (info.value.span.line, info.value.span.column) == (2, 3)
+    assert sources.decode(b"\xef\xbb\xbftechnique t", "f.pipe") == "technique t"
