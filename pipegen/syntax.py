@@ -85,9 +85,9 @@ _CACHE_FORMAT = "1"          # bump when what is written to the cache changes
 
 @functools.cache
 def _parser() -> Lark:
-    """The LALR parser.  Building its tables takes about half a second, so the built parser
-    is kept in the user's cache folder (``cache_dir()``) and loaded from there (a few ms) by
-    every later process with the same grammar, lark and Python.  A missing, unreadable,
+    """The LALR parser.  Building its tables takes 0.15-0.6 s, so the built parser is kept in
+    the user's cache folder (``cache_dir()``) and loaded from there (about 20 ms) by every
+    later process with the same grammar, lark and Python.  A missing, unreadable,
     unsafe or stale cache file only means the parser is built again; a read-only install or
     cache folder only means it is not saved."""
     grammar = _grammar_text()
@@ -111,8 +111,8 @@ def _grammar_text() -> str:
 
 def cache_dir() -> Optional[str]:
     """Where the built parser is kept: ``$PIPEGEN_CACHE_DIR`` (empty: no cache), else
-    ``$XDG_CACHE_HOME/pipegen``, else ``~/.cache/pipegen`` (``%LOCALAPPDATA%\\pipegen`` on
-    Windows).  None when there is no usable home."""
+    ``$XDG_CACHE_HOME/pipegen``, else ``~/.cache/pipegen`` (``%LOCALAPPDATA%\\pipegen\\cache``
+    on Windows).  None when there is no usable home."""
     explicit = os.environ.get("PIPEGEN_CACHE_DIR")
     if explicit is not None:
         return explicit or None
