@@ -569,6 +569,20 @@ def json_text(result: SweepResult) -> str:
     return json.dumps(dict(meta, rows=rows), indent=1) + "\n"
 
 
+def load_result(folder) -> SweepResult:
+    """A ``SweepResult`` read back from ``DIR/results.json`` (rows and metadata; no error
+    maps), e.g. to redraw ``pareto.png``."""
+    data = json.loads((Path(folder) / "results.json").read_text())
+    rows = [{k: (math.nan if v is None and k in NUMERIC else v) for k, v in r.items()}
+            for r in data["rows"]]
+    return SweepResult(rows, data["scene"], data["width"], data["height"], data["lights"],
+                       tuple(data["backends"]), data["renders"], data["timing"], data["notes"])
+
+
+NUMERIC = {"frame_ms", "rmse_scene", "p99_scene", "max_scene", "flip_scene", "rmse_f64",
+           "p99_f64", "max_f64", "rmse_interior", "max_interior"}
+
+
 def pareto_front(points: list[tuple[float, float]]) -> list[int]:
     """Indices of the points no other point beats on both x and y (lower is better), sorted
     by x."""
@@ -601,13 +615,26 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
         rows = [r for r in result.rows if r["backend"] == b]
         pts = [(r["rmse_scene"], r["frame_ms"] if timed else r["target_bytes"] / 2 ** 20)
                for r in rows]
-        for r, (x, y) in zip(rows, pts):
+        order = sorted(range(len(rows)), key=lambda i: pts[i][1])
+        for rank, i in enumerate(order):
+            r, (x, y) = rows[i], pts[i]
             ax.scatter([x], [y], color=colours[r["file"]], s=36, zorder=3,
                        edgecolors="black" if r["agree"] is False else "none")
             label = r["params"] or r["technique"]
             if len(files) > 1 and r["params"]:
                 label = f"{r['technique']} {r['params']}"
-            ax.annotate(label, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=7)
+            # neighbours in y alternate left and right of their points: fewer overlaps
+            right = rank % 2 == 0
+            ax.annotate(label, (x, y), textcoords="offset points", xytext=(5 if right else -5, 3),
+                        ha="left" if right else "right", fontsize=7)
+        ys = [y for _, y in pts if math.isfinite(y) and y > 0]
+        if ys and max(ys) > 5 * min(ys):
+            ax.set_yscale("log")
+        xs = [x for x, _ in pts if math.isfinite(x)]
+        if xs:
+            lo, hi = min(xs), max(xs)
+            pad = 0.15 * (hi - lo) or 0.1 * max(hi, 1e-3)
+            ax.set_xlim(lo - pad, hi + pad)
         front = pareto_front(pts)
         if front:
             fx = [pts[i][0] for i in front]
