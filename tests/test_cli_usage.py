@@ -112,7 +112,8 @@ def test_info_lists_parameters_targets_passes_and_packings(capsys):
     assert color[2:4] == ["rgba8", "1280x720"] and "3686400" in color      # 1280*720*4
     lbuf = next(l.split() for l in lines if l.strip().startswith("lbuf "))
     assert lbuf[1:3] == ["rgba16f", "800x450"] and "2880000" in lbuf       # 0.625 scale, 8 B
-    for p in ("1. geometry", "2. lighting", "3. material", "4. translucent"):
+    for p in ("1. geometry", "2. lighting", "3. spot_lighting", "4. directional_lighting",
+              "5. material", "6. translucent"):
         assert p in out
     assert "nrm = kircher(target: gnormal)" in out
     assert "id = bitfield(fields: {object: 8, group: 8}, target: gdsf)" in out
