@@ -374,3 +374,19 @@ def test_builtins_and_bool_vectors_in_double(small):
     from pipegen.runtime.cl_pipeline import CLPipeline
     pipe = CLPipeline(compiled.pipeline("cl", precision="f64").plan, dynamic_state=True)
     assert np.array_equal(pipe.render(scene)["color"], f64["color"])
+
+
+def test_error_split_total_precision_algorithm(small):
+    """Two references per image: the scene reference (total error) and the technique's own
+    float64 evaluation (precision error); inferred lighting's low-resolution L-buffer is
+    what its algorithm gives up, not precision."""
+    from pipegen.precision import error_split
+    from pipegen.reference.lighting import reference_image
+    ref, gb = reference_image(small)
+    compiled = compile_file(ROOT / "pipelines/inferred.pipe")
+    e = error_split(compiled.pipeline("cl").render(small)["color"],
+                    compiled.pipeline("cl", precision="f64").render(small)["color"],
+                    ref, ~gb.silhouette)
+    assert e["precision"]["max"] <= 1
+    assert e["total"]["max"] <= e["precision"]["max"] + e["algorithm"]["max"]
+    assert e["algorithm"]["rmse"] > 3 * e["precision"]["rmse"]
