@@ -172,7 +172,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--out", required=True, metavar="DIR",
                    help="output folder (required; only files pipegen wrote are replaced)")
     r.add_argument("--scene", metavar="FILE",
-                   help="scene .toml (default: the built-in default scene)")
+                   help="scene .toml, or a glTF file (.gltf, .glb) (default: the built-in "
+                        "default scene)")
     r.add_argument("--size", type=size_arg, metavar="WxH",
                    help=f"output size (default: the scene file's width x height, "
                         f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
@@ -190,7 +191,8 @@ def build_parser() -> argparse.ArgumentParser:
     k = command("check", "render on GL and CL, compare every target", cmd_check,
                 mismatch_note=True)
     k.add_argument("--scene", metavar="FILE",
-                   help="scene .toml (default: the built-in default scene)")
+                   help="scene .toml, or a glTF file (.gltf, .glb) (default: the built-in "
+                        "default scene)")
     k.add_argument("--size", type=size_arg, metavar="WxH",
                    help=f"output size (default: the scene file's width x height, "
                         f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
@@ -529,7 +531,13 @@ def _scene(args, size: bool = True):
                                      f"scene file (.toml)",
                                hint="the technique is the first argument; --scene takes a "
                                     "scene .toml, e.g. examples/scenes/small.toml")
-        scene = load_scene(args.scene)
+        import warnings
+        from .scene import SceneLoadWarning
+        with warnings.catch_warnings():        # printed below as notes, once, not as warnings
+            warnings.simplefilter("ignore", SceneLoadWarning)
+            scene = load_scene(args.scene)
+        for note in getattr(scene, "notes", ()):
+            print(f"note: {note}", file=sys.stderr)
     else:
         scene = default_scene().with_size(*DEFAULT_SIZE)
     if size and getattr(args, "size", None):
