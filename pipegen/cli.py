@@ -243,6 +243,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     from .sweep import add_parser as add_sweep          # `pipegen sweep`: pipegen/sweep.py
     add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
+    from .stress.command import add_parser as add_stress   # `pipegen stress`: pipegen/stress/
+    add_stress(sub, size_arg, OUTPUT_NOTE)
     return parser
 
 

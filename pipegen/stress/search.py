@@ -1,0 +1,120 @@
+"""``pipegen stress --random N``: N scenes drawn by hypothesis strategies (seeded, no example
+database), each run like a named case; the first whose bound breaks is shrunk by hypothesis to
+a minimal failing scene (fewer objects and lights, simpler numbers), written as TOML.
+
+The scene parameters are plain data (``cases.random_scene_toml`` writes them), so the shrunk
+scene file holds primitives and loads back as the same scene.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Optional
+
+from .cases import Case, random_scene
+
+MAX_SHRINK_RUNS = 60          # scene evaluations spent shrinking, at most
+
+
+def scene_parameters():
+    """The hypothesis strategy of a random scene's parameters."""
+    from hypothesis import strategies as st
+    coord = st.floats(-4.0, 4.0, allow_nan=False, width=32)
+    pos = st.tuples(coord, coord, coord)
+    unit = st.floats(0.0, 1.0, allow_nan=False, width=32)
+    obj = st.fixed_dictionaries({
+        "mesh": st.sampled_from(["box", "sphere", "cylinder", "plane"]),
+        "translate": st.tuples(coord, st.floats(-1.0, 2.0, width=32), coord),
+        "rotate": st.tuples(*[st.sampled_from([0.0, 15.0, 45.0, 90.0])] * 3),
+        "scale": st.tuples(*[st.floats(0.25, 6.0, width=32)] * 3),
+        "albedo": st.tuples(unit, unit, unit),
+        "specular": st.floats(0.0, 1.0, width=32),
+        "shininess": st.sampled_from([1.0, 8.0, 32.0, 128.0]),
+    })
+    light = st.fixed_dictionaries({
+        "position": st.tuples(coord, st.floats(-0.5, 4.0, width=32), coord),
+        "radius": st.one_of(st.floats(0.01, 10.0, width=32), st.sampled_from([1e-3, 1e3])),
+        "color": st.tuples(*[st.floats(0.0, 4.0, width=32)] * 3),
+    })
+    camera = st.fixed_dictionaries({
+        "position": st.tuples(st.floats(-8.0, 8.0, width=32), st.floats(0.2, 8.0, width=32),
+                              st.floats(4.0, 12.0, width=32)),
+        "target": st.tuples(coord, st.floats(-1.0, 2.0, width=32), coord),
+        "fov": st.floats(20.0, 100.0, width=32),
+        "near": st.sampled_from([0.05, 0.1, 0.5]),
+        "far": st.sampled_from([20.0, 100.0, 1000.0]),
+    })
+    return st.fixed_dictionaries({"camera": camera,
+                                  "objects": st.lists(obj, min_size=1, max_size=4),
+                                  "lights": st.lists(light, min_size=1, max_size=6)})
+
+
+def random_search(runner, n: int, size: tuple[int, int], seed: int = 0,
+                  progress: Callable[[str], None] = lambda msg: None):
+    """Run ``n`` random scenes; returns ``(results, failing)`` where ``failing`` is
+    ``(params, CaseResult)`` of the shrunk failing scene, or None."""
+    from hypothesis import HealthCheck, Phase, given, settings
+    from hypothesis import seed as hseed
+
+    results = []
+    state = {"runs": 0, "failing": None, "generated": 0}
+
+    class Broken(Exception):
+        pass
+
+    def evaluate(params) -> Optional[object]:
+        scene = _scene_or_none(params, size)
+        if scene is None:
+            return None
+        state["runs"] += 1
+        res = runner.run_case(Case(f"random{state['runs']}", "a random scene", scene))
+        return res
+
+    @hseed(seed)
+    @settings(max_examples=n, database=None, deadline=None, derandomize=False,
+              suppress_health_check=list(HealthCheck),
+              phases=[Phase.generate, Phase.shrink], report_multiple_bugs=False)
+    @given(scene_parameters())
+    def search(params):
+        shrinking = state["failing"] is not None
+        if shrinking and state["runs"] >= state["generated"] + MAX_SHRINK_RUNS:
+            return                          # shrink budget spent: keep what we have
+        res = evaluate(params)
+        if res is None:
+            return
+        if not shrinking:
+            state["generated"] += 1
+            results.append(res)
+            progress(f"random scene {state['generated']}/{n}: {res.status}")
+        if res.failed:
+            if state["failing"] is None or _smaller(params, state["failing"][0]):
+                state["failing"] = (params, res)
+            raise Broken(res.case)
+
+    t0 = time.perf_counter()
+    try:
+        search()
+    except Broken:
+        pass
+    progress(f"random search: {state['runs']} scenes in {time.perf_counter() - t0:.1f}s")
+    return results, state["failing"]
+
+
+def _smaller(a: dict, b: dict) -> bool:
+    return (len(a["objects"]) + len(a["lights"]), repr(a)) < \
+        (len(b["objects"]) + len(b["lights"]), repr(b))
+
+
+def _scene_or_none(params: dict, size):
+    """The scene, or None for parameters the scene loader refuses (a camera looking at
+    itself, up parallel to the view)."""
+    from ..diagnostics import PipegenError
+    import numpy as np
+    cam = params["camera"]
+    f = np.subtract(cam["target"], cam["position"])
+    if np.linalg.norm(f) < 1e-3 or np.linalg.norm(np.cross(f, (0, 1, 0))) < 1e-3 * np.linalg.norm(f):
+        return None
+    try:
+        return random_scene(params, *size)
+    except PipegenError:
+        return None
