@@ -186,23 +186,50 @@ def max_coordinate(scene) -> float:
     return m
 
 
-_U = np.array([0.6, 0.64, -0.48])
-_V = np.array([-0.48, 0.6, 0.64])
+def _change(got, want) -> np.ndarray:
+    d = _error(np.asarray(got, np.float64), np.asarray(want, np.float64))
+    return np.where(np.isfinite(d), d, 0.0)
 
 
-def moved(scene, delta: float):
-    """The scene with its lights moved by ``delta`` along one direction and the camera
-    (position and target) along its viewing direction tilted by a quarter of ``_V`` (what
-    window depth is most sensitive to: the float32 view transform of far-off coordinates
-    errs by ulps of them along every axis)."""
-    lights = tuple(dataclasses.replace(l, position=tuple(np.add(l.position, delta * _U)))
+THETA = 1e-4     # radians: the camera turn of the view-transform measurement
+
+
+def turned(scene, theta: float, axis: int):
+    """The camera turned by ``theta`` about its up (axis 0) or side (axis 1) direction."""
+    cam = scene.camera
+    eye = np.asarray(cam.position, np.float64)
+    f = np.subtract(cam.target, eye)
+    dist = np.linalg.norm(f)
+    f = f / dist
+    side = np.cross(f, cam.up)
+    side = side / np.linalg.norm(side)
+    up = np.cross(side, f)
+    shift = side if axis == 0 else up
+    target = eye + dist * (f + theta * shift)
+    return dataclasses.replace(scene, camera=dataclasses.replace(cam, target=tuple(target)))
+
+
+def _fit(scale: np.ndarray, like: np.ndarray) -> np.ndarray:
+    """A per-pixel (H, W) map sampled (nearest) at the shape of ``like``, with a trailing
+    axis for channels."""
+    h, w = np.shape(like)[:2]
+    sh, sw = scale.shape
+    ys = np.minimum((np.arange(h) + 0.5) * sh / h, sh - 1).astype(int)
+    xs = np.minimum((np.arange(w) + 0.5) * sw / w, sw - 1).astype(int)
+    out = scale[ys][:, xs]
+    return out[..., None] if np.ndim(like) == 3 else out
+
+
+def moved(scene, delta: float, axis: int):
+    """The scene with its lights and camera (position and target) moved by ``delta`` along
+    world axis ``axis``: relative to them, the surfaces moved by -delta."""
+    e = np.zeros(3)
+    e[axis] = delta
+    lights = tuple(dataclasses.replace(l, position=tuple(np.add(l.position, e)))
                    if l.type != "directional" else l for l in scene.lights)
     cam = scene.camera
-    fwd = np.subtract(cam.target, cam.position)
-    fwd = fwd / np.linalg.norm(fwd) + 0.25 * _V
-    fwd = fwd / np.linalg.norm(fwd)
-    cam = dataclasses.replace(cam, position=tuple(np.add(cam.position, delta * fwd)),
-                              target=tuple(np.add(cam.target, delta * fwd)))
+    cam = dataclasses.replace(cam, position=tuple(np.add(cam.position, e)),
+                              target=tuple(np.add(cam.target, e)))
     return dataclasses.replace(scene, lights=lights, camera=cam)
 
 
@@ -259,41 +286,52 @@ class Stress:
                 local[key] = np.zeros(np.shape(v))
                 continue
             local[key] = B.local_bound(t, v, blends.get(base))
-        # position: lights and camera moved by POSITION_ULPS ulps of the largest coordinate
+        # positions: lights and camera moved by POSITION_ULPS ulps of the largest coordinate
+        # along x, y and z in turn (= the surface moved the other way); the first-order change
+        # over the box |error_i| <= delta is the sum of the three changes
         delta = B.POSITION_ULPS * float(B.ulp32(max_coordinate(scene)))
+        measured = [k for k in f64 if not k.endswith(".stencil")
+                    and not self.info[k.partition(".")[0]].exact]
         pos = {k: np.zeros(np.shape(v)) for k, v in f64.items()}
-        for sign in (1.0, -1.0):
-            got = self.f64.render(moved(scene, sign * delta))
-            for k in pos:
-                if k.endswith(".stencil") or self.info[k.partition(".")[0]].exact:
-                    continue
-                d = _error(np.asarray(got[k], np.float64), np.asarray(f64[k], np.float64))
-                pos[k] = np.maximum(pos[k], np.where(np.isfinite(d), d, 0.0))
-        pos = {k: B.SAFETY * v for k, v in pos.items()}
+        for axis in range(3):
+            got = self.f64.render(moved(scene, delta, axis))
+            for k in measured:
+                pos[k] = pos[k] + _change(got[k], f64[k])
+        # the float32 view transform of vertices errs by ulps of M in view space: the image
+        # of a surface at view distance z moves by an angle of about delta / z.  Measured
+        # with the camera turned by THETA (yaw, pitch), scaled per pixel to delta / z
+        z = self._view_distance(scene, f64)
+        if z is not None:
+            for axis in range(2):
+                got = self.f64.render(turned(scene, THETA, axis))
+                for k in measured:
+                    scale = _fit(delta / np.maximum(z, scene.camera.near) / THETA, f64[k])
+                    pos[k] = pos[k] + _change(got[k], f64[k]) * scale
         total = {k: local[k] + pos[k] for k in local}
         reads = {k: np.zeros(np.shape(v)) for k, v in f64.items()}
-        readers = {r for t in self.info.values() for r in t.reads}
+        readers = sorted({r for t in self.info.values() for r in t.reads
+                          if r in f64 and not self.info[r].exact})
         sampled = {r for t in self.info.values() for r in t.sampled}
-        for _ in range(self.depth):
+        channels = max((np.shape(f64[r])[2] if np.ndim(f64[r]) == 3 else 1 for r in readers),
+                       default=0)
+        for _ in range(self.depth if readers else 0):
             prop = {k: np.zeros(np.shape(v)) for k, v in f64.items()}
-            for sign in (1.0, -1.0):
+            for c in range(channels):         # channel c of every read target, in turn
                 deltas = {}
                 for r in readers:
-                    if r not in f64 or self.info[r].exact:
+                    d = total[r] + (B.resample_term(f64[r]) if r in sampled else 0.0)
+                    if d.ndim == 3:
+                        if c >= d.shape[2]:
+                            continue
+                        d = np.where(np.arange(d.shape[2]) == c, d, 0.0)
+                    elif c:
                         continue
-                    d = total[r].copy()
-                    if r in sampled:
-                        d = d + B.resample_term(f64[r])
-                    deltas[r] = sign * d
+                    deltas[r] = d
                 with _ReadPerturbation(self.f64, deltas):
                     got = self.f64.render(scene)
-                for k in prop:
-                    if k.endswith(".stencil") or self.info[k.partition(".")[0]].exact:
-                        continue
-                    if not self.info[k.partition(".")[0]].reads:
-                        continue
-                    d = _error(np.asarray(got[k], np.float64), np.asarray(f64[k], np.float64))
-                    prop[k] = np.maximum(prop[k], np.where(np.isfinite(d), d, 0.0))
+                for k in measured:
+                    if self.info[k.partition(".")[0]].reads:
+                        prop[k] = prop[k] + _change(got[k], f64[k])
             reads = {k: B.SAFETY * v for k, v in prop.items()}
             total = {k: local[k] + pos[k] + reads[k] for k in local}
         for k in total:
@@ -301,6 +339,18 @@ class Stress:
                         "position": float(np.max(pos[k])) if np.size(pos[k]) else 0.0,
                         "reads": float(np.max(reads[k])) if np.size(reads[k]) else 0.0}
         return total, parts
+
+    def _view_distance(self, scene, f64: dict) -> Optional[np.ndarray]:
+        """View distance of the visible surface per output pixel (from the first depth
+        target at output size; sky: the far plane), or None without a depth target."""
+        w, h = scene.width, scene.height
+        for key, v in f64.items():
+            t = self.info.get(key)
+            if t is not None and t.is_depth and np.shape(v) == (h, w):
+                n, f = scene.camera.near, scene.camera.far
+                d = np.clip(np.asarray(v, np.float64), 0.0, 1.0)
+                return n * f / (f - d * (f - n))
+        return None
 
     # -- lights dropped ----------------------------------------------------------------------
     def dropped(self, scene) -> str:
