@@ -19,8 +19,8 @@ from lark.exceptions import (UnexpectedCharacters, UnexpectedEOF, UnexpectedInpu
 from . import ast
 from .diagnostics import PipegenError, Span
 
-#: How deeply constructs may nest (parse-tree levels: blocks, statements, parentheses, operator
-#: chains).  The shipped techniques use at most 13; every later phase walks the tree
+#: How deeply constructs may nest (parse-tree levels: statements, calls, operators; each operator
+#: of a chain like a + b + c is a level; parentheses alone are not).  The shipped techniques use at most 13; every later phase walks the tree
 #: recursively, so the limit keeps them far from Python's recursion limit.
 MAX_NESTING = 100
 
@@ -51,8 +51,8 @@ def _check_nesting(tree: Tree, text: str, filename: str) -> None:
             line, col = (meta.line, meta.column) if not getattr(meta, "empty", True) else (1, 1)
             raise PipegenError(
                 Span(filename, line, col, line, col + 1, text),
-                f"this is nested too deeply (more than {MAX_NESTING} levels of blocks, "
-                f"parentheses, operators or operator chains)",
+                f"nested too deeply: more than {MAX_NESTING} levels of statements, calls "
+                f"and operators (each operator of a chain like a + b + c is a level)",
                 "split it up: compute parts into local variables or helper functions")
         for child in node.children:
             if isinstance(child, Tree):
