@@ -134,6 +134,19 @@ class CLPipeline:
         for k in range(len(plan.passes)):
             self._program(k)
 
+    def release(self) -> None:
+        """Drop the device buffers this pipeline holds (targets, blend counts, set-up geometry,
+        frame and light tables) as ``GLPipeline.release`` does; the compiled programs stay in
+        the process's cache.  The pipeline is unusable afterwards."""
+        self.store = None
+        self.geometry = None
+        self._kernels = {}
+        self._events = []
+        for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf"):
+            if hasattr(self, name):
+                setattr(self, name, None)
+        self._scene = None
+
     # -- programs ---------------------------------------------------------------------------------
     def _program(self, k: int):
         prog = self._programs.get(k)
