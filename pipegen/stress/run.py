@@ -11,6 +11,7 @@ counted (``status == "unsupported"``).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import time
 from dataclasses import dataclass, field
 from typing import Optional
@@ -316,7 +317,11 @@ class Stress:
                        default=0)
         for _ in range(self.depth if readers else 0):
             prop = {k: np.zeros(np.shape(v)) for k, v in f64.items()}
-            for c in range(channels):         # channel c of every read target, in turn
+            for c, sign in itertools.product(range(channels), (1.0, -1.0)):
+                # channel c of every read target, in turn, both ways (a clamp or max() may
+                # flatten one side): per channel the larger change, summed over channels
+                if sign > 0:
+                    change = {k: np.zeros(np.shape(f64[k])) for k in measured}
                 deltas = {}
                 for r in readers:
                     d = total[r] + (B.resample_term(f64[r]) if r in sampled else 0.0)
@@ -326,12 +331,14 @@ class Stress:
                         d = np.where(np.arange(d.shape[2]) == c, d, 0.0)
                     elif c:
                         continue
-                    deltas[r] = d
+                    deltas[r] = sign * d
                 with _ReadPerturbation(self.f64, deltas):
                     got = self.f64.render(scene)
                 for k in measured:
                     if self.info[k.partition(".")[0]].reads:
-                        prop[k] = prop[k] + _change(got[k], f64[k])
+                        change[k] = np.maximum(change[k], _change(got[k], f64[k]))
+                        if sign < 0:
+                            prop[k] = prop[k] + change[k]
             reads = {k: B.SAFETY * v for k, v in prop.items()}
             total = {k: local[k] + pos[k] + reads[k] for k in local}
         for k in total:
