@@ -337,8 +337,8 @@ def _timing_main() -> int:
                 bar.update(1)
     bar.close()
     ms = [{b: statistics.median(t[b]) * 1e3 for b in backends} for t in times]
-    how = (f"frame times: median of {frames} frames after 1 warm-up, measured after every "
-           f"render job had finished, in one fresh process alone ({os.uname().nodename}, "
+    how = (f"frame times: median of {frames} frames after 1 warm-up, "
+           f"in one fresh process ({os.uname().nodename}, "
            f"pid {os.getpid()}) with LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {threads}, "
            f"pinned to CPU{'s' if len(pinned) != 1 else ''} "
            f"{','.join(map(str, pinned)) or '(no affinity support)'}; variants interleaved "
@@ -482,8 +482,9 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
                 scene=spec, backends=list(backends), frames=frames, threads=threads,
                 progress=progress))
             ms, how = timing["ms"], timing["how"]
-            if scheduler:
-                how += "; on one Dask worker, alone"
+            how = how.replace("in one fresh process", "after every render job had finished, "
+                              "in one fresh process alone" + (" on one Dask worker"
+                                                              if scheduler else ""), 1)
         else:
             ms, how = [{} for _ in variants], "frame times: not measured (--frames 0)"
     finally:
