@@ -624,18 +624,17 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
             label = r["params"] or r["technique"]
             if len(files) > 1 and r["params"]:
                 label = f"{r['technique']} {r['params']}"
-            # neighbours in y alternate left and right of their points: fewer overlaps
-            right = rank % 2 == 0
-            ax.annotate(label, (x, y), textcoords="offset points", xytext=(5 if right else -5, 3),
-                        ha="left" if right else "right", fontsize=7)
+            # neighbours in y alternate above and below their points: fewer overlaps
+            ax.annotate(label, (x, y), textcoords="offset points",
+                        xytext=(5, 3 if rank % 2 == 0 else -9), ha="left", fontsize=7)
         ys = [y for _, y in pts if math.isfinite(y) and y > 0]
         if ys and max(ys) > 5 * min(ys):
             ax.set_yscale("log")
         xs = [x for x, _ in pts if math.isfinite(x)]
         if xs:
             lo, hi = min(xs), max(xs)
-            pad = 0.15 * (hi - lo) or 0.1 * max(hi, 1e-3)
-            ax.set_xlim(lo - pad, hi + pad)
+            span = (hi - lo) or max(hi, 1e-3)
+            ax.set_xlim(lo - 0.08 * span, hi + 0.45 * span)      # room for the labels
         front = pareto_front(pts)
         if front:
             fx = [pts[i][0] for i in front]
