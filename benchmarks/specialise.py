@@ -5,16 +5,16 @@ and scene, on both backends, as ratios measured in one run; and compile time wit
         [--size 640x360] [--frames 3] [--compiles 3] [--stat median|min] [--threads 2]
         [technique[:param=value,...] ...]
 
-Default: every shipped technique (``pipelines/*.pipe``) on the four scenes at 640x360.  Both
-variants run the full ``render()`` (all passes, then read-back of every target the variant
-has), interleaved frame by frame so that drift in the machine's load hits both alike; each
+Default: every shipped technique (``pipelines/*.pipe``) on the four scenes at 640x360. Both
+variants run the full ``render()`` (all passes, then read-back of every target the variant has),
+interleaved frame by frame (ABBA) so that drift in the machine's load hits both alike; each
 figure is the median of ``--frames`` renders after one warm-up render (which compiles shaders
 and kernels); ``--stat min`` takes the fastest instead, the better estimate on a machine shared
-with other work.  ``spec/gen`` below 1 means the specialised variant is faster.  Compile time is
+with other work. ``spec/gen`` below 1 means the specialised variant is faster. Compile time is
 ``compile_file(path)`` against ``compile_file(path, scene=scene)`` with the variant cache
-cleared (so the scene phases, and the recompile that shrinks the light table, are counted),
-the same statistic over ``--compiles`` runs.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to
-``--threads`` before either runtime loads.
+cleared (so the scene phases, and the recompile that shrinks the light table, are counted), the
+same statistic over ``--compiles`` runs. ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are
+set to ``--threads`` before either runtime loads.
 """
 
 from __future__ import annotations
@@ -45,13 +45,17 @@ STAT = statistics.median
 
 def paired(a, b, frames: int) -> tuple[float, float]:
     """Times of ``a`` and ``b`` (``STAT`` of ``frames`` each), one warm-up each, then
-    alternating."""
+    alternating in ABBA order (neither always runs first)."""
     a()
     b()
     ta, tb = [], []
-    for _ in range(frames):
-        ta.append(timed(a))
-        tb.append(timed(b))
+    for k in range(frames):
+        if k % 2 == 0:
+            ta.append(timed(a))
+            tb.append(timed(b))
+        else:
+            tb.append(timed(b))
+            ta.append(timed(a))
     return STAT(ta), STAT(tb)
 
 

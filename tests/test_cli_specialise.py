@@ -141,6 +141,18 @@ def test_run_specialise_says_whether_the_variant_was_reused(capsys, tmp_path, fr
     assert "variant" not in capsys.readouterr().err
 
 
+@pytest.mark.gl
+@pytest.mark.cl
+def test_check_specialise_compares_the_variant(capsys, tmp_path, fresh_cache):
+    assert main(["check", tech("deferred_calver"), "--scene", scene("small"), "--size", "32x18",
+                 "--specialise", "-o", str(tmp_path / "c")]) == 0
+    captured = capsys.readouterr()
+    assert "variant: compiled (" in captured.err and "passes 10 -> 7)" in captured.err
+    rows = {l.split()[0] for l in captured.out.splitlines()[2:] if l.strip()}
+    assert "spot_lut" not in rows and "accum" in rows        # the variant's targets only
+    assert "all targets agree" in captured.out
+
+
 # ---- pipegen specialise ------------------------------------------------------------------------
 
 
