@@ -475,8 +475,8 @@ def scene_toml(scene: Scene, folder: Path, stem: str) -> Path:
 
 def _write_obj(path: Path, o: SceneObject) -> None:
     out = [f"# {o.name}: world space, written by pipegen stress"]
-    out += [f"v {x!r} {y!r} {z!r}" for x, y, z in np.asarray(o.positions, np.float64)]
-    out += [f"vn {x!r} {y!r} {z!r}" for x, y, z in np.asarray(o.normals, np.float64)]
+    out += ["v " + " ".join(repr(float(c)) for c in p) for p in np.asarray(o.positions)]
+    out += ["vn " + " ".join(repr(float(c)) for c in n) for n in np.asarray(o.normals)]
     for t in range(len(o.positions) // 3):
         a, b, c = 3 * t + 1, 3 * t + 2, 3 * t + 3
         out.append(f"f {a}//{a} {b}//{b} {c}//{c}")
