@@ -177,15 +177,20 @@ def _first_difference(general, special, scene, backend, size) -> Optional[str]:
     order = iter(gcaps)
     for cap in scaps:
         key = (cap["pass"], cap["light"])
+        skipped = []                          # general executions the variant does not run
         for g in order:                       # the general run's same execution, in order
             latest[(g["pass"], g["light"])] = g
             if (g["pass"], g["light"]) == key:
                 break
+            skipped.append(_where(g))
         g = latest.get(key)
         bad = sorted(n for n, v in cap["targets"].items()
                      if g is None or n not in g["targets"] or not _same(g["targets"][n], v))
         if bad:
-            return f"{_where(cap)}: {', '.join(bad)}"
+            before = (f" (after the general pipeline's {', '.join(skipped[:4])}"
+                      f"{' …' if len(skipped) > 4 else ''}, which the variant does not run)"
+                      if skipped else "")
+            return f"{_where(cap)}: {', '.join(bad)}{before}"
     rest = [_where(g) for g in order]         # what the general pipeline runs after that
     if rest:
         return (f"after {_where(scaps[-1]) if scaps else 'the clears'}: the general pipeline "
