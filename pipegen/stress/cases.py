@@ -368,6 +368,9 @@ GROUPS = {
     "quick": ("base", "radius_exact", "radius_plus_ulp", "light_on_surface", "camera_in_light",
               "near_clip", "far_1e4", "sky", "lights_16", "half_overflow", "overlap",
               "normals_back", "odd_tiny"),
+    # what CI runs on every shipped technique (tests/test_stress.py)
+    "ci": ("base", "radius_exact", "light_on_surface", "camera_in_light", "far_1e4",
+           "lights_16", "overlap", "normals_back", "odd_tiny"),
 }
 
 

@@ -267,9 +267,12 @@ class _ReadPerturbation:
 
 
 class Stress:
-    def __init__(self, compiled):
+    def __init__(self, compiled, per_channel: bool = True):
+        """``per_channel``: perturb each channel of the read targets in turn (2 renders per
+        channel and level of reads); False: all channels at once (2 renders per level)."""
         from ..features import capabilities
         self.compiled = compiled
+        self.per_channel = per_channel
         self.info = B.plan_targets(compiled)
         self.depth = B.read_depth(self.info)
         self.pipes = {b: compiled.pipeline(b) for b in BACKENDS}
@@ -317,7 +320,8 @@ class Stress:
                        default=0)
         for _ in range(self.depth if readers else 0):
             prop = {k: np.zeros(np.shape(v)) for k, v in f64.items()}
-            for c, sign in itertools.product(range(channels), (1.0, -1.0)):
+            groups = range(channels) if self.per_channel else [None]
+            for c, sign in itertools.product(groups, (1.0, -1.0)):
                 # channel c of every read target, in turn, both ways (a clamp or max() may
                 # flatten one side): per channel the larger change, summed over channels
                 if sign > 0:
@@ -325,7 +329,9 @@ class Stress:
                 deltas = {}
                 for r in readers:
                     d = total[r] + (B.resample_term(f64[r]) if r in sampled else 0.0)
-                    if d.ndim == 3:
+                    if c is None:
+                        pass
+                    elif d.ndim == 3:
                         if c >= d.shape[2]:
                             continue
                         d = np.where(np.arange(d.shape[2]) == c, d, 0.0)
