@@ -59,7 +59,7 @@ from .diagnostics import PipegenError
 # at least these columns, in this order, then the extras
 COLUMNS = ["technique", "params", "backend", "frame_ms", "target_bytes", "rmse_scene",
            "p99_scene", "max_scene", "flip_scene", "rmse_f64", "p99_f64", "max_f64", "agree"]
-EXTRA_COLUMNS = ["rmse_interior", "max_interior", "file", "width", "height", "notes"]
+EXTRA_COLUMNS = ["cpu_ms", "rmse_interior", "max_interior", "file", "width", "height", "notes"]
 BACKEND_ORDER = ("gl", "cl")
 DEFAULT_THREADS = 2
 F64_NOTE = ("f64 columns are empty: this compiler's Compiled.pipeline does not take "
@@ -327,24 +327,29 @@ def _timing_main() -> int:
             row[b] = fn
         pipes.append(row)
     times = [{b: [] for b in backends} for _ in pipes]
+    cpu = [{b: [] for b in backends} for _ in pipes]
     order = list(range(len(pipes)))
     for r in range(frames):
         for b in backends:
             for i in (order if r % 2 == 0 else order[::-1]):
-                t0 = time.perf_counter()
+                c0, t0 = time.process_time(), time.perf_counter()
                 pipes[i][b]()
                 times[i][b].append(time.perf_counter() - t0)
+                cpu[i][b].append(time.process_time() - c0)
                 bar.update(1)
     bar.close()
     ms = [{b: statistics.median(t[b]) * 1e3 for b in backends} for t in times]
+    cpu_ms = [{b: statistics.median(t[b]) * 1e3 for b in backends} for t in cpu]
     how = (f"frame times: median of {frames} frames after 1 warm-up, "
            f"in one fresh process ({os.uname().nodename}, "
            f"pid {os.getpid()}) with LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {threads}, "
            f"pinned to CPU{'s' if len(pinned) != 1 else ''} "
            f"{','.join(map(str, pinned)) or '(no affinity support)'}; variants interleaved "
            f"(each round times every variant once, alternating forward and backward order); "
-           f"GL: frame() to glFinish without read-back; CL: render() with read-back")
-    sys.stdout.write(json.dumps({"ms": ms, "how": how}) + "\n")
+           f"GL: frame() to glFinish without read-back; CL: render() with read-back; "
+           f"cpu_ms: the process's CPU time per frame, all its threads (steadier than wall "
+           f"time where other work shares the CPUs)")
+    sys.stdout.write(json.dumps({"ms": ms, "cpu_ms": cpu_ms, "how": how}) + "\n")
     return 0
 
 
@@ -481,12 +486,13 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
                 variants=[dict(file=v.file, params=dict(v.params)) for v in variants],
                 scene=spec, backends=list(backends), frames=frames, threads=threads,
                 progress=progress))
-            ms, how = timing["ms"], timing["how"]
+            ms, cpu_ms, how = timing["ms"], timing["cpu_ms"], timing["how"]
             how = how.replace("in one fresh process", "after every render job had finished, "
                               "in one fresh process alone" + (" on one Dask worker"
                                                               if scheduler else ""), 1)
         else:
             ms, how = [{} for _ in variants], "frame times: not measured (--frames 0)"
+            cpu_ms = ms
     finally:
         pool.close()
 
@@ -497,6 +503,7 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
             m = res["metrics"][b]
             row = dict(technique=v.technique, params=v.params_text, backend=b,
                        frame_ms=ms[v.index].get(b, math.nan), target_bytes=tb,
+                       cpu_ms=cpu_ms[v.index].get(b, math.nan),
                        agree=res["agree"], file=v.file, width=s.width, height=s.height,
                        notes="; ".join(res["notes"]))
             row.update({k: m[k] for k in m})
@@ -580,7 +587,7 @@ def load_result(folder) -> SweepResult:
                        tuple(data["backends"]), data["renders"], data["timing"], data["notes"])
 
 
-NUMERIC = {"frame_ms", "rmse_scene", "p99_scene", "max_scene", "flip_scene", "rmse_f64",
+NUMERIC = {"frame_ms", "cpu_ms", "rmse_scene", "p99_scene", "max_scene", "flip_scene", "rmse_f64",
            "p99_f64", "max_f64", "rmse_interior", "max_interior"}
 
 

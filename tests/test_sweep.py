@@ -85,7 +85,7 @@ def test_pareto_front():
 def test_csv_has_the_required_columns_first():
     row = dict(technique="t", params="a=1", backend="gl", frame_ms=math.nan, target_bytes=4,
                rmse_scene=1.5, p99_scene=2.0, max_scene=3.0, flip_scene=0.1, rmse_f64=math.nan,
-               p99_f64=math.nan, max_f64=math.nan, agree=None, rmse_interior=0.2,
+               p99_f64=math.nan, max_f64=math.nan, agree=None, cpu_ms=math.nan, rmse_interior=0.2,
                max_interior=1.0, file="t.pipe", width=2, height=1, notes="")
     header, line = csv_text([row]).splitlines()
     assert header.split(",")[:len(COLUMNS)] == COLUMNS
@@ -130,7 +130,7 @@ def test_inferred_sweep_writes_its_files(inferred_sweep):
     assert "frame times: median of 1 frames" in meta["timing"] and "pinned" in meta["timing"]
     assert "lbuffer_scale=0.625 dsf=true" in stdout and "frame times:" in stdout
     for r in rows:
-        assert num(r["frame_ms"]) > 0 and int(r["target_bytes"]) > 0
+        assert num(r["frame_ms"]) > 0 and num(r["cpu_ms"]) > 0 and int(r["target_bytes"]) > 0
         assert 0 < num(r["flip_scene"]) < 1
 
 
