@@ -60,7 +60,7 @@ def random_search(runner, n: int, size: tuple[int, int], seed: int = 0,
 
     results = []
     seen: dict[str, bool] = {}
-    state = {"runs": 0, "failing": None, "generated": 0}
+    state = {"runs": 0, "failing": None, "generated": 0, "attempts": 0}
 
     class Broken(Exception):
         pass
@@ -73,12 +73,20 @@ def random_search(runner, n: int, size: tuple[int, int], seed: int = 0,
         res = runner.run_case(Case(f"random{state['runs']}", "a random scene", scene))
         return res
 
+    class Done(BaseException):              # not an Exception: hypothesis lets it through
+        pass
+
     @hseed(seed)
     @settings(max_examples=n, database=None, deadline=None, derandomize=False,
               suppress_health_check=list(HealthCheck),
               phases=[Phase.generate, Phase.shrink], report_multiple_bugs=False)
     @given(scene_parameters())
     def search(params):
+        if state["failing"] is not None:
+            state["attempts"] += 1
+            if (state["runs"] >= state["generated"] + shrink_runs
+                    or state["attempts"] > 20 * shrink_runs):
+                raise Done()                # shrink budget spent: keep the smallest so far
         key = repr(params)
         if key not in seen:
             seen[key] = _evaluate(params)
@@ -103,6 +111,8 @@ def random_search(runner, n: int, size: tuple[int, int], seed: int = 0,
     t0 = time.perf_counter()
     try:
         search()
+    except Done:
+        pass
     except Exception as e:              # Broken, or hypothesis's report of it
         if state["failing"] is None:
             raise
