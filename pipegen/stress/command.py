@@ -59,11 +59,11 @@ def add_parser(sub, size_arg, output_note: str):
 
 
 def cmd_stress(args) -> int:
-    from ..cli import _compile, _scene, parse_params  # noqa: F401  (shared helpers)
+    from ..cli import _compile
     from ..diagnostics import PipegenError
     from ..outdir import OutputDir, safe_name
     from . import report
-    from .cases import build, case_names, scene_toml, random_scene_toml
+    from .cases import build, case_names, random_scene_toml, scene_toml
     from .run import Stress
     t_start = time.perf_counter()
     compiled = _compile(args)

@@ -89,7 +89,6 @@ def worst_pixels_png(res: CaseResult, target: TargetResult, path: Path, scale: i
     pixels boxed in yellow on every panel."""
     from PIL import Image
     key = target.key
-    base = key.partition(".")[0]
     fmt = F.get(target.format)
     gl = res.images["gl"][key]
     f64 = res.images["f64"][key]
@@ -114,4 +113,3 @@ def worst_pixels_png(res: CaseResult, target: TargetResult, path: Path, scale: i
     gap = np.full((out[0].shape[0], 4, 3), 64, np.uint8)
     img = np.concatenate([out[0], gap, out[1], gap, out[2]], axis=1)
     Image.fromarray(np.ascontiguousarray(img[::-1])).save(path)   # GL rows: bottom first
-    del base
