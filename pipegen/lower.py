@@ -70,6 +70,7 @@ class _Lowerer:
         self.packs: dict[str, ast.PackDecl] = {}
         self.pack_specs: dict[str, object] = {}
         self.pack_options: dict[str, dict] = {}
+        self.pack_schemes: dict[str, str] = {}     # the scheme (a parameter may choose it)
         self.signatures: dict[str, _Signature] = {}
         self.bodies: dict[str, tuple[ir.Stmt, ...]] = {}
         self.uses: dict[str, _Uses] = {}          # per function, transitive after phase 5
@@ -231,6 +232,10 @@ class _Lowerer:
             if p.type != ir.VOID:
                 raise _err(name.span, f"parameter '{n}' is {_a(_param_type_name(p))}, "
                            f"not a format", "declare it like `param fmt = rgba16f`")
+            if p.default not in FORMATS:
+                raise _err(name.span, f"parameter '{n}' holds the packing scheme "
+                                      f"'{p.default}', not a format",
+                           "declare a format parameter like `param fmt = rgba16f`")
             return FORMATS[p.default]
         if n not in FORMATS:
             raise _err(name.span, f"unknown format '{n}'",
@@ -327,6 +332,14 @@ class _Lowerer:
 
     def _packing(self, decl: ast.PackDecl, packing) -> None:
         name, scheme = decl.name.name, decl.scheme.name
+        if scheme in self.params:      # `pack nrm = encoding(…)`: the scheme a parameter holds
+            p = self.params[scheme]
+            if p.type != ir.VOID:
+                raise _err(decl.scheme.span, f"parameter '{scheme}' is "
+                           f"{_a(_param_type_name(p))}, not a packing scheme",
+                           "declare it like `param encoding = octahedral in {kircher, "
+                           "octahedral}`")
+            scheme = str(p.default)
         schemes = getattr(packing, "SCHEMES", None)
         if schemes is not None and scheme not in schemes:
             raise _err(decl.scheme.span, f"unknown packing scheme '{scheme}'",
@@ -337,6 +350,7 @@ class _Lowerer:
             target_format = self.targets[options["target"]].format
         spec = packing.build(name, scheme, options, target_format, decl.scheme.span)
         self.packs[name] = decl
+        self.pack_schemes[name] = scheme
         self.pack_specs[name] = spec
         self.pack_options[name] = options
         with _generated_by(decl):
@@ -389,7 +403,7 @@ class _Lowerer:
             functions = tuple(self._ir_function(s) for s in self._ordered_signatures()
                               if s.pack == name)
             constants = tuple((k, ir.Const(t, v)) for k, (t, v) in spec.constants.items())
-            out.append(ir.Packing(name, decl.scheme.name, _freeze(self.pack_options[name]),
+            out.append(ir.Packing(name, self.pack_schemes[name], _freeze(self.pack_options[name]),
                                   functions, constants, spec.capacity, spec.error,
                                   tuple(spec.notes or ()), decl.span))
         return tuple(out)

@@ -7,6 +7,7 @@ from typing import Iterable
 
 from .. import ast, ir
 from ..formats import FORMATS
+from ..packing import SCHEMES
 from .names import _PARAM_TYPES, _a, _err
 
 class _ParamBuilder:
@@ -39,8 +40,9 @@ class _ParamBuilder:
             return ir.BOOL
         if isinstance(v, ast.Name):
             return ir.VOID
-        raise _err(v.span, "a parameter's value is a number, true/false or a format name",
-                   "e.g. `param scale = 0.5` or `param fmt = rgba16f`")
+        raise _err(v.span, "a parameter's value is a number, true/false, a format name or a "
+                           "packing scheme", "e.g. `param scale = 0.5`, `param fmt = rgba16f` or "
+                                             "`param encoding = octahedral`")
 
     def _coerce(self, v: ast.Expr, t: ir.Type):
         value = v.value if isinstance(v, (ast.Number, ast.Bool)) else \
@@ -68,7 +70,8 @@ class _ParamBuilder:
 def _convert_param_value(value, kind: str, t: ir.Type):
     """A literal of ``kind`` ("float", "int", "uint", "bool", "name") as a value of parameter
     type ``t``; None when it does not fit.  Integer literals serve float and (when not
-    negative) uint parameters; names serve format parameters."""
+    negative) uint parameters; names serve word parameters: a format, or a packing scheme
+    (``pack NAME = PARAM(…)`` then packs with the scheme the parameter holds)."""
     if t == ir.FLOAT and kind in ("float", "int", "uint"):
         return float(value)
     if t == ir.INT and kind == "int":
@@ -77,7 +80,7 @@ def _convert_param_value(value, kind: str, t: ir.Type):
         return int(value)
     if t == ir.BOOL and kind == "bool":
         return bool(value)
-    if t == ir.VOID and kind == "name" and value in FORMATS:
+    if t == ir.VOID and kind == "name" and (value in FORMATS or value in SCHEMES):
         return value
     return None
 
@@ -106,13 +109,14 @@ def _classify_override(value) -> tuple[str, object]:
 
 
 def _type_word(t: ir.Type) -> str:
-    return "format" if t == ir.VOID else str(t)
+    return "format or packing scheme" if t == ir.VOID else str(t)
 
 
 def _param_hint(t: ir.Type) -> str:
     return {ir.FLOAT: "write a number like 0.5", ir.INT: "write an integer like 3",
             ir.UINT: "write a non-negative integer like 3u", ir.BOOL: "write true or false"}.get(
-        t, f"write a format name: {' '.join(FORMATS)}")
+        t, f"write a format name ({' '.join(FORMATS)}) or a packing scheme "
+           f"({' '.join(SCHEMES)})")
 
 
 def _show(v) -> str:

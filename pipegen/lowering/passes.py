@@ -94,8 +94,9 @@ class _PassLowerer:
             raise _err(pack.span, f"unknown packing '{pack.name}'",
                        _did_you_mean(pack.name, self.low.packs,
                                      "declare it with `pack NAME = channel_slots(…)`"))
-        if decl.scheme.name != "channel_slots":
-            raise _err(pack.span, f"packing '{pack.name}' is a {decl.scheme.name} packing; "
+        scheme = self.low.pack_schemes[pack.name]
+        if scheme != "channel_slots":
+            raise _err(pack.span, f"packing '{pack.name}' is a {scheme} packing; "
                        f"light sets come from channel_slots", "use a channel_slots packing")
         slots = self.low.pack_options[pack.name].get("slots", 4)
         k = self.low.integer(index, "a light set index", 0, int(slots) - 1)
