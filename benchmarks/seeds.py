@@ -118,13 +118,14 @@ Where and why the figures differ:
   pixels and blending is fixed-function; llvmpipe and the CL runtime set up and bin every
   triangle again per pass and blend half floats in software.  LIDR draws light volumes, which
   touch only the pixels they cover, and shades each pixel once.
-- LIDR cost against lights per pixel: the paper loses 2.2x from 1 to 4 lights per pixel, here
-  less: the light volumes grow with the radius on both, but a software rasteriser's per-pixel
-  blend and shading cost is a smaller share of a frame dominated by per-pass and per-triangle
-  overhead (the geometry pass, the read-back on CL).
-- Reduced L-buffer with DSF vs full resolution without (Kircher & Lawrance): close to the paper
-  on llvmpipe; on PoCL the DSF pass and the geometry pass, which run at full resolution either
-  way, weigh more, so the saving shrinks.
+- LIDR cost against lights per pixel: the paper loses 2.2x from 1 to 4 lights per pixel;
+  llvmpipe comes close (bit planes 1.7-1.9x in our runs): bigger light volumes mean more
+  blended index writes and more lights shaded per pixel on both.  PoCL loses less (1.0-1.5x):
+  its frame also holds the read-back of every target and per-pass kernel launches, which do
+  not grow with the radius.
+- Reduced L-buffer with DSF vs full resolution without (Kircher & Lawrance): llvmpipe 0.6-0.7x
+  against the paper's 0.78x: the L-buffer pass is a larger share of a software frame, so
+  lighting fewer pixels saves more; PoCL varies more between runs (0.6-0.9x).
 - Inferred vs forward on 81 lights: single-pass forward loops over all 81 lights in every
   fragment (light_any: type, attenuation, cone tests), the inferred L-buffer pass shades a pixel
   only for the light volumes covering it; a GPU hides the loop's cost with thousands of

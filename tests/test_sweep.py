@@ -92,6 +92,21 @@ def test_csv_has_the_required_columns_first():
     assert line.startswith("t,a=1,gl,,4,1.5,2.0,3.0,0.1,,,,")
 
 
+def test_help_shows_examples_and_defaults(capsys):
+    from pipegen.cli import main
+    with pytest.raises(SystemExit) as e:
+        main(["sweep", "--help"])
+    assert e.value.code == 0
+    text = capsys.readouterr().out
+    examples = text[text.index("examples:"):]
+    assert {line.split()[1] for line in examples.splitlines()
+            if line.strip().startswith("pipegen ")} == {"sweep"}
+    flat = " ".join(text.split())
+    for d in ("(default: 5; 0: no timing)", "(default: gl,cl;", "(default: 2)",
+              "pipegen[dask]", "1280x720 for the built-in scene"):
+        assert d in flat, d
+
+
 def test_command_line_misuse():
     r = pipegen("sweep", INFERRED, "--backend", "vulkan", "-o", "x")
     assert r.returncode == 2 and "bad backend list" in r.stderr
