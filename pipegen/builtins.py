@@ -35,21 +35,22 @@ class Overload:
     ret: str
 
     def match(self, args: Sequence[ir.Type]) -> Optional[ir.Type]:
-        """The result type when ``args`` fit this signature exactly, else None."""
+        """The result type when ``args`` fit this signature exactly, else None.  Different
+        generics in one overload (``genType -> genUType``) share the size."""
         if len(args) != len(self.params):
             return None
-        bound: Optional[ir.Type] = None
+        size: Optional[int] = None
         for spelled, actual in zip(self.params, args):
             if spelled in _GENERIC:
                 if actual.scalar is not _GENERIC[spelled] or actual.is_matrix:
                     return None
-                if bound is not None and bound != actual:
+                if size is not None and size != actual.size:
                     return None
-                bound = actual
+                size = actual.size
             elif ir.parse_type(spelled) != actual:
                 return None
         if self.ret in _GENERIC:
-            return bound
+            return ir.Type(_GENERIC[self.ret], size) if size > 1 else ir.Type(_GENERIC[self.ret])
         return ir.parse_type(self.ret)
 
     def __str__(self) -> str:
@@ -93,7 +94,21 @@ BUILTINS: dict[str, tuple[Overload, ...]] = {
     "distance": _sigs("genType, genType -> float"),
     "dot": _sigs("genType, genType -> float"),
     "cross": _sigs("vec3, vec3 -> vec3"),
+    # bit casts (the float32 bits; in the float64 evaluation the value rounded to float32
+    # first) and half packing (GLSL 4.20 / ARB_shading_language_packing: round to nearest
+    # even, llvmpipe's NaN codes; docs/language.md, "Bit casts and half packing")
+    "floatBitsToUint": _sigs("genType -> genUType"),
+    "floatBitsToInt": _sigs("genType -> genIType"),
+    "uintBitsToFloat": _sigs("genUType -> genType"),
+    "intBitsToFloat": _sigs("genIType -> genType"),
+    "packHalf2x16": _sigs("vec2 -> uint"),
+    "unpackHalf2x16": _sigs("uint -> vec2"),
 }
+
+# Builtins whose float arguments or results are bit patterns: the float64 evaluation rounds
+# their float arguments to float32 and widens their float results (docs/internals.md).
+BIT_CAST_BUILTINS = frozenset({"floatBitsToUint", "floatBitsToInt", "uintBitsToFloat",
+                               "intBitsToFloat", "packHalf2x16", "unpackHalf2x16"})
 
 
 def resolve_builtin(name: str, args: Sequence[ir.Type]) -> Optional[ir.Type]:

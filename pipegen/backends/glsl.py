@@ -99,6 +99,11 @@ UNIFORMS = [("mat4", "u_view"), ("mat4", "u_proj"), ("mat4", "u_inv_view"),
             ("vec2", "u_output_size"), ("uint", "u_num_lights"), ("sampler2D", "u_lights")]
 
 
+# packHalf2x16 / unpackHalf2x16 are GLSL 4.20; a 330 shader that calls them enables the
+# extension (Mesa has it everywhere): only those shaders get the line
+PACKING_BUILTINS = frozenset({"packHalf2x16", "unpackHalf2x16"})
+PACKING_EXTENSION = "GL_ARB_shading_language_packing"
+
 
 class GLSLLanguage(CStyleLanguage):
     """GLSL 330 core.  The IR's type spellings are GLSL's, so ``type_names`` stays empty."""
@@ -117,9 +122,15 @@ class GLSLLanguage(CStyleLanguage):
         lights = pass_ is not None and pass_.draw.kind is DrawKind.LIGHTS
         self.current_light = "v_light" if lights else "u_light"
         self.unclamped: set[str] = set()   # targets whose load(T) needs no clamp
+        self.extensions: list[str] = []    # #extension lines the shader needs (packHalf2x16)
         if tech and pass_:
             size = _render_size(tech, pass_)
             self.unclamped = {r for r in pass_.reads if tech.target(r).size == size}
+
+    def render_builtin(self, name: str, args: list[str], types: list[Type], ret: Type) -> str:
+        if name in PACKING_BUILTINS and PACKING_EXTENSION not in self.extensions:
+            self.extensions.append(PACKING_EXTENSION)
+        return super().render_builtin(name, args, types, ret)
 
     def render_input(self, name: str, t: Type) -> str:
         if name == "light_index":
@@ -210,7 +221,8 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
         "gl_fragment.glsl.j2", **common, stage="fragment", varyings=varyings,
         samplers=[{"name": r, "type": "usampler2D" if tech.target(r).format.is_integer
                    else "sampler2D"} for r in p.reads],
-        outputs=[_output(tech.target(w)) for w in p.writes], functions=code, body=body)
+        outputs=[_output(tech.target(w)) for w in p.writes], functions=code, body=body,
+        extensions=lang.extensions)
     sampled = planlib.sampled_targets(p.body, functions)
     return {"vertex": emit_vertex(tech, p, common, varyings, attributes), "fragment": fragment,
             "sampled": [r for r in p.reads if r in sampled],

@@ -159,6 +159,69 @@ SCENE_FLAT = {"object_id": "y", "normal_group": "z", "layer": "w"}
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
+# ---- bit casts and half packing --------------------------------------------------------------
+#
+# ``packHalf2x16`` / ``unpackHalf2x16`` as llvmpipe computes them (measured on Mesa 22.3,
+# tests/test_bitcasts.py; docs/language.md "Bit casts and half packing"): round to nearest
+# even, overflow (|x| >= 65520) to +-inf, float32 values below 2^-14 to half denormals, a NaN to
+# sign | 0x7fff; unpacking is exact, except that a half NaN becomes sign | 0x7fffffff.  Integer
+# code, so the runtime's denormals-are-zero mode cannot touch it.  These functions go into the
+# programs that use them only (the prelude, in every program, stays as it is).
+BIT_HELPERS = {
+    "pg_half_bits_rte": """\
+static inline uint pg_half_bits_rte(const float f) {
+    const uint u = as_uint(f), s = (u >> 16) & 0x8000u, a = u & 0x7fffffffu;
+    if (a > 0x7f800000u) return s | 0x7fffu;                /* NaN: llvmpipe's code */
+    if (a >= 0x477ff000u) return s | 0x7c00u;               /* 65520 and up: inf */
+    if (a >= 0x38800000u) {                                 /* normal half */
+        const uint r = a - 0x38000000u;
+        return s | ((r + 0x0fffu + ((r >> 13) & 1u)) >> 13);
+    }
+    if (a <= 0x33000000u) return s;                         /* 2^-25 and below: zero */
+    const uint m = (a & 0x007fffffu) | 0x00800000u, sh = 126u - (a >> 23);   /* 14..24 */
+    const uint q = m >> sh, rem = m & ((1u << sh) - 1u), mid = 1u << (sh - 1u);
+    return s | (q + ((rem > mid || (rem == mid && (q & 1u))) ? 1u : 0u));   /* denormal */
+}""",
+    "pg_half_bits_to_float_gl": """\
+static inline float pg_half_bits_to_float_gl(const uint h) {
+    const uint s = (h & 0x8000u) << 16, e = (h >> 10) & 31u, m = h & 1023u;
+    if (e == 31u) return as_float(s | (m ? 0x7fffffffu : 0x7f800000u));   /* NaN: llvmpipe's */
+    if (e == 0u) return as_float(s | as_uint((float)m * 5.9604644775390625e-8f));  /* exact */
+    return as_float(s | ((e + 112u) << 23) | (m << 13));
+}""",
+    "pg_pack_half2x16": """\
+static inline uint pg_pack_half2x16(const float2 v) {
+    return pg_half_bits_rte(v.x) | (pg_half_bits_rte(v.y) << 16);
+}""",
+    "pg_unpack_half2x16": """\
+static inline float2 pg_unpack_half2x16(const uint p) {
+    return (float2)(pg_half_bits_to_float_gl(p & 0xffffu), pg_half_bits_to_float_gl(p >> 16));
+}""",
+}
+_BIT_HELPER_DEPS = {"pg_pack_half2x16": ("pg_half_bits_rte",),
+                    "pg_unpack_half2x16": ("pg_half_bits_to_float_gl",)}
+
+
+def _bitcast(name: str):
+    """The ``builtin_map`` entry of a bit cast: the float32 bits (``OpenCLLanguage64`` rounds
+    its double arguments to float32 first and widens float results back)."""
+    def render(self, args, types, ret):
+        a, t = args[0], types[0]
+        n = "" if t.size == 1 else str(t.size)
+        if name in ("floatBitsToUint", "floatBitsToInt", "packHalf2x16"):
+            if self.real == "double":
+                a = f"convert_float{n}({a})"
+            if name == "packHalf2x16":
+                return f"{self.use_helper('pg_pack_half2x16')}({a})"
+            return f"as_{self.type_name(ret)}({a})"
+        if name == "unpackHalf2x16":
+            v, n = f"{self.use_helper('pg_unpack_half2x16')}({a})", "2"
+        else:
+            v = f"as_float{n}({a})"
+        return f"convert_double{n}({v})" if self.real == "double" else v
+    return render
+
+
 class OpenCLLanguage(CStyleLanguage):
     """OpenCL C 1.2 (PoCL).  User functions take the fragment context ``in`` as a hidden first
     parameter, since OpenCL has no program-scope uniforms."""
@@ -175,6 +238,8 @@ class OpenCLLanguage(CStyleLanguage):
         "pow": "pg_pow({0}, {1})", "exp2": "pg_exp2", "log2": "pg_log2", "exp": "pg_exp",
         "log": "pg_log",
         "atan": lambda self, a, t, r: f"atan2({a[0]}, {a[1]})" if len(a) == 2 else f"atan({a[0]})",
+        **{n: _bitcast(n) for n in ("floatBitsToUint", "floatBitsToInt", "uintBitsToFloat",
+                                    "intBitsToFloat", "packHalf2x16", "unpackHalf2x16")},
     }
     # llvmpipe (NIR) lowers mix(x, y, constant t) to x * (1 - t) + y * t (measured); emit_cl
     # runs the pass on the technique, this catches expressions rendered on their own
@@ -194,6 +259,13 @@ class OpenCLLanguage(CStyleLanguage):
         self.tech, self.pass_ = tech, pass_
         self.light_fields = tuple(f.name for f in tech.lights.fields) if tech else ()
         self.in_body = False
+        self.raw_helpers: dict[str, str] = {}   # BIT_HELPERS used, dependencies first
+
+    def use_helper(self, name: str) -> str:
+        """Name a function of ``BIT_HELPERS``, recording it (and what it calls) for the program."""
+        for dep in _BIT_HELPER_DEPS.get(name, ()) + (name,):
+            self.raw_helpers.setdefault(dep, BIT_HELPERS[dep])
+        return name
 
     # -- names and hidden context parameter ------------------------------------------------------
     def signature(self, f: ir.Function) -> str:
@@ -887,6 +959,8 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass,
     lang.in_body = False
     if lang.helpers:
         code = [lang.helper_source()] + code
+    if lang.raw_helpers:
+        code = ["\n\n".join(lang.raw_helpers.values())] + code
     main = "\n".join(["static inline bool pg_fragment(const pg_in *in, pg_out *out) {", *body,
                       "    return true;", "}"])
     text = "\n\n".join(code + [main]) + "\n"
