@@ -161,7 +161,7 @@ def test_store_bounds_of_the_formats():
     # rgb10a2 goes through llvmpipe's 16-bit path and Mesa's truncating scale_bits: one code
     e = B.store_error(F.get("rgb10a2"), np.zeros(4))
     assert e[0] == pytest.approx(1 / 1023) and e[3] == pytest.approx(1 / 3)
-    # half: one ulp toward zero (2^-10 at 1.0, 32 at 65504), values below 2^-14 may flush
+    # half: one ulp toward zero (2^-10 at 1.0, 32 at 65504), values below 2^-13 may flush
     h = B.store_error(F.get("rgba16f"), np.array([1.0, 65504.0, 1e-5, 0.0]))
     assert list(h) == pytest.approx([2.0 ** -10, 32.0, 2.0 ** -24 + 1e-5, 2.0 ** -24])
     assert B.store_error(F.get("r32f"), np.array([1.0]))[0] == pytest.approx(2.0 ** -24)

@@ -81,9 +81,10 @@ def store_error(fmt: F.Format, v: np.ndarray) -> np.ndarray:
             codes = np.where(bits < 16, 1.0, 0.5 + 2.0 ** -7)
         return np.broadcast_to(codes / top, v.shape).astype(np.float64)
     if fmt.kind is F.Kind.FLOAT and max(fmt.bits) == 16:
-        # toward zero: one ulp; below half's normal range the float32 runs flush to zero
+        # toward zero: one ulp; below half's normal range the float32 runs flush to zero,
+        # and a value up to twice that may be computed below it (its own error) and flushed
         a = np.abs(finite)
-        return half_ulp_abs(finite) + np.where(a < 2.0 ** -14, a, 0.0)
+        return half_ulp_abs(finite) + np.where(a < 2.0 ** -13, a, 0.0)
     if fmt.kind is F.Kind.FLOAT:
         return 0.5 * ulp32(finite) + 2.0 ** -126
     return np.zeros(v.shape)
