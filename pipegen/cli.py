@@ -106,8 +106,20 @@ def main(argv: list[str] | None = None) -> int:
         return 130
 
 
+class _Version(argparse.Action):
+    """``--version``: the installed version, looked up only when asked for (importlib.metadata
+    costs every other command tens of milliseconds)."""
+
+    def __init__(self, option_strings, dest, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from . import __version__
+        print(f"pipegen {__version__}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
     fmt = argparse.RawDescriptionHelpFormatter
     everything = "".join(EXAMPLES[c] for c in COMMANDS)
     parser = argparse.ArgumentParser(
@@ -115,7 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Compile real-time rendering techniques (.pipe files) to GLSL + moderngl "
                     "and OpenCL C + PoCL pipelines, run them, and check one against the other.",
         epilog="examples:\n" + everything + "\n" + OUTPUT_NOTE, formatter_class=fmt)
-    parser.add_argument("--version", action="version", version=f"pipegen {__version__}")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     def command(name: str, summary: str, func, output_note: bool = True,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 import importlib.resources
-from typing import Callable
+from typing import Callable, Optional
 
 import jinja2
 
@@ -31,11 +31,31 @@ def _load(name: str):
     return res.read_text(encoding="utf-8") if res.is_file() else None
 
 
+def _bytecode_cache() -> Optional[jinja2.BytecodeCache]:
+    """Compiled templates kept in the user's pipegen cache folder (``syntax.cache_dir``):
+    compiling every template from source costs a fresh process ~150 ms.  Used only when the
+    folder is the user's own and writable by no one else (the cache holds code); otherwise,
+    or when it cannot be created, templates are compiled each time."""
+    import os
+    from ..syntax import _private, cache_dir
+    base = cache_dir()
+    if base is None:
+        return None
+    folder = os.path.join(base, "templates")
+    try:
+        os.makedirs(folder, mode=0o700, exist_ok=True)
+        if not (_private(os.stat(base)) and _private(os.stat(folder))):
+            return None
+    except OSError:
+        return None
+    return jinja2.FileSystemBytecodeCache(folder)
+
+
 @functools.cache
 def environment() -> jinja2.Environment:
     env = jinja2.Environment(loader=jinja2.FunctionLoader(_load), undefined=jinja2.StrictUndefined,
                              trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
-                             autoescape=False)
+                             autoescape=False, bytecode_cache=_bytecode_cache())
     env.filters.update(FILTERS)
     return env
 
