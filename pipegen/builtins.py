@@ -167,12 +167,18 @@ STAGE_INPUTS: dict[str, StageInput] = {
     **_inputs(Where.EVERYWHERE, ir.VEC4, "frag_coord"),
     **_inputs(Where.EVERYWHERE, ir.VEC3, "camera_pos", "ambient"),
     **_inputs(Where.EVERYWHERE, ir.MAT4, "view", "proj", "inv_view", "inv_proj"),
+    # the previous frame's camera (Scene.prev_camera): motion vectors
+    **_inputs(Where.EVERYWHERE, ir.MAT4, "prev_view", "prev_proj"),
     **_inputs(Where.EVERYWHERE, ir.VEC2, "output_size"),
     **_inputs(Where.EVERYWHERE, ir.UINT, "num_lights"),
     **_inputs(Where.SCENE, ir.VEC3, "world_pos", "view_pos", "normal", "view_normal", "albedo"),
     **_inputs(Where.SCENE, ir.FLOAT, "specular", "shininess", "alpha"),
     **_inputs(Where.SCENE, ir.UINT, "object_id", "normal_group", "layer"),
 }
+
+# Stage inputs a backend passes only to the passes that read them (so adding them changed no
+# other shader): the previous frame's camera.
+PREVIOUS_FRAME_INPUTS = ("prev_view", "prev_proj")
 
 # ``light.FIELD`` (where: Where.LIGHT) and ``lights[i].FIELD`` (everywhere) read these fields.
 # A schema lists the ones a technique uses; the scene loader fills them per light.

@@ -14,6 +14,10 @@ A scene file::
     near = 0.1                       # optional
     far = 100                        # optional
 
+    [camera.previous]                # optional: the camera of the previous frame (motion
+    position = [0.2, 7, 11]          # vectors: prev_view, prev_proj); missing keys are the
+                                     # camera's; default: the camera itself (no motion)
+
     [gltf]                           # optional: a glTF file's objects, camera and lights
     file = "model.glb"               # (then [camera], [[objects]], width/height are optional)
 
@@ -258,6 +262,16 @@ class Scene:
     name: str = "scene"
     clear_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     notes: tuple[str, ...] = ()            # what the loaders ignored or changed, said once
+    previous_camera: Optional[Camera] = None   # the previous frame's; None: ``camera``
+
+    @property
+    def prev_camera(self) -> Camera:
+        """The previous frame's camera (``prev_view``, ``prev_proj``): ``camera`` unless the
+        scene gives one (``[camera.previous]``)."""
+        return self.previous_camera if self.previous_camera is not None else self.camera
+
+    def with_previous_camera(self, camera: Optional[Camera]) -> "Scene":
+        return dataclasses.replace(self, previous_camera=camera)
 
     def with_size(self, width: int, height: int) -> "Scene":
         if width < 1 or height < 1:
@@ -555,10 +569,15 @@ def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", na
     width = top.integer("width", None if sized else DEFAULT_SIZE[0], minimum=1, maximum=16384)
     height = top.integer("height", None if sized else DEFAULT_SIZE[1], minimum=1, maximum=16384)
     ambient = np.array(top.vec3("ambient", [0.0, 0.0, 0.0]))
-    if imported is not None and not top.has("camera"):
+    cam_table = data.get("camera")
+    if imported is not None and (not top.has("camera") or (
+            isinstance(cam_table, dict) and set(cam_table) <= {"previous"})):
         camera = imported.camera
     else:
         camera = _camera(top.sub("camera"))
+    previous = None
+    if isinstance(cam_table, dict) and "previous" in cam_table:
+        previous = _camera(top.sub("camera").sub("previous"), base=camera)
 
     objects_raw = data.get("objects", [])
     if not isinstance(objects_raw, list) or (not objects_raw and imported is None):
@@ -594,7 +613,7 @@ def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", na
         lights = list(imported.lights) + lights
     _report(notes)
     return Scene(width, height, ambient, tuple(objects), tuple(lights), camera,
-                 name=top.string("name", name), notes=tuple(notes))
+                 name=top.string("name", name), notes=tuple(notes), previous_camera=previous)
 
 
 class SceneLoadWarning(UserWarning):
@@ -637,15 +656,22 @@ def _gltf_reference(r: _Reader, base_dir: Path):
     return imported
 
 
-def _camera(r: _Reader) -> Camera:
-    r.check_keys({"position", "target", "up", "fov_y_deg", "near", "far"})
+def _camera(r: _Reader, base: Optional[Camera] = None) -> Camera:
+    """``[camera]``, or with ``base`` ``[camera.previous]``: its missing keys are ``base``'s."""
+    if not isinstance(r.table, dict):
+        r.fail((), f"'{_describe(r.path)}' must be a table")
+    r.check_keys({"position", "target", "up", "fov_y_deg", "near", "far"}
+                 | ({"previous"} if base is None else set()))
+    d = (lambda k, v: v) if base is None else (lambda k, v: list(getattr(base, k))
+                                               if isinstance(getattr(base, k), tuple)
+                                               else getattr(base, k))
     cam = Camera(
-        position=r.vec3("position"),
-        target=r.vec3("target"),
-        up=r.vec3("up", [0.0, 1.0, 0.0], nonzero=True),
-        fov_y_deg=r.number("fov_y_deg"),
-        near=r.number("near", 0.1, positive=True),
-        far=r.number("far", 100.0, positive=True),
+        position=r.vec3("position", d("position", None)),
+        target=r.vec3("target", d("target", None)),
+        up=r.vec3("up", d("up", [0.0, 1.0, 0.0]), nonzero=True),
+        fov_y_deg=r.number("fov_y_deg", d("fov_y_deg", None)),
+        near=r.number("near", d("near", 0.1), positive=True),
+        far=r.number("far", d("far", 100.0), positive=True),
     )
     if not 0.0 < cam.fov_y_deg < 180.0:
         r.fail("fov_y_deg", f"camera.fov_y_deg must be in (0, 180), got {cam.fov_y_deg}")

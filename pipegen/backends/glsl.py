@@ -40,7 +40,7 @@ from ..ir import DrawKind, Scalar, Type, Volume
 from . import plan as planlib
 from .plan import GLPassCode, Plan
 from . import templating
-from ..builtins import VOLUME_LIGHT_FIELDS
+from ..builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
 
 # GLSL keywords, reserved words and the builtin functions this backend emits: user identifiers
@@ -68,6 +68,7 @@ INPUTS: dict[str, tuple[str, Optional[str]]] = {
     "frag_coord": ("gl_FragCoord", None), "camera_pos": ("u_camera_pos", None),
     "view": ("u_view", None), "proj": ("u_proj", None), "inv_view": ("u_inv_view", None),
     "inv_proj": ("u_inv_proj", None), "output_size": ("u_output_size", None),
+    "prev_view": ("u_prev_view", None), "prev_proj": ("u_prev_proj", None),
     "num_lights": ("u_num_lights", None), "ambient": ("u_ambient", None),
     "world_pos": ("v_world_pos", "v_world_pos"), "view_pos": ("v_view_pos", "v_view_pos"),
     "normal": ("v_normal", "v_normal"), "view_normal": ("v_view_normal", "v_view_normal"),
@@ -216,7 +217,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
         varyings, attributes = [], []
 
     common = {"technique": tech.name, "pass_name": p.name, "draw": p.draw.describe(),
-              "source": tech.source, "uniforms": _uniforms(p)}
+              "source": tech.source, "uniforms": _uniforms(p, inputs)}
     fragment = templating.render(
         "gl_fragment.glsl.j2", **common, stage="fragment", varyings=varyings,
         samplers=[{"name": r, "type": "usampler2D" if tech.target(r).format.is_integer
@@ -254,6 +255,8 @@ def _output(t: ir.Target) -> dict:
             "zero": "uvec4(0u)" if integer else "vec4(0.0)"}
 
 
-def _uniforms(p: ir.Pass) -> list[dict]:
+def _uniforms(p: ir.Pass, inputs: frozenset = frozenset()) -> list[dict]:
     extra = [("uint", "u_light")] if p.repeat_per_light else []
+    # the previous frame's camera: declared only where read (other shaders stay as they were)
+    extra += [("mat4", INPUTS[n][0]) for n in PREVIOUS_FRAME_INPUTS if n in inputs]
     return [{"type": t, "name": n} for t, n in UNIFORMS + extra]

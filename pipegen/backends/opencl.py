@@ -77,7 +77,7 @@ from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
 from . import templating
-from ..builtins import VOLUME_LIGHT_FIELDS
+from ..builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
 from ..passes import lower_mix_constant
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
 
@@ -134,6 +134,7 @@ INPUTS = {
     "frag_coord": "in->frag_coord", "camera_pos": "in->frame->camera_pos.xyz",
     "view": "in->frame->view", "proj": "in->frame->proj", "inv_view": "in->frame->inv_view",
     "inv_proj": "in->frame->inv_proj", "output_size": "in->frame->output_size.xy",
+    "prev_view": "in->frame->prev_view", "prev_proj": "in->frame->prev_proj",
     "num_lights": "in->frame->num_lights", "ambient": "in->frame->ambient.xyz",
     "light_index": "in->light",
 }
@@ -717,11 +718,13 @@ def c_comment(text: str, width: int = 95) -> str:
     return "\n".join(lines)
 
 
-def prelude_source(tile: int = TILE, precision: str = "f32") -> str:
+def prelude_source(tile: int = TILE, precision: str = "f32", previous: bool = False) -> str:
     """The prelude every pass program starts with (``templates/cl_prelude.cl.j2``); with
-    ``precision="f64"`` followed by the float64 evaluation's building blocks."""
+    ``precision="f64"`` followed by the float64 evaluation's building blocks; ``previous``:
+    the frame structs end with the previous frame's camera (``prev_view``, ``prev_proj``)."""
     return templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines(),
-                             scaled16=scaled16_conversions(), f64=precision == "f64")
+                             scaled16=scaled16_conversions(), f64=precision == "f64",
+                             previous=previous)
 
 
 def _rcp(maxima) -> str:
@@ -890,7 +893,9 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     fields = [f[0] for f in plan.lights.fields]
     volume = (draw.volume or ir.Volume.SPHERE).value
     slots = {f: k for k, f in enumerate(fields)}
-    prelude = prelude_source(tile, precision)
+    # the previous frame's camera: in the frame struct of the programs that read it only
+    # (the host's frame buffer always holds it, after the common fields)
+    prelude = prelude_source(tile, precision, previous=bool(inputs & set(PREVIOUS_FRAME_INPUTS)))
     samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
     varyings = varying_slots(pass_)

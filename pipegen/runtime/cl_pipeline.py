@@ -86,15 +86,18 @@ FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
                         ("inv_view", "<f4", (16,)), ("inv_proj", "<f4", (16,)),
                         ("camera_pos", "<f4", (4,)), ("ambient", "<f4", (4,)),
                         ("output_size", "<f4", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
-                        ("light_fields", "<u4"), ("pad", "<u4")])
-assert FRAME_DTYPE.itemsize == 320
+                        ("light_fields", "<u4"), ("pad", "<u4"),
+                        # the previous frame's camera: in the struct of programs that read it
+                        ("prev_view", "<f4", (16,)), ("prev_proj", "<f4", (16,))])
+assert FRAME_DTYPE.itemsize == 448
 # host image of the prelude's pg_frame64 (the float64 evaluation), padded to its alignment
 FRAME64_DTYPE = np.dtype([("view", "<f8", (16,)), ("proj", "<f8", (16,)),
                           ("inv_view", "<f8", (16,)), ("inv_proj", "<f8", (16,)),
                           ("camera_pos", "<f8", (4,)), ("ambient", "<f8", (4,)),
                           ("output_size", "<f8", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
-                          ("light_fields", "<u4"), ("pad", "<u4"), ("pad2", "<u4", (4,))])
-assert FRAME64_DTYPE.itemsize == 640
+                          ("light_fields", "<u4"), ("pad", "<u4"), ("pad2", "<u4", (4,)),
+                          ("prev_view", "<f8", (16,)), ("prev_proj", "<f8", (16,))])
+assert FRAME64_DTYPE.itemsize == 896
 
 
 def _colmajor(m: np.ndarray) -> np.ndarray:
@@ -215,6 +218,10 @@ class CLPipeline:
         fr["proj"] = _colmajor(proj)
         fr["inv_view"] = _colmajor(np.linalg.inv(view))
         fr["inv_proj"] = _colmajor(np.linalg.inv(proj))
+        prev = getattr(scene, "prev_camera", cam)
+        prev_view, prev_proj = prev.view_matrix(), prev.projection(out_w / out_h)
+        fr["prev_view"] = _colmajor(prev_view)
+        fr["prev_proj"] = _colmajor(prev_proj)
         fr["camera_pos"][:3] = np.asarray(cam.position, np.float32)
         fr["ambient"][:3] = np.asarray(scene.ambient, np.float32)
         fr["output_size"][:2] = (out_w, out_h)
@@ -225,7 +232,8 @@ class CLPipeline:
         if self.f64:
             f8 = np.zeros((), FRAME64_DTYPE)
             for name, m in (("view", view), ("proj", proj), ("inv_view", np.linalg.inv(view)),
-                            ("inv_proj", np.linalg.inv(proj))):
+                            ("inv_proj", np.linalg.inv(proj)), ("prev_view", prev_view),
+                            ("prev_proj", prev_proj)):
                 f8[name] = np.asarray(m, np.float64).T.reshape(16)
             f8["camera_pos"][:3] = np.asarray(cam.position, np.float64)
             f8["ambient"][:3] = np.asarray(scene.ambient, np.float64)

@@ -430,8 +430,11 @@ class GLPipeline:
         view = np.asarray(cam.view_matrix(), np.float64)
         proj = np.asarray(cam.projection(size[0] / size[1]), np.float64)
         # GLSL mat4 uniforms are column-major: the transpose's row-major bytes
+        prev = getattr(scene, "prev_camera", cam)   # previous frame (declared where read)
         mats = {"u_view": view, "u_proj": proj, "u_inv_view": np.linalg.inv(view),
-                "u_inv_proj": np.linalg.inv(proj)}
+                "u_inv_proj": np.linalg.inv(proj),
+                "u_prev_view": np.asarray(prev.view_matrix(), np.float64),
+                "u_prev_proj": np.asarray(prev.projection(size[0] / size[1]), np.float64)}
         eye = np.asarray(getattr(cam, "position"), np.float32)
         self._view, self._proj = view, proj
         for p in self.passes:
