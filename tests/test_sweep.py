@@ -54,20 +54,30 @@ def test_axes_parse_values_and_merge():
 
 
 def test_declared_axes_are_allowed_values_and_bools():
-    variants, compiled = plan_variants([INFERRED])
-    assert declared_axes(compiled[0].technique) == {"lbuffer_scale": [0.5, 0.625, 0.75, 1.0],
-                                                   "dsf": [False, True]}
-    assert len(variants) == 8
+    from pipegen.compiler import compile_file
+    tech = compile_file(INFERRED).technique
+    axes = declared_axes(tech)
+    assert axes["lbuffer_scale"] == [0.5, 0.625, 0.75, 1.0] and set(axes["dsf"]) == {True, False}
+    assert axes == {p.name: list(p.allowed) if p.allowed else [False, True]
+                    for p in tech.params if p.allowed or p.type.scalar.value == "bool"}
+    # without -p: the cartesian product of the declared axes (lidr_bitplanes: index_bits)
+    variants, _ = plan_variants([LIDRS[2]])
+    assert [v.params for v in variants] == [(("index_bits", b),) for b in (8, 16, 32)]
+    variants, _ = plan_variants([INFERRED], parse_axes(["lbuffer_scale=0.5,1.0",
+                                                        "dsf=false,true"]))
+    assert len(variants) == 4
     assert variants[0].params == (("lbuffer_scale", 0.5), ("dsf", False))
     assert variants[0].label == "inferred lbuffer_scale=0.5 dsf=false"
-    assert len({v.slug for v in variants}) == 8
 
 
 def test_several_files_share_the_axes_they_declare():
-    variants, _ = plan_variants([INFERRED, *LIDRS], parse_axes(["lbuffer_scale=0.5,1.0"]))
+    variants, _ = plan_variants([INFERRED, *LIDRS], parse_axes(["lbuffer_scale=0.5,1.0",
+                                                                "index_bits=8,32"]))
     assert [v.technique for v in variants] == ["inferred", "inferred", "lidr_cpu_sort",
-                                               "lidr_max_stencil", "lidr_bitplanes"]
-    assert [v.params for v in variants[2:]] == [(), (), ()]
+                                               "lidr_max_stencil", "lidr_bitplanes",
+                                               "lidr_bitplanes"]
+    assert [v.params for v in variants[2:]] == [(), (), (("index_bits", 8),),
+                                                (("index_bits", 32),)]
 
 
 def test_unknown_axis_and_disallowed_value_are_errors():
@@ -102,7 +112,7 @@ def test_help_shows_examples_and_defaults(capsys):
     assert {line.split()[1] for line in examples.splitlines()
             if line.strip().startswith("pipegen ")} == {"sweep"}
     flat = " ".join(text.split())
-    for d in ("(default: 5; 0: no timing)", "(default: gl,cl;", "(default: 2)",
+    for d in ("(default: 5; 0: no timing)", "(default: gl,cl;", "default: 2)",
               "pipegen[dask]", "1280x720 for the built-in scene"):
         assert d in flat, d
 
@@ -121,7 +131,9 @@ def test_command_line_misuse():
 @pytest.fixture(scope="module")
 def inferred_sweep(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep") / "inferred"
+    # the L-buffer axes only: the normal encodings and formats make 96 more variants each
     r = pipegen("sweep", INFERRED, "--scene", ROOT / "examples/scenes/edges.toml",
+                "-p", "lbuffer_scale=0.5,0.625,0.75,1.0", "-p", "dsf=false,true",
                 "--size", "128x72", "--frames", "1", "--jobs", "2", "--no-progress", "-o", out)
     assert r.returncode == 0, r.stderr
     return out, r.stdout
@@ -194,22 +206,31 @@ def test_inferred_sweep_f64_error_is_at_most_the_scene_error(inferred_sweep):
 
 @pytest.mark.gl
 @pytest.mark.cl
-def test_lidr_sweep_compares_three_techniques(tmp_path):
+def test_lidr_sweep_trades_capacity_for_error(tmp_path):
+    """The three LIDRs side by side, lidr_bitplanes over index_bits 8/16/32 (4/2/1 lights per
+    pixel): the same image within capacity, error growing as the packing drops lights."""
     out = tmp_path / "lidr"
     r = pipegen("sweep", *LIDRS, "--scene", ROOT / "examples/scenes/many_lights.toml",
+                "-p", "index_bits=8,16,32",
                 "--size", "64x36", "--frames", "0", "--no-progress", "-o", out)
     assert r.returncode == 0, r.stderr
     assert "frame times: not measured (--frames 0)" in r.stdout
     rows = read_rows(out)
-    assert [(x["technique"], x["backend"]) for x in rows] == [
-        (t, b) for t in ("lidr_cpu_sort", "lidr_max_stencil", "lidr_bitplanes")
+    assert [(x["technique"], x["params"], x["backend"]) for x in rows] == [
+        (t, p, b) for t, p in (("lidr_cpu_sort", ""), ("lidr_max_stencil", ""),
+                               ("lidr_bitplanes", "index_bits=8"),
+                               ("lidr_bitplanes", "index_bits=16"),
+                               ("lidr_bitplanes", "index_bits=32"))
         for b in ("gl", "cl")]
     assert all(x["agree"] == "true" for x in rows), [x["notes"] for x in rows]
     assert all(x["frame_ms"] == "" and num(x["rmse_scene"]) >= 0 for x in rows)
-    # nearly the same image from the three packings (81 lights, at most 4 per pixel)
     rmse = [num(x["rmse_scene"]) for x in rows]
-    assert max(rmse) - min(rmse) < 0.5, rmse
-    assert len(list((out / "errors").glob("*.png"))) == 6 and (out / "pareto.png").exists()
+    # within capacity (at most 4 lights per pixel): nearly the same image from every packing
+    assert max(rmse[:6]) - min(rmse[:6]) < 0.5, rmse
+    # 2 and 1 lights per pixel: lights dropped, error grows
+    assert rmse[5] + 1 < rmse[7] < rmse[9], rmse
+    assert "holds 1: lights will be dropped" in rows[9]["notes"]
+    assert len(list((out / "errors").glob("*.png"))) == 10 and (out / "pareto.png").exists()
 
 
 @pytest.mark.gl
