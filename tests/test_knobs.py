@@ -25,7 +25,9 @@ def test_shipped_knobs():
         "normal_format": ("rg8", "rgb10a2", "rg16", "rg16f"),
         "lbuffer_format": ("rgba16f", "rgba32f")}
     assert allowed("lidr_bitplanes") == {"index_bits": (8, 16, 32)}
-    assert allowed("deferred_calver") == {"lut_size": (64, 256, 1024, 4096)}
+    assert allowed("deferred_calver") == {"lut_size": (64, 256, 1024, 4096),
+                                          "tonemap": (False, True), "fog": (0, 1, 2),
+                                          "dof_taps": (0, 4, 8, 16)}
 
 
 @pytest.mark.parametrize("bits, capacity, constant", [(8, 4, 0.25), (16, 2, 0.0625),
