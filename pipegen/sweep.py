@@ -66,10 +66,10 @@ F64_NOTE = ("f64 columns are empty: this compiler's Compiled.pipeline does not t
             "precision='f64' yet")
 
 EXAMPLES = """\
-  pipegen sweep pipelines/inferred.pipe --scene examples/scenes/edges.toml -o out/sweep-inferred
-      lbuffer_scale x dsf (the declared allowed values), GL and CL, Pareto plot and error maps
+  pipegen sweep pipelines/inferred.pipe --scene examples/scenes/edges.toml -p lbuffer_scale=0.5,0.625,0.75,1.0 -p dsf=false,true -o out/sweep-inferred
+      lbuffer_scale x dsf, GL and CL, Pareto plot and error maps
   pipegen sweep pipelines/lidr_cpu_sort.pipe pipelines/lidr_max_stencil.pipe pipelines/lidr_bitplanes.pipe --scene examples/scenes/many_lights.toml -o out/sweep-lidr
-      three techniques side by side on one scene
+      three techniques side by side on one scene (lidr_bitplanes over its index_bits)
   pipegen sweep pipelines/inferred.pipe -p lbuffer_scale=0.5,1.0 -p dsf=true --size 640x360 --frames 9 -o out/s
   pipegen sweep pipelines/inferred.pipe --scheduler tcp://10.0.0.5:8786 -o out/s
       renders on a Dask cluster (pip install 'pipegen[dask]'); timings on one of its workers
