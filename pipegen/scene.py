@@ -527,10 +527,12 @@ def load_scene(path: str | Path) -> Scene:
     if path.suffix.lower() in (".gltf", ".glb"):
         from . import gltf
         return gltf.load_gltf_scene(path)
+    from .sources import read_source
     try:
-        text = path.read_text()
+        text = read_source(str(path))     # regular UTF-8 files only; a bad byte is located
     except OSError as e:
-        raise PipegenError(None, f"cannot read scene file '{path}': {e.strerror}") from None
+        raise PipegenError(None, f"cannot read scene file '{path}': {e.strerror or e}",
+                           hint="pass a scene .toml (or a .gltf / .glb file)") from None
     return parse_scene(text, str(path), base_dir=path.parent, name=path.stem)
 
 

@@ -249,3 +249,13 @@ def test_bad_utf8_after_a_byte_order_mark_is_located():
         sources.decode(b"\xef\xbb\xbfab\ncd\xffe", "f.pipe")
     assert (info.value.span.line, info.value.span.column) == (2, 3)
     assert sources.decode(b"\xef\xbb\xbftechnique t", "f.pipe") == "technique t"
+
+
+def test_scene_file_that_is_not_utf8_is_located(tmp_path):
+    """A scene file with a bad byte: an error at its line and column, not a traceback."""
+    from pipegen.scene import load_scene
+    bad = tmp_path / "bad.toml"
+    bad.write_bytes(b"width = 64\n# \xff\xfe bad\n")
+    with pytest.raises(PipegenError) as e:
+        load_scene(bad)
+    assert "bad.toml:2:3: error: the file is not valid UTF-8 (byte 0xff)" in e.value.render()
