@@ -13,7 +13,7 @@ EXAMPLES = """\
   pipegen stress pipelines/deferred.pipe
       every case on the built-in scene at 96x64: table on stdout, exit 1 if a bound breaks
   pipegen stress pipelines/inferred.pipe --cases quick --size 48x32
-      the quick group (what CI runs)
+      the quick group (13 cases); --cases ci is what the tests run on every shipped technique
   pipegen stress pipelines/forward.pipe --scene examples/scenes/small.toml --cases far_1e3,far_1e4 -o out/stress
       two cases on another base scene; PNGs of the worst pixels and the failing scenes in out/stress
   pipegen stress pipelines/forward.pipe --cases none --random 20 --seed 3 -o out/stress
