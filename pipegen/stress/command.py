@@ -25,8 +25,8 @@ def add_parser(sub, size_arg, output_note: str):
     from .cases import CASES, GROUPS
     p = sub.add_parser(
         "stress", help="render adversarial scenes, hold every target to its error bound",
-        description="Build adversarial scenes from the technique and a base scene (DESIGN.md "
-                    "§8), render each on GL, CL and the technique's float64 evaluation, and "
+        description="Build adversarial scenes from the technique and a base scene (the hard "
+                    "cases of docs/stress.md), render each on GL, CL and the technique's float64 evaluation, and "
                     "hold every target of both float32 backends to an error bound composed "
                     "through the pipeline's stores, blends and reads (docs/stress.md). Exit 1 "
                     "when a bound breaks on the output target or GL and CL disagree.",

@@ -53,7 +53,7 @@ def notes(results: list[CaseResult]) -> list[str]:
         for m in r.mismatches:
             out.append(f"{r.case}: {m}")
         if r.disagree:
-            out.append(f"{r.case}: GL and CL disagree beyond DESIGN §7's tolerance on "
+            out.append(f"{r.case}: GL and CL disagree beyond pipegen check's tolerance on "
                        f"{', '.join(r.disagree)}")
         bad = sorted({t.key for t in r.targets if not t.passed})
         if bad and r.status in ("warn", "FAIL", "unsupported"):
