@@ -71,7 +71,7 @@ EXAMPLES = """\
   pipegen sweep pipelines/lidr_cpu_sort.pipe pipelines/lidr_max_stencil.pipe pipelines/lidr_bitplanes.pipe --scene examples/scenes/many_lights.toml -o out/sweep-lidr
       three techniques side by side on one scene (lidr_bitplanes over its index_bits)
   pipegen sweep pipelines/inferred.pipe -p lbuffer_scale=0.5,1.0 -p dsf=true --size 640x360 --frames 9 -o out/s
-  pipegen sweep pipelines/inferred.pipe --scheduler tcp://10.0.0.5:8786 -o out/s
+  pipegen sweep pipelines/inferred.pipe --scheduler tcp://scheduler-host:8786 -o out/s
       renders on a Dask cluster (pip install 'pipegen[dask]'); timings on one of its workers
 """
 
