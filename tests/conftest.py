@@ -42,3 +42,16 @@ def pytest_runtest_teardown(item, nextitem):
     mp = getattr(item, _GUARDS, None)
     if mp is not None:
         mp.undo()
+
+
+@pytest.fixture(scope="module")
+def gl():
+    """A standalone moderngl context on EGL (llvmpipe without a GPU), for tests marked ``gl``
+    that draw with moderngl directly; skipped where there is no EGL."""
+    moderngl = pytest.importorskip("moderngl")
+    try:
+        ctx = moderngl.create_standalone_context(backend="egl")
+    except Exception as exc:  # no EGL / no llvmpipe here
+        pytest.skip(f"no GL context: {exc}")
+    yield ctx
+    ctx.release()

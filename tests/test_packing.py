@@ -684,17 +684,6 @@ class TestNormals:
 VERTEX = "#version 330\nin vec2 p;\nvoid main() { gl_Position = vec4(p, 0.0, 1.0); }\n"
 
 
-@pytest.fixture(scope="module")
-def gl():
-    moderngl = pytest.importorskip("moderngl")
-    try:
-        ctx = moderngl.create_standalone_context(backend="egl")
-    except Exception as exc:  # no EGL / no llvmpipe here
-        pytest.skip(f"no GL context: {exc}")
-    yield ctx
-    ctx.release()
-
-
 def run_glsl(ctx, source, main, inputs: np.ndarray, out_uint=False):
     """Run ``main`` (GLSL body using ``vec4 a`` = the pixel's input) over one pixel per row of
     ``inputs`` (N, 4) float32; returns (N, 4) float32 or uint32 outputs."""

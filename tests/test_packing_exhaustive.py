@@ -500,17 +500,6 @@ NP_TYPES = {"f4": F32, "u4": np.uint32, "f1": np.uint8, "nu2": np.uint16, "f2": 
             "ni1": np.int8, "ni2": np.int16}
 
 
-@pytest.fixture(scope="module")
-def gl():
-    moderngl = pytest.importorskip("moderngl")
-    try:
-        ctx = moderngl.create_standalone_context(backend="egl")
-    except Exception as exc:  # no EGL / no llvmpipe here
-        pytest.skip(f"no GL context: {exc}")
-    yield ctx
-    ctx.release()
-
-
 class Runner:
     """Full-screen draws of one fragment shader over ``len(inputs)`` pixels (256 per row)."""
 
