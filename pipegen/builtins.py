@@ -190,6 +190,11 @@ LIGHT_FIELDS: dict[str, ir.Type] = {
     "type": ir.UINT,            # 0 point, 1 spot, 2 directional
     "cos_inner": ir.FLOAT,
     "cos_outer": ir.FLOAT,
+    "shadow_tile": ir.FLOAT,    # the light's shadow-atlas tile, -1: it casts no shadow
+    "shadow_m0": ir.VEC4,       # rows of the light's shadow projection @ view (shadows.py)
+    "shadow_m1": ir.VEC4,
+    "shadow_m2": ir.VEC4,
+    "shadow_m3": ir.VEC4,
 }
 
 # ``light.index``: the 0-based table index of the light being drawn.  Lowered to

@@ -95,6 +95,13 @@ LIGHT_FIELDS = {
     "type": (("uint", "int", "float"), 1),
     "cos_inner": (("float",), 1),
     "cos_outer": (("float",), 1),
+    # shadow maps (pipegen/shadows.py): the light's atlas tile (-1: no shadow) and the rows of
+    # its shadow projection @ view
+    "shadow_tile": (("float", "int"), 1),
+    "shadow_m0": (("vec4",), 4),
+    "shadow_m1": (("vec4",), 4),
+    "shadow_m2": (("vec4",), 4),
+    "shadow_m3": (("vec4",), 4),
 }
 
 
@@ -174,6 +181,7 @@ class Light:
     direction: tuple[float, float, float] = (0.0, 0.0, -1.0)   # unit, the way light travels
     inner_deg: float = 0.0
     outer_deg: float = 0.0
+    shadows: bool = False                      # casts shadows (spot, directional; shadows.py)
 
     @property
     def type_code(self) -> int:
@@ -333,8 +341,12 @@ class Scene:
                 raise PipegenError(None, f"light field '{name}' has type "
                                    f"{LIGHT_FIELDS[name][0][0]}, not {type_str}")
         table = np.zeros((capacity, len(fields), 4), dtype=np.float32)
-        for i, light in enumerate(self.lights):
-            for k, (name, _) in enumerate(fields):
+        for k, (name, _) in enumerate(fields):
+            if name.startswith("shadow_"):      # from the scene, not the light alone
+                from .shadows import light_fields
+                table[:len(self.lights), k] = light_fields(self, name)
+                continue
+            for i, light in enumerate(self.lights):
                 v = np.atleast_1d(np.asarray(light_field(light, name), dtype=np.float64))
                 table[i, k, : len(v)] = v
         return table
@@ -841,13 +853,20 @@ def assign_layers(objects: list[SceneObject], camera_position,
 def _light(r: _Reader) -> Light:
     kind = r.string("type", "point", choices=tuple(LIGHT_TYPES))
     keys = {"point": {"position", "radius", "color"},
-            "spot": {"position", "radius", "color", "direction", "inner_deg", "outer_deg"},
-            "directional": {"direction", "color", "radius"}}[kind]
+            "spot": {"position", "radius", "color", "direction", "inner_deg", "outer_deg",
+                     "shadows"},
+            "directional": {"direction", "color", "radius", "shadows"}}[kind]
+    if kind == "point" and r.has("shadows"):
+        r.fail("shadows", "point lights cannot cast shadows (only spot and directional "
+               "lights have shadow maps)",
+               hint="drop `shadows`, or make the light a spot (`type = \"spot\"`, direction, "
+                    "inner_deg, outer_deg)")
     r.check_keys(keys | {"type"})
     color = r.vec3("color")
+    shadows = r.boolean("shadows", False) if kind != "point" else False
     if kind == "directional":
         return Light("directional", color, direction=_unit(r.vec3("direction", nonzero=True)),
-                     radius=r.number("radius", 0.0, minimum=0.0))
+                     radius=r.number("radius", 0.0, minimum=0.0), shadows=shadows)
     position, radius = r.vec3("position"), r.number("radius", positive=True)
     if kind == "point":
         return Light("point", color, position=position, radius=radius)
@@ -855,8 +874,14 @@ def _light(r: _Reader) -> Light:
     outer = r.number("outer_deg", minimum=0.0, maximum=89.9)
     if not inner < outer:
         r.fail("outer_deg", f"a spot light needs inner_deg < outer_deg, got {inner} and {outer}")
+    from .shadows import SPOT_MAX_OUTER_DEG
+    if shadows and outer > SPOT_MAX_OUTER_DEG:
+        r.fail("outer_deg", f"a spot light casting shadows needs outer_deg <= "
+               f"{SPOT_MAX_OUTER_DEG:g} (its shadow map is one perspective frustum), got {outer}",
+               hint="narrow the cone, or drop `shadows`")
     return Light("spot", color, position=position, radius=radius,
-                 direction=_unit(r.vec3("direction", nonzero=True)), inner_deg=inner, outer_deg=outer)
+                 direction=_unit(r.vec3("direction", nonzero=True)), inner_deg=inner, outer_deg=outer,
+                 shadows=shadows)
 
 
 def _unit(v) -> tuple[float, float, float]:

@@ -73,8 +73,11 @@ def light_contribution(light: Light, P: np.ndarray, normal: np.ndarray, camera_p
     return color * att[:, None] * (albedo * ndl[:, None] + (specular * spec)[:, None])
 
 
-def shade(gbuffer: GBuffer, scene: Scene) -> np.ndarray:
-    """float64 (H, W, 3) colour before clamping: ambient plus every light, sky = clear colour."""
+def shade(gbuffer: GBuffer, scene: Scene, shadows=None) -> np.ndarray:
+    """float64 (H, W, 3) colour before clamping: ambient plus every light, sky = clear colour.
+
+    ``shadows``: ``(maps, pcf_taps, bias)`` with ``maps`` from ``reference.shadows.shadow_maps``:
+    the contribution of each light with a map is scaled by its ``shadow_factor``."""
     out = np.zeros((gbuffer.height, gbuffer.width, 3))
     out[:] = scene.clear_color
     cov = gbuffer.coverage
@@ -82,7 +85,7 @@ def shade(gbuffer: GBuffer, scene: Scene) -> np.ndarray:
     albedo, spec, shin = gbuffer.albedo[cov], gbuffer.specular[cov], gbuffer.shininess[cov]
     cam = np.asarray(scene.camera.position, dtype=np.float64)
     colour = _f32(scene.ambient) * albedo
-    for light in scene.lights:
+    for i, light in enumerate(scene.lights):
         if light.type == "directional":
             sel = slice(None)
         else:
@@ -90,15 +93,21 @@ def shade(gbuffer: GBuffer, scene: Scene) -> np.ndarray:
             L = _f32(light.position) - P
             r = float(_f32(light.radius))
             sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
-        colour[sel] += light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
+        term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
+        if shadows is not None and i in shadows[0]:
+            from .shadows import shadow_factor
+            term = term * shadow_factor(shadows[0][i], P[sel], shadows[1], shadows[2])[:, None]
+        colour[sel] += term
     out[cov] = colour
     return out
 
 
-def reference_image(scene: Scene, material: tuple[str, ...] = ("opaque",)) -> tuple[np.ndarray, GBuffer]:
-    """(colour float64 (H, W, 3) before clamping, G-buffer) of the scene's opaque objects."""
+def reference_image(scene: Scene, material: tuple[str, ...] = ("opaque",),
+                    shadows=None) -> tuple[np.ndarray, GBuffer]:
+    """(colour float64 (H, W, 3) before clamping, G-buffer) of the scene's opaque objects
+    (``shadows``: as ``shade`` takes them)."""
     gb = rasterize(scene, material)
-    return shade(gb, scene), gb
+    return shade(gb, scene, shadows), gb
 
 
 def to_rgba8(colour: np.ndarray) -> np.ndarray:
