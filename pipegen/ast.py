@@ -303,6 +303,7 @@ class Draw(Node):
     light_types: list[Word] = field(default_factory=list)
     light_set: Optional[tuple[Name, Expr]] = None   # in PACK[k]
     scissor: bool = False
+    back_to_front: bool = False                # scene... back_to_front
 
 
 @dataclass

@@ -96,19 +96,25 @@ def scene_features(scene) -> SceneFeatures:
         normal_groups=len(groups))
 
 
-def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None) -> int:
+def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
+                           faces: str = "back", residue: Optional[tuple[int, int]] = None) -> int:
     """The most lights (of ``types``; None: all) whose volumes a light-index pass may write
     at one pixel: lights whose circumscribing volume has a back face at or behind the visible
     surface (or the sky) along the pixel's ray, directional lights everywhere
     (``reference.lighting.lights_per_pixel``, conservative, at the scene's resolution;
-    ``gbuffer``: its rasterisation, when the caller has one)."""
+    ``gbuffer``: its rasterisation, when the caller has one).  ``faces="front"``: volumes
+    meeting the ray in front of the surface (a pass drawing front faces, ``depth lequal``),
+    on sky pixels too when the scene has translucent objects.  ``residue (n, k)``: only the
+    lights whose index in the scene's table is k modulo n (an index bank)."""
     from .reference.lighting import lights_per_pixel
     from .reference.raster import rasterize
-    lights = tuple(l for l in scene.lights if types is None or l.type in types)
+    lights = tuple(l for i, l in enumerate(scene.lights) if (types is None or l.type in types)
+                   and (residue is None or i % residue[0] == residue[1]))
     if not lights:
         return 0
     counts = lights_per_pixel(gbuffer if gbuffer is not None else rasterize(scene),
-                              dataclasses.replace(scene, lights=lights), conservative=True)
+                              dataclasses.replace(scene, lights=lights), conservative=True,
+                              faces=faces, sky=faces == "front" and scene.has_translucent)
     return int(counts.max()) if counts.size else 0
 
 
@@ -123,6 +129,9 @@ class Capabilities:
     index_packings: tuple[tuple[str, str, int, frozenset], ...]   # (pack, scheme, lights
     #                                             per pixel, the light types it holds)
     slot_packings: tuple[tuple[str, int, frozenset], ...]   # channel_slots: (pack, sets, types)
+    # per index packing: (pack, the faces its writers draw ("back": cull front, depth gequal;
+    # "front": front faces in front of the surface), the index bank (n, k) or None)
+    index_rules: tuple[tuple[str, str, Optional[tuple[int, int]]], ...] = ()
 
     def light_type(self, t: str) -> str:
         return dict(self.light_types)[t]
@@ -186,7 +195,52 @@ def capabilities(tech: ir.Technique) -> Capabilities:
                   for k in tech.packings if k.scheme in INDEX_SCHEMES and k.capacity)
     slots = tuple((k.name, int(dict(k.options).get("slots", 4)), _packing_types(tech, k))
                   for k in tech.packings if k.scheme == "channel_slots")
-    return Capabilities(tuple(out), has_table, translucent, index, slots)
+    rules = tuple((k.name,) + _packing_rule(tech, k) for k in tech.packings
+                  if k.scheme in INDEX_SCHEMES and k.capacity)
+    return Capabilities(tuple(out), has_table, translucent, index, slots, rules)
+
+
+_FRONT_TESTS = (ir.CompareFunc.LESS, ir.CompareFunc.LEQUAL)
+
+
+def _writers(tech: ir.Technique, k: ir.Packing) -> list:
+    names = {f.name for f in k.functions}
+    return [p for p in tech.passes
+            if p.draw.kind is ir.DrawKind.LIGHTS and
+            {e.name for e in irwalk.walk_exprs(p.body) if isinstance(e, ir.Call)} & names]
+
+
+def _packing_rule(tech: ir.Technique, k: ir.Packing) -> tuple[str, Optional[tuple[int, int]]]:
+    """How the light passes writing a light-index packing choose their lights: the faces
+    (``"front"`` when every writer draws front faces with a depth-less test: ``cull back`` or
+    ``cull auto``, ``depth … less|lequal``; else ``"back"``) and the index bank, when every
+    writer begins with ``if (light.index % N != K) discard;`` for one (N, K)."""
+    writers = _writers(tech, k)
+    front = bool(writers) and all(
+        p.state.cull in (ir.CullMode.BACK, ir.CullMode.AUTO) and p.depth_target and
+        p.state.depth.func in _FRONT_TESTS for p in writers)
+    banks = {_bank(p.body) for p in writers}
+    bank = banks.pop() if len(banks) == 1 else None
+    return ("front" if front else "back"), bank
+
+
+def _bank(body) -> Optional[tuple[int, int]]:
+    """(N, K) for a body that begins ``if (light.index % N != K) discard;`` (uint constants)."""
+    if not body or not isinstance(body[0], ir.If):
+        return None
+    s = body[0]
+    if s.other or len(s.then) != 1 or not isinstance(s.then[0], ir.Discard):
+        return None
+    c = s.cond
+    if not (isinstance(c, ir.Binary) and c.op == "!=" and isinstance(c.right, ir.Const)):
+        return None
+    m = c.left
+    if not (isinstance(m, ir.Binary) and m.op == "%" and isinstance(m.right, ir.Const) and
+            isinstance(m.left, ir.LightField) and m.left.field == "index" and
+            m.left.index is None):
+        return None
+    n, r = int(m.right.value), int(c.right.value)
+    return (n, r) if 0 <= r < n else None
 
 
 def _packing_types(tech: ir.Technique, k: ir.Packing) -> frozenset:
@@ -237,17 +291,22 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                                            f"{'is' if n == 1 else 'are'} not drawn "
                                            f"(no pass draws scene.translucent)"))
     gbuffer = None
+    rules = {r[0]: r[1:] for r in cap.index_rules}
     for pack, scheme, capacity, types in cap.index_packings:
         if not any(f.count(t) for t in types):
             continue
         if per_pixel is None and gbuffer is None:
             from .reference.raster import rasterize
             gbuffer = rasterize(scene)
-        bound = (lights_per_pixel_bound(scene, types, gbuffer) if per_pixel is None
+        faces, bank = rules.get(pack, ("back", None))
+        bound = (lights_per_pixel_bound(scene, types, gbuffer, faces, bank) if per_pixel is None
                  else per_pixel)
         if bound > capacity:
             kinds = "/".join(t for t in LIGHT_TYPES if t in types)
-            out.append(Mismatch("capacity", f"up to {bound} {kinds} lights reach a pixel, the "
+            which = f" with index % {bank[0]} == {bank[1]}" if bank else ""
+            where = ("'s volumes lie along a pixel's view ray in front of its surface "
+                     "(light-volume front faces)" if faces == "front" else " reach a pixel")
+            out.append(Mismatch("capacity", f"up to {bound} {kinds} lights{which}{where}, the "
                                             f"packing `{pack}` ({scheme}) holds {capacity}: "
                                             f"lights will be dropped"))
     for pack, slots, types in cap.slot_packings:

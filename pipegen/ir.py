@@ -530,6 +530,11 @@ class Volume(enum.Enum):
     QUAD = "quad"                # screen-aligned quad covering the light's screen bounds
 
 
+class DrawOrder(enum.Enum):
+    SCENE = "scene"                  # objects in scene order
+    BACK_TO_FRONT = "back_to_front"  # farthest object first (view depth of its bounds centre)
+
+
 @dataclass(frozen=True)
 class Draw:
     kind: DrawKind
@@ -538,11 +543,13 @@ class Draw:
     light_types: tuple[str, ...] = ()   # LIGHTS: which light types ("point", "spot", ...); () all
     light_set: Optional[tuple[str, int]] = None  # LIGHTS: (channel_slots pack, slot k)
     scissor: bool = False               # LIGHTS: rasterise only inside the light's screen rect
+    order: DrawOrder = DrawOrder.SCENE  # SCENE: object order (runtime/draws.scene_order)
 
     def describe(self) -> str:
         """The draw as the language spells it (for reports and shader header comments)."""
         if self.kind is DrawKind.SCENE:
-            return "scene" + "".join("." + m for m in self.material)
+            return "scene" + "".join("." + m for m in self.material) + (
+                " back_to_front" if self.order is DrawOrder.BACK_TO_FRONT else "")
         if self.kind is DrawKind.LIGHTS:
             text = f"lights as {(self.volume or Volume.SPHERE).value}"
             if self.light_types:

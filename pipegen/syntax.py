@@ -364,7 +364,8 @@ class _ToAst(Transformer):
         kind = ch[0]
         if kind.type == "SCENE":
             material = self._name(ch[1]) if ch[1] is not None else None
-            return ast.Draw("scene", material=material, span=span)
+            return ast.Draw("scene", material=material, span=span,
+                            back_to_front=len(ch) > 2 and ch[2] is not None)
         if kind.type == "FULLSCREEN":
             return ast.Draw("fullscreen", span=span)
         draw = ast.Draw("lights", volume=ch[1], span=span)

@@ -202,7 +202,9 @@ def _pass_to_dict(p: PassPlan) -> dict:
                  "volume": None if d.volume is None else d.volume.value,
                  "light_types": list(d.light_types),
                  "light_set": None if d.light_set is None else list(d.light_set),
-                 "scissor": d.scissor},
+                 "scissor": d.scissor,
+                 # only when not the default, so plans of scene-order draws keep their text
+                 **({"order": d.order.value} if d.order is not ir.DrawOrder.SCENE else {})},
         "repeat_group": p.repeat_group,
         "repeat_types": list(p.repeat_types),
         "clears": [{"target": name, **_clear_to_dict(c)} for name, c in p.clears],
@@ -300,7 +302,7 @@ def draw_from_dict(d: Optional[Mapping]) -> ir.Draw:
                    None if d.get("volume") is None else ir.Volume(d["volume"]),
                    tuple(d.get("light_types") or ()),
                    None if not light_set else (str(light_set[0]), int(light_set[1])),
-                   bool(d.get("scissor")))
+                   bool(d.get("scissor")), ir.DrawOrder(d.get("order") or "scene"))
 
 
 def _pass_from_dict(p: Mapping) -> PassPlan:

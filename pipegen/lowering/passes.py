@@ -67,7 +67,8 @@ class _PassLowerer:
                     raise _err(d.material.span, f"unknown material '{d.material.name}'",
                                f"scene draws filter by {' or '.join(_MATERIALS)}")
                 material = (d.material.name,)
-            return ir.Draw(ir.DrawKind.SCENE, material=material)
+            order = ir.DrawOrder.BACK_TO_FRONT if d.back_to_front else ir.DrawOrder.SCENE
+            return ir.Draw(ir.DrawKind.SCENE, material=material, order=order)
         if d.kind == "fullscreen":
             return ir.Draw(ir.DrawKind.FULLSCREEN)
         types: list[str] = []

@@ -116,7 +116,8 @@ def to_rgba8(colour: np.ndarray) -> np.ndarray:
     return formats.get("rgba8").quantize(rgba)
 
 
-def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False) -> np.ndarray:
+def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False,
+                     faces: str = "back", sky: bool = False) -> np.ndarray:
     """int (H, W): how many lights may touch each pixel's surface point (0 on sky).
 
     Default: the point and spot lights whose sphere (radius) strictly contains the point, plus
@@ -124,14 +125,33 @@ def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False)
     ``cull front`` and ``depth gequal`` marks instead: lights whose *circumscribing* volume
     mesh has a back face at or behind the surface along the pixel's view ray (this also counts
     volumes hidden behind the surface), so it bounds what an index packing must hold.
+    ``faces="front"`` (with ``conservative``) counts what a pass drawing the volumes' *front*
+    faces with ``depth lequal`` (``cull auto``, ``inside always``) marks: lights whose
+    circumscribing sphere meets the view ray between the eye and the surface (Trebilco's
+    light-volume front faces, volumes wholly in front of the surface included); ``sky=True``
+    counts sky pixels too, along the whole ray (a translucent object over the sky reads them).
     """
     cov = gbuffer.coverage
-    P = gbuffer.position[cov]
-    count = np.zeros(len(P), dtype=np.int64)
+    front = conservative and faces == "front"
+    where = np.ones_like(cov) if (front and sky) else cov
     cam = np.asarray(scene.camera.position, dtype=np.float64)
+    P = gbuffer.position[where]
     ray = P - cam
     t_surface = np.linalg.norm(ray, axis=1)
     u = ray / np.maximum(t_surface, 1e-300)[:, None]
+    if front and sky:        # sky pixels: the ray through the pixel centre, to infinity
+        h, w = cov.shape
+        ys, xs = np.mgrid[0:h, 0:w]
+        ndc = np.stack([(xs + 0.5) / w * 2 - 1, 1 - (ys + 0.5) / h * 2, np.ones((h, w)),
+                        np.ones((h, w))], axis=-1)[where]
+        inv = np.linalg.inv(scene.camera.projection(scene.aspect) @ scene.camera.view_matrix())
+        far = ndc @ inv.T
+        d = far[:, :3] / far[:, 3:] - cam
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        open_ = ~cov[where]
+        u[open_] = d[open_]
+        t_surface[open_] = np.inf
+    count = np.zeros(len(P), dtype=np.int64)
     grow = float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
     for light in scene.lights:
         if light.type == "directional":
@@ -147,7 +167,11 @@ def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False)
         b = u @ oc
         disc = b * b - (oc @ oc - R * R)
         t_far = b + np.sqrt(np.maximum(disc, 0.0))
-        count += (disc > 0) & (t_far >= t_surface)
+        if front:
+            t_near = b - np.sqrt(np.maximum(disc, 0.0))
+            count += (disc > 0) & (t_far >= 0) & (t_near <= t_surface)
+        else:
+            count += (disc > 0) & (t_far >= t_surface)
     out = np.zeros(cov.shape, dtype=np.int64)
-    out[cov] = count
+    out[where] = count
     return out

@@ -159,9 +159,11 @@ class DrawGeometry:
             self.meshes[volume] = (len(mesh), self.pipe._buffer(f4(mesh)))
         return self.meshes[volume]
 
-    def attributes(self, material: tuple) -> Optional[tuple]:
+    def attributes(self, draw: ir.Draw) -> Optional[tuple]:
+        """A scene draw's vertex attributes, in its object order (``draws.scene_geometry``)."""
+        material = draws.scene_key(draw)
         if material not in self.scene_attrs:
-            g = self.pipe._scene.geometry(material)
+            g = draws.scene_geometry(self.pipe._scene, draw)
             n = g.vertex_count
             if n == 0:
                 self.scene_attrs[material] = None
@@ -273,8 +275,8 @@ class DrawGeometry:
             # culling is per pass (light draws are set up without it)
             return ("lights", (draw.volume or ir.Volume.SPHERE).value, draw.scissor,
                     offset, depth_clamp, width, height, dfmt, center)
-        return (draw.kind.value, draw.material, p.state.cull.value, offset, depth_clamp,
-                width, height, dfmt, center)
+        return (draw.kind.value, draw.material, draw.order, p.state.cull.value, offset,
+                depth_clamp, width, height, dfmt, center)
 
     def _scene_group(self, key: tuple) -> tuple:
         """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
@@ -385,7 +387,7 @@ class DrawGeometry:
         flat = None
         scissor = None
         if draw.kind is ir.DrawKind.SCENE:
-            got = self.attributes(draw.material)
+            got = self.attributes(draw)
             if got is None:
                 self.frame[key] = None
                 return None

@@ -335,7 +335,7 @@ class CLPipeline:
         if self.f64:
             attrs = [self._zeros4] * 4
             if p.draw.kind is ir.DrawKind.SCENE:
-                attrs = self.geometry.attributes(p.draw.material)[1]
+                attrs = self.geometry.attributes(p.draw)[1]
             args += [bufs["h"], bufs["parent"], self._frame64_buf, self._lights64_buf, *attrs]
         kern = self._kernel(k, "pg_raster")
         kern.set_args(*args)

@@ -1,6 +1,8 @@
 """Host-side draw preparation, decided once for both runtimes: which passes run for which light
 (``schedule``), which lights a light draw instances (``LightSelection``), which faces each light
-volume draws under ``cull auto`` (``light_runs``) and a light's scissor rectangle.
+volume draws under ``cull auto`` (``light_runs``), a light's scissor rectangle, and the object
+order of a scene draw (``scene_order``, ``scene_geometry``: ``back_to_front`` sorts farthest
+first).
 
 GL and CL execute the same decisions, so they draw the same triangles in the same order.  The
 float64 reference (``reference/``) decides nothing here and imports none of it.
@@ -119,6 +121,42 @@ def schedule(plan: Plan, selection: LightSelection) -> Iterator[tuple[int, Optio
                     continue
                 yield j, light
         k = end
+
+
+# ---- scene draws: object order -----------------------------------------------------------------
+
+
+def scene_order(objects: Sequence, order: ir.DrawOrder, view) -> list[int]:
+    """The order a scene draw submits ``objects`` in (indices into ``objects``): scene order,
+    or for ``back_to_front`` farthest first by the view depth of each object's bounding-box
+    centre (``-(view @ centre).z`` in float64, the camera looking down -z); equal depths keep
+    scene order (a stable sort)."""
+    if order is not ir.DrawOrder.BACK_TO_FRONT or len(objects) < 2:
+        return list(range(len(objects)))
+    view = np.asarray(view, dtype=np.float64)
+    depth = []
+    for o in objects:
+        pos = np.asarray(o.positions, dtype=np.float64)
+        centre = 0.5 * (pos.min(axis=0) + pos.max(axis=0)) if len(pos) else np.zeros(3)
+        depth.append(-(view[2, :3] @ centre + view[2, 3]))
+    return sorted(range(len(objects)), key=lambda i: -depth[i])
+
+
+def scene_geometry(scene, draw: ir.Draw):
+    """The triangles a scene draw submits, in its object order (``scene_order``): what both
+    runtimes upload for the draw, so that GL and CL blend the objects in the same order."""
+    if draw.order is not ir.DrawOrder.BACK_TO_FRONT:
+        return scene.geometry(draw.material)
+    import dataclasses
+    objects = list(scene.select(draw.material))
+    order = scene_order(objects, draw.order, scene.camera.view_matrix())
+    return dataclasses.replace(scene, objects=tuple(objects[i] for i in order)).geometry(
+        draw.material)
+
+
+def scene_key(draw: ir.Draw) -> tuple:
+    """What a scene draw's uploaded geometry depends on (for the runtimes' caches)."""
+    return (draw.material, draw.order)
 
 
 # ---- cull auto ---------------------------------------------------------------------------------

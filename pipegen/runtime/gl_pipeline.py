@@ -320,9 +320,10 @@ class GLPipeline:
                                                                         len(self.fields), 4))
         self._scene = scene
 
-    def _scene_vbo(self, material: tuple[str, ...]) -> tuple[moderngl.Buffer, int]:
-        if material not in self._scene_vbos:
-            g = self._scene.geometry(material)
+    def _scene_vbo(self, draw: ir.Draw) -> tuple[moderngl.Buffer, int]:
+        key = draws.scene_key(draw)
+        if key not in self._scene_vbos:
+            g = draws.scene_geometry(self._scene, draw)     # in the draw's object order
             if hasattr(g, "interleaved"):
                 data = g.interleaved()
             else:
@@ -336,8 +337,8 @@ class GLPipeline:
                                    np.asarray(layer, np.float32).reshape(-1, 1)], axis=1)
             data = np.ascontiguousarray(data, dtype=np.float32)
             buf = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * SCENE_STRIDE)
-            self._scene_vbos[material] = (buf, len(data))
-        return self._scene_vbos[material]
+            self._scene_vbos[key] = (buf, len(data))
+        return self._scene_vbos[key]
 
     def _mesh(self, volume: str) -> moderngl.Buffer:
         if volume not in self._meshes:
@@ -361,10 +362,9 @@ class GLPipeline:
 
     def _vao(self, p: _Pass) -> Optional[moderngl.VertexArray]:
         if p.kind is ir.DrawKind.SCENE:
-            material = p.draw.material
-            key = ("scene", material)
+            key = ("scene",) + draws.scene_key(p.draw)
             if key not in p.vaos:
-                buf, n = self._scene_vbo(material)
+                buf, n = self._scene_vbo(p.draw)
                 fmt, names = [], []
                 for name, comps in SCENE_ATTRIBUTES:
                     if p.has(name):
@@ -469,7 +469,7 @@ class GLPipeline:
         GS.apply_state(p.state, p.writes, depth_format=depth_format)   # cull auto: none here
         vao = self._vao(p)
         if p.kind is ir.DrawKind.SCENE:
-            _, count = self._scene_vbo(p.draw.material)
+            _, count = self._scene_vbo(p.draw)
             if count:
                 vao.render(moderngl.TRIANGLES, vertices=count)
         elif p.kind is ir.DrawKind.LIGHTS:
