@@ -8,7 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes"]
+              "lidr_bitplanes", "lidr_transparent"]
 
 
 def median_time(fn, repeat: int, warmup: bool = True) -> float:

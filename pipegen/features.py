@@ -304,11 +304,11 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
         if bound > capacity:
             kinds = "/".join(t for t in LIGHT_TYPES if t in types)
             which = f" with index % {bank[0]} == {bank[1]}" if bank else ""
-            where = ("'s volumes lie along a pixel's view ray in front of its surface "
-                     "(light-volume front faces)" if faces == "front" else " reach a pixel")
-            out.append(Mismatch("capacity", f"up to {bound} {kinds} lights{which}{where}, the "
-                                            f"packing `{pack}` ({scheme}) holds {capacity}: "
-                                            f"lights will be dropped"))
+            what = (f"up to {bound} {kinds} light volumes{which} lie along a pixel's view ray "
+                    f"in front of its surface (light-volume front faces)" if faces == "front"
+                    else f"up to {bound} {kinds} lights{which} reach a pixel")
+            out.append(Mismatch("capacity", f"{what}, the packing `{pack}` ({scheme}) holds "
+                                            f"{capacity}: lights will be dropped"))
     for pack, slots, types in cap.slot_packings:
         from .packing import sort_lights_into_slots
         members = [i for i, l in enumerate(scene.lights) if l.type in types]

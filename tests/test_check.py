@@ -20,7 +20,7 @@ from pipegen.scene import default_scene, load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes", "light_prepass", "inferred", "deferred_calver"]
+              "lidr_bitplanes", "light_prepass", "inferred", "deferred_calver", "lidr_transparent"]
 SCENES = {
     "default": lambda: default_scene(),
     "stress_overlap": lambda: load_scene(ROOT / "examples/scenes/stress_overlap.toml"),

@@ -1,5 +1,5 @@
 """The shipped techniques: each compiles, its shaders pass glslangValidator, and on a scene
-within every packing's capacity all six render the same image, which matches a float64 numpy
+within every packing's capacity all seven render the same image, which matches a float64 numpy
 evaluation of the shared lighting equation.
 
 Tolerances (rgba8 codes, interior pixels):
@@ -24,7 +24,7 @@ pytestmark = [pytest.mark.gl]
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes"]
+              "lidr_bitplanes", "lidr_transparent"]
 TOLERANCE_CODES = 2
 
 

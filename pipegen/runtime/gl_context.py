@@ -13,6 +13,15 @@ mismatches.  ``get_context()`` creates it on first use; it stays current on the 
 
 ``gl_limits()`` reports what the machine offers; ``describe()`` is a one-line summary (renderer,
 version, sub-pixel bits) for reports.
+
+Error checking.  PyOpenGL calls ``glGetError`` after every call by default, which doubles the
+cost of the runtime's many small state calls; this module switches that off
+(``OpenGL.ERROR_CHECKING = False``, which only takes effect before ``OpenGL.GL`` is first
+imported, so import pipegen's runtime before PyOpenGL; ``PYOPENGL_ERROR_CHECKING`` in the
+environment, PyOpenGL's own switch, wins).  The runtime instead checks once per frame and after
+building resources (``check_error``), naming the pass only in debug mode: ``PIPEGEN_GL_DEBUG=1``
+in the environment (or ``GLPipeline(..., debug=True)``) checks after every pass.
+``ERROR_CHECKING`` tells whether PyOpenGL checks every call after all.
 """
 
 from __future__ import annotations
@@ -22,10 +31,26 @@ import threading
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
+import sys  # noqa: E402
+
 import moderngl  # noqa: E402
+import OpenGL  # noqa: E402
+
+if "OpenGL.GL" not in sys.modules and "PYOPENGL_ERROR_CHECKING" not in os.environ:
+    OpenGL.ERROR_CHECKING = False     # one glGetError per frame instead (see the docstring)
 from OpenGL import GL  # noqa: E402,F401  (re-exported: the runtime's single GL import point)
 
-__all__ = ["GL", "get_context", "gl_limits", "describe", "check_error", "clear_stale_errors"]
+#: whether PyOpenGL checks glGetError after each call (False unless OpenGL.GL came first)
+ERROR_CHECKING = bool(OpenGL.ERROR_CHECKING)
+
+
+def debug_enabled() -> bool:
+    """``PIPEGEN_GL_DEBUG`` set to anything but ``""``/``0``: check GL errors after every pass."""
+    return os.environ.get("PIPEGEN_GL_DEBUG", "") not in ("", "0")
+
+
+__all__ = ["GL", "get_context", "gl_limits", "describe", "check_error", "clear_stale_errors",
+           "debug_enabled", "ERROR_CHECKING"]
 
 _lock = threading.Lock()
 _ctx: moderngl.Context | None = None
@@ -66,11 +91,18 @@ def describe() -> str:
             f"(subpixel bits {info['GL_SUBPIXEL_BITS']})")
 
 
+_NAMES = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
+          0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}
+
+
 def check_error(where: str = "") -> None:
-    """Raise if GL recorded an error (PyOpenGL checks its own calls; moderngl's are not)."""
-    err = GL.glGetError()
+    """Raise if GL recorded an error since the last check (by any call: PyOpenGL's or
+    moderngl's); ``where`` names what ran since (a frame, a pass)."""
+    err = int(GL.glGetError())
     if err != GL.GL_NO_ERROR:
-        raise RuntimeError(f"OpenGL error 0x{int(err):04x} {where}".rstrip())
+        hint = "" if debug_enabled() else " (PIPEGEN_GL_DEBUG=1 checks after every pass)"
+        raise RuntimeError(f"OpenGL error 0x{err:04x} {_NAMES.get(err, '')} {where}".rstrip()
+                           + hint)
 
 
 def clear_stale_errors() -> list[int]:

@@ -36,6 +36,8 @@ d24s8 target ``ds`` yields ``"ds"`` (uint32 24-bit depth codes) and ``"ds.stenci
 
 from __future__ import annotations
 
+import ctypes
+import time
 from dataclasses import replace
 from typing import Any, Optional, Sequence
 
@@ -47,8 +49,9 @@ from ..backends.plan import PassPlan, Plan, TargetPlan, plan_from_dict
 from . import draws
 from . import gl_formats as GF
 from . import gl_state as GS
+from . import gl_transitions as GT
 from .common import check_light_capacity, check_param_overrides, check_scene_facts
-from .gl_context import GL, clear_stale_errors, get_context
+from .gl_context import GL, check_error, clear_stale_errors, debug_enabled, get_context
 
 import moderngl
 
@@ -57,6 +60,9 @@ __all__ = ["GLPipeline"]
 SCENE_ATTRIBUTES = [("a_position", 3), ("a_normal", 3), ("a_albedo", 3), ("a_material", 3),
                     ("a_ids", 2), ("a_layer", 1)]
 SCENE_STRIDE = 4 * sum(n for _, n in SCENE_ATTRIBUTES)    # bytes per vertex (15 floats)
+# uniforms set once per frame (``_frame_uniforms``), written only to programs declaring them
+FRAME_UNIFORMS = ("u_view", "u_proj", "u_inv_view", "u_inv_proj", "u_prev_view", "u_prev_proj",
+                  "u_camera_pos", "u_ambient", "u_output_size", "u_num_lights")
 
 
 class _Target:
@@ -71,6 +77,8 @@ class _Target:
         self.resolved = self.tex
         self.dirty = False           # multisampled contents newer than ``resolved``
         self.fbo_ms = self.fbo_resolved = self.fbo_clear = None
+        self._clear_words: dict[tuple, Any] = {}     # clear value -> GL words, quantised once
+        self._gl = GF.gl_format(self.format)
         if self.samples > 1:
             self.resolved = GF.create_texture(self.format, *size)
             self.fbo_ms = _framebuffer([(self._attachment(0), self.tex)])
@@ -90,20 +98,31 @@ class _Target:
                 self.fbo_clear = _framebuffer([(self._attachment(0), self.tex)])
                 GL.glNamedFramebufferDrawBuffers(self.fbo_clear, 1, [GL.GL_NONE])
             # framebuffer clears obey the scissor test and the depth / stencil write masks
-            GL.glDisable(GL.GL_SCISSOR_TEST)
+            GT.TRACKER.scissor(None)
+            key = ("partial", depth, stencil)
+            value = self._clear_words.get(key)
+            if value is None:    # a ctypes value for the unwrapped call (PyOpenGL's array
+                value = self._clear_words[key] = (   # handling costs ~30 us a call)
+                    (ctypes.c_int * 1)(int(stencil)) if stencil is not None
+                    else (ctypes.c_float * 1)(float(depth)))
             if stencil is not None:
-                GL.glStencilMaskSeparate(GL.GL_FRONT_AND_BACK, 0xFF)
-                GL.glClearNamedFramebufferiv(self.fbo_clear, GL.GL_STENCIL, 0,
-                                             np.array([int(stencil)], np.int32))
+                GT.TRACKER.apply(GT.CLEAR_STENCIL)
+                _CLEAR_FBO_IV(self.fbo_clear, GL.GL_STENCIL, 0, value)
             else:
-                GL.glDepthMask(GL.GL_TRUE)
-                GL.glClearNamedFramebufferfv(self.fbo_clear, GL.GL_DEPTH, 0,
-                                             np.array([float(depth)], np.float32))
+                GT.TRACKER.apply(GT.CLEAR_DEPTH)
+                _CLEAR_FBO_FV(self.fbo_clear, GL.GL_DEPTH, 0, value)
             self.dirty = self.samples > 1
             return
-        GF.clear_texture(self.tex, self.format, color, depth, stencil)
+        key = (None if color is None else tuple(np.ravel(color).tolist()), depth, stencil)
+        words = self._clear_words.get(key)
+        if words is None:        # Format.quantize once per clear value (exact codes)
+            codes = np.ascontiguousarray(GF.clear_codes(self.format, color, depth, stencil))
+            words = self._clear_words[key] = (
+                codes, (ctypes.c_ubyte * codes.nbytes).from_buffer(codes))  # (array kept alive)
+        g = self._gl
+        _CLEAR_TEX(self.tex, 0, g.format, g.type, words[1])
         if self.samples > 1:
-            GF.clear_texture(self.resolved, self.format, color, depth, stencil)
+            _CLEAR_TEX(self.resolved, 0, g.format, g.type, words[1])
             self.dirty = False
 
     def resolve(self) -> None:
@@ -117,7 +136,8 @@ class _Target:
             mask = GL.GL_DEPTH_BUFFER_BIT | (GL.GL_STENCIL_BUFFER_BIT if self.fmt.has_stencil
                                               else 0)
         # blits obey the scissor test and (on some drivers) colour masks: neutral state first
-        GS.apply_state(ir.PassState(), ["_"] if self.fmt.is_color else [])
+        GT.TRACKER.apply(_BLIT_COLOR if self.fmt.is_color else _BLIT_DEPTH)
+        GT.TRACKER.scissor(None)
         w, h = self.size
         GL.glBlitNamedFramebuffer(self.fbo_ms, self.fbo_resolved, 0, 0, w, h, 0, 0, w, h, mask,
                                   GL.GL_NEAREST)
@@ -139,6 +159,20 @@ class _Target:
         if self.samples > 1:
             GF.delete_texture(self.resolved)
             GL.glDeleteFramebuffers(2, np.array([self.fbo_ms, self.fbo_resolved], np.uint32))
+
+
+def _unwrapped(fn):
+    """PyOpenGL's ctypes function under its Python array-handling wrapper (pointer arguments
+    passed as ctypes values or addresses)."""
+    return getattr(fn, "wrappedOperation", fn)
+
+
+_CLEAR_TEX = _unwrapped(GL.glClearTexImage)
+_CLEAR_FBO_IV = _unwrapped(GL.glClearNamedFramebufferiv)
+_CLEAR_FBO_FV = _unwrapped(GL.glClearNamedFramebufferfv)
+
+_BLIT_COLOR = GT.pass_vector(ir.PassState(), ["_"], label="blit colour")
+_BLIT_DEPTH = GT.pass_vector(ir.PassState(), [], label="blit depth")
 
 
 def _framebuffer(attachments: Sequence[tuple[int, int]]) -> int:
@@ -179,6 +213,16 @@ class _Pass:
         self.viewport = (0, 0)
         self.vaos: dict[Any, moderngl.VertexArray] = {}
         self.instance_buffer: Optional[moderngl.Buffer] = None
+        # texture units never change: u_lights is unit 0, reads[k] unit k + 1
+        self.set_uniform("u_lights", 0)
+        for k, r in enumerate(self.reads):
+            self.set_uniform("t_" + r, k + 1)
+        # the per-frame uniforms this program declares, and the bytes last written to each
+        self.frame_uniforms = {n: self.program[n] for n in FRAME_UNIFORMS if self.has(n)}
+        self.uploaded: dict[str, bytes] = {}
+        self.u_light = self.program.get("u_light", None)
+        self.vector: Optional[GT.StateVector] = None        # set by GLPipeline
+        self.auto_vectors: dict[tuple, GT.StateVector] = {}  # cull auto: per (cull, inside)
 
     def has(self, name: str) -> bool:
         return self.program.get(name, None) is not None
@@ -205,12 +249,31 @@ class _Pass:
 class GLPipeline:
     """A PLAN ready to render with OpenGL (see the module docstring)."""
 
-    def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None):
+    def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None, *,
+                 transitions: bool = True, debug: Optional[bool] = None):
+        """``transitions=False`` sets all state before every pass (``gl_state.apply_state``)
+        instead of the differences (``gl_transitions``): the reference the tests compare with.
+        ``debug`` (default: ``PIPEGEN_GL_DEBUG`` set) checks GL errors after every pass
+        instead of once per frame."""
         self.plan = plan = plan_from_dict(plan)
         self.ctx = get_context()
         clear_stale_errors()
+        self.transitions = bool(transitions)
+        self.debug = debug_enabled() if debug is None else bool(debug)
+        self.profile: Optional[list] = None   # a list: per pass timings appended (_run_pass)
         self.size = None if size is None else (int(size[0]), int(size[1]))
         self.passes = [_Pass(self.ctx, p, k) for k, p in enumerate(plan.passes)]
+        for p in self.passes:     # each pass's state, lowered once (gl_transitions)
+            fmt = plan.target(p.depth_target).format if p.depth_target else None
+            p.depth_format = fmt
+            p.vector = GT.pass_vector(p.state, p.writes, depth_format=fmt, label=p.name)
+            # reads: unit k + 1, linear only for the pass's "sampled" filterable targets
+            p.units = []
+            for k, r in enumerate(p.reads):
+                kind = plan.target(r).format.kind
+                linear = r in p.sampled and kind in (F.Kind.UNORM, F.Kind.SNORM, F.Kind.FLOAT)
+                p.units.append((k + 1, r, "linear" if linear else "nearest"))
+        GT.TRACKER.prime([p.vector for p in self.passes])
         self.targets: dict[str, _Target] = {}
         self._built_size: Optional[tuple[int, int]] = None
         self.capacity = max(1, plan.lights.capacity)
@@ -275,6 +338,7 @@ class GLPipeline:
                 if status != GL.GL_FRAMEBUFFER_COMPLETE:
                     raise RuntimeError(f"pass '{p.name}': framebuffer incomplete "
                                        f"({_STATUS.get(int(status), hex(int(status)))})")
+        check_error(f"building targets at {size[0]}x{size[1]}")
         self._built_size = size
 
     def release(self) -> None:
@@ -313,6 +377,8 @@ class GLPipeline:
         self._scene_vbos = {}
         lights = list(scene.lights)
         self._selection = draws.LightSelection(self.plan, lights)
+        self._lights = lights
+        self._drawn: dict[int, tuple[list[int], set[int]]] = {}   # per pass, for this scene
         if self.fields:
             table = np.asarray(scene.light_table([list(f) for f in self.fields],
                                                  self.capacity), dtype=np.float32)
@@ -414,6 +480,8 @@ class GLPipeline:
             self._build(size)
         self._use_scene(scene)
         self._frame_uniforms(scene, size)
+        check_error("uploading the scene")
+        GT.TRACKER.invalidate()       # the shared context: a frame starts from unknown state
         for t in self.targets.values():
             c = t.spec.clear
             t.clear(c.color, c.depth, c.stencil)
@@ -421,60 +489,87 @@ class GLPipeline:
         for k, light in draws.schedule(self.plan, self._selection):
             p = self.passes[k]
             self._run_pass(p, light)
+            if self.debug:
+                check_error(f"in pass '{p.name}'" + ("" if light is None else f" light {light}"))
             if capture_passes:
                 captures.append({"pass": p.name, "light": light, "targets": self._read_all()})
+        check_error("rendering a frame")
         return captures
 
     def _frame_uniforms(self, scene, size) -> None:
+        """The frame's uniforms, computed once and written only to the programs that declare
+        them, and only when their bytes changed since the last frame (sampler units are set
+        once, in ``_Pass``)."""
         cam = scene.camera
         view = np.asarray(cam.view_matrix(), np.float64)
         proj = np.asarray(cam.projection(size[0] / size[1]), np.float64)
-        # GLSL mat4 uniforms are column-major: the transpose's row-major bytes
-        prev = getattr(scene, "prev_camera", cam)   # previous frame (declared where read)
-        mats = {"u_view": view, "u_proj": proj, "u_inv_view": np.linalg.inv(view),
-                "u_inv_proj": np.linalg.inv(proj),
-                "u_prev_view": np.asarray(prev.view_matrix(), np.float64),
-                "u_prev_proj": np.asarray(prev.projection(size[0] / size[1]), np.float64)}
-        eye = np.asarray(getattr(cam, "position"), np.float32)
         self._view, self._proj = view, proj
+        prev = getattr(scene, "prev_camera", cam)   # previous frame (declared where read)
+
+        def mat(m):   # GLSL mat4 uniforms are column-major: the transpose's row-major bytes
+            return np.ascontiguousarray(np.asarray(m, np.float64).T, dtype=np.float32).tobytes()
+
+        values = {
+            "u_view": lambda: mat(view), "u_proj": lambda: mat(proj),
+            "u_inv_view": lambda: mat(np.linalg.inv(view)),
+            "u_inv_proj": lambda: mat(np.linalg.inv(proj)),
+            "u_prev_view": lambda: mat(prev.view_matrix()),
+            "u_prev_proj": lambda: mat(prev.projection(size[0] / size[1])),
+            "u_camera_pos": lambda: np.asarray(cam.position, np.float32)[:3].tobytes(),
+            "u_ambient": lambda: np.asarray(scene.ambient, np.float32)[:3].tobytes(),
+            "u_output_size": lambda: np.array(size, np.float32).tobytes(),
+            "u_num_lights": lambda: np.uint32(len(scene.lights)).tobytes(),
+        }
+        done: dict[str, bytes] = {}
         for p in self.passes:
-            for name, m in mats.items():
-                p.set_uniform(name, np.ascontiguousarray(m.T))
-            p.set_uniform("u_camera_pos", tuple(float(x) for x in eye))
-            p.set_uniform("u_ambient", tuple(float(x) for x in np.asarray(scene.ambient)[:3]))
-            p.set_uniform("u_output_size", (float(size[0]), float(size[1])))
-            p.set_uniform("u_num_lights", int(len(scene.lights)))
-            p.set_uniform("u_lights", 0)
-            for k, r in enumerate(p.reads):
-                p.set_uniform("t_" + r, k + 1)
+            for name, u in p.frame_uniforms.items():
+                data = done.get(name)
+                if data is None:
+                    data = done[name] = values[name]()
+                if p.uploaded.get(name) != data:
+                    u.write(data)
+                    p.uploaded[name] = data
 
     def _run_pass(self, p: _Pass, light: Optional[int]) -> None:
+        """One pass execution: clears, bindings and state (only what changed since the last
+        pass: ``gl_transitions.TRACKER``), the draw.  With ``self.profile`` a list, the GPU is
+        drained before the pass and after its draws: host set-up and draw time are appended
+        as ``(pass, light, setup_s, draw_s)``."""
+        tracker = GT.TRACKER
+        if self.profile is not None:
+            GL.glFinish()
+            t0 = time.perf_counter()
+        if not self.transitions:      # the reference: everything set again before every pass
+            tracker.invalidate()
         for name, c in p.spec.clears:
             self.targets[name].clear(c.color, c.depth, c.stencil, partial=True)
-        if light is not None:
-            p.set_uniform("u_light", int(light))
+        if light is not None and p.u_light is not None:
+            p.u_light.value = int(light)
         # reads: unit 0 is the light table
-        GL.glBindTextureUnit(0, self.light_tex)
-        GL.glBindSampler(0, self._samplers["nearest"])
-        for k, r in enumerate(p.reads):
+        tracker.texture(0, self.light_tex, self._samplers["nearest"])
+        for unit, r, mode in p.units:
             t = self.targets[r]
             t.resolve()
-            linear = r in p.sampled and t.fmt.kind in (F.Kind.UNORM, F.Kind.SNORM, F.Kind.FLOAT)
-            GL.glBindTextureUnit(k + 1, t.resolved)
-            GL.glBindSampler(k + 1, self._samplers["linear" if linear else "nearest"])
-        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, p.fbo)
+            tracker.texture(unit, t.resolved, self._samplers[mode])
+        tracker.framebuffer(p.fbo)
         w, h = p.viewport
-        GL.glViewport(0, 0, w, h)
-        depth_format = self.targets[p.depth_target].fmt if p.depth_target else None
-        GS.apply_state(p.state, p.writes, depth_format=depth_format)   # cull auto: none here
+        tracker.viewport(w, h)
+        depth_format = p.depth_format
+        if self.transitions:
+            tracker.apply(p.vector)                                # cull auto: none here
+            tracker.scissor(None)
+        else:
+            GS.apply_state(p.state, p.writes, depth_format=depth_format)
         vao = self._vao(p)
+        if self.profile is not None:
+            t1 = time.perf_counter()
         if p.kind is ir.DrawKind.SCENE:
             _, count = self._scene_vbo(p.draw)
             if count:
                 vao.render(moderngl.TRIANGLES, vertices=count)
         elif p.kind is ir.DrawKind.LIGHTS:
-            lights = list(self._scene.lights)
-            indices = self._selection.instance(p.spec, light)
+            lights = self._lights
+            indices = self._instance(p, light)
             runs = draws.light_runs(p.state.cull, p.draw.volume, lights, indices,
                                     self._scene.camera.position, self._proj)
             for run in runs:
@@ -482,16 +577,25 @@ class GLPipeline:
                     depth = p.state.depth
                     if run.inside and depth.inside is not None:   # back faces: `inside FUNC`
                         depth = replace(depth, func=depth.inside)
-                    GS.apply_state(replace(p.state, cull=run.cull, depth=depth), p.writes,
-                                   depth_format=depth_format)
+                    if self.transitions:
+                        key = (run.cull, depth.func)
+                        v = p.auto_vectors.get(key)
+                        if v is None:
+                            v = p.auto_vectors[key] = GT.pass_vector(
+                                replace(p.state, cull=run.cull, depth=depth), p.writes,
+                                depth_format=depth_format, label=f"{p.name} {run.cull.value}")
+                        tracker.apply(v)
+                    else:
+                        GS.apply_state(replace(p.state, cull=run.cull, depth=depth), p.writes,
+                                       depth_format=depth_format)
                 if p.draw.scissor:
                     for i in run.lights:
                         rect = draws.scissor_rect(lights[i], self._view, self._proj, w, h)
                         if rect[2] == 0 or rect[3] == 0:
                             continue
-                        GS.set_scissor(rect)
+                        tracker.scissor(rect)
                         self._draw_lights(p, vao, [i])
-                    GS.set_scissor(None)
+                    tracker.scissor(None)
                 else:
                     self._draw_lights(p, vao, run.lights)
         else:
@@ -500,6 +604,22 @@ class GLPipeline:
             t = self.targets[name]
             if t.samples > 1:
                 t.dirty = True
+        if self.profile is not None:
+            GL.glFinish()
+            self.profile.append((p.name, light, t1 - t0, time.perf_counter() - t1))
+
+    def _instance(self, p: _Pass, light: Optional[int]) -> list[int]:
+        """``draws.LightSelection.instance`` with each draw's light list computed once per
+        scene (not once per light of a repeat group)."""
+        drawn = self._drawn.get(p.index)
+        if drawn is None:
+            idx = self._selection.of(p.draw)
+            drawn = self._drawn[p.index] = (idx, set(idx))
+        if light is None:
+            return drawn[0]
+        if draws.light_filter(p.draw) and light not in drawn[1]:
+            return []
+        return [light]
 
     def _draw_lights(self, p: _Pass, vao, indices: Sequence[int]) -> None:
         if p.instance_buffer is not None:

@@ -1,11 +1,18 @@
 """Apply one pass's fixed-function state (``PassPlan.state``, an ``ir.PassState``) with PyOpenGL.
 
-moderngl tracks none of this raw state (and has no API for most of it), so every pass sets
+moderngl tracks none of this raw state (and has no API for most of it), so ``apply_state`` sets
 *all* of it explicitly: depth func/mask/clamp, per-face stencil func/ops/masks, per-target blend
 enable/equations/factors, the blend constant, per-target colour masks, culling, polygon offset
 and the scissor test, plus the rarely touched switches that would silently change results if
 anything (moderngl, a user) left them on: dithering, sRGB writes, logic ops, alpha-to-coverage,
 sample masks, sample shading, rasterizer discard, primitive restart, polygon mode.
+
+``apply_state`` is the reference: tests pin GL's behaviour through it, and
+``GLPipeline(..., transitions=False)`` calls it before every pass.  A pipeline normally sets
+state through ``gl_transitions`` instead (each pass's state lowered once to the slots it
+depends on, only the differences from the previous pass set); it renders bit-identically
+(tests/test_gl_transitions.py).  Both share the GL tables below; ``apply_state`` and
+``set_scissor`` tell the process-wide ``gl_transitions.TRACKER`` that the state changed.
 
 The GL tables below are keyed by the IR enums' ``.value`` strings.  The colour outputs are
 indexed by the pass's ``writes``: ``state.blend_for(name)`` applies to draw buffer
@@ -98,6 +105,8 @@ def reset_state() -> None:
                 GL.GL_PRIMITIVE_RESTART, GL.GL_PRIMITIVE_RESTART_FIXED_INDEX,
                 GL.GL_POLYGON_OFFSET_LINE, GL.GL_POLYGON_OFFSET_POINT):
         GL.glDisable(cap)
+    from .gl_transitions import TRACKER
+    TRACKER.invalidate()
     for i in range(8):
         GL.glDisable(GL.GL_CLIP_DISTANCE0 + i)
     GL.glEnable(GL.GL_MULTISAMPLE)            # only matters for MSAA attachments
@@ -161,13 +170,18 @@ def apply_state(state: ir.PassState, writes: Sequence[str] = (), *,
         GL.glDisable(GL.GL_POLYGON_OFFSET_FILL)
         GL.glPolygonOffset(0.0, 0.0)
     set_scissor(scissor)
+    from .gl_transitions import TRACKER
+    TRACKER.invalidate()        # state set behind the tracker's back: it knows nothing now
 
 
 def set_scissor(rect) -> None:
     """``(x, y, w, h)`` enables the scissor test on that window rectangle; None disables it."""
+    from .gl_transitions import TRACKER
     if rect is None:
         GL.glDisable(GL.GL_SCISSOR_TEST)
     else:
         x, y, w, h = (int(v) for v in rect)
         GL.glEnable(GL.GL_SCISSOR_TEST)
         GL.glScissor(x, y, max(w, 0), max(h, 0))
+        rect = (x, y, max(w, 0), max(h, 0))
+    TRACKER.scissor_rect = rect
