@@ -18,7 +18,8 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-import numpy as np
+# numpy is imported by the functions that compute with arrays, not here: compiling a technique
+# reads formats but never needs numpy (tests/test_compile_imports.py).
 
 
 class Kind(enum.Enum):
@@ -160,9 +161,15 @@ class Format:
     @property
     def element_dtype(self) -> np.dtype:
         """dtype of one stored element: the packed word, or one channel's code."""
+        import numpy as np
+        return np.dtype(self.element_dtype_name)
+
+    @property
+    def element_dtype_name(self) -> str:
+        """numpy's name of ``element_dtype`` (``uint32``), known without importing numpy."""
         if self.packed:
-            return np.dtype({8: np.uint8, 16: np.uint16, 32: np.uint32}[self.word_bits])
-        return self.dtype
+            return f"uint{self.word_bits}"
+        return self.dtype_name
 
     @property
     def elements(self) -> int:
@@ -172,6 +179,7 @@ class Format:
     def pack(self, codes: np.ndarray) -> np.ndarray:
         """Codes ``(..., C)`` (single channel: ``(...)``) -> stored elements: one word per
         pixel for packed formats, else the codes themselves in ``dtype``."""
+        import numpy as np
         c = np.asarray(codes)
         if not self.packed:
             return np.ascontiguousarray(c.astype(self.dtype))
@@ -184,6 +192,7 @@ class Format:
 
     def unpack(self, words: np.ndarray) -> np.ndarray:
         """Stored elements -> codes (inverse of ``pack``)."""
+        import numpy as np
         w = np.asarray(words)
         if not self.packed:
             return w
@@ -195,15 +204,21 @@ class Format:
     @property
     def dtype(self) -> np.dtype:
         """dtype of the arrays that hold this target's codes after readback."""
+        import numpy as np
+        return np.dtype(self.dtype_name)
+
+    @property
+    def dtype_name(self) -> str:
+        """numpy's name of ``dtype`` (``uint8``, ``float16``), known without importing numpy."""
         b = max(self.bits)
         if self.kind is Kind.FLOAT:
-            return np.dtype(np.float16 if b == 16 else np.float32)
+            return "float16" if b == 16 else "float32"
         if self.kind is Kind.DEPTH:
-            return np.dtype(np.float32)
+            return "float32"
         if self.kind is Kind.DEPTH_STENCIL:
-            return np.dtype(np.uint32)
+            return "uint32"
         size = 8 if b <= 8 else 16 if b <= 16 else 32
-        return np.dtype(f"{'i' if self.kind is Kind.SNORM else 'u'}{size // 8}")
+        return f"{'int' if self.kind is Kind.SNORM else 'uint'}{size}"
 
     def array_shape(self, width: int, height: int) -> tuple[int, ...]:
         return (height, width) if self.channels == 1 else (height, width, self.channels)
@@ -212,6 +227,7 @@ class Format:
     def _per_channel(self, values: tuple[int, ...]):
         """A per-channel constant, shaped for arrays with (or, single channel, without) a
         trailing channel axis."""
+        import numpy as np
         return values[0] if self.channels == 1 or len(set(values)) == 1 else np.array(values)
 
     def quantize(self, x: np.ndarray) -> np.ndarray:
@@ -228,6 +244,7 @@ class Format:
           -cl-denorms-are-zero; llvmpipe flushes);
         - d24: ``rint(float32(z) * 16777215.0f)`` in float32.
         """
+        import numpy as np
         x = np.asarray(x, dtype=np.float64)
         if self.is_normalized or self.kind is Kind.DEPTH_STENCIL:
             lo = -1.0 if self.is_signed else 0.0
@@ -257,6 +274,7 @@ class Format:
 
     def dequantize(self, codes: np.ndarray) -> np.ndarray:
         """Stored codes -> the float value a shader reads (float64)."""
+        import numpy as np
         c = np.asarray(codes)
         if self.is_normalized or self.kind is Kind.DEPTH_STENCIL:
             scale = np.asarray(self._per_channel(self.max_codes), dtype=np.float64)
@@ -288,6 +306,7 @@ def unorm16_codes(x: np.ndarray) -> np.ndarray:
     """llvmpipe's float -> 16-bit unorm conversion (lp_bld_conv.c,
     lp_build_clamped_float_to_unsigned_norm): the low 16 mantissa bits of
     ``x * (65535/65536) + 128`` in float32, ``x`` already clamped to [0, 1] (uint32 codes)."""
+    import numpy as np
     f32 = np.float32
     y = (np.asarray(x, f32) * f32(65535 / 65536)).astype(f32) + f32(128.0)
     return np.ascontiguousarray(y.astype(f32)).view(np.uint32) & np.uint32(0xFFFF)
@@ -298,6 +317,7 @@ def scale_bits16(c16: np.ndarray, bits) -> np.ndarray:
     them: ``c >> (16 - b)`` when ``16 - b <= b`` (truncating: "wrong rounding" in Mesa's
     words), else ``((c >> b) * (2^b - 1) + 2^(15 - b)) >> (16 - b)``.  ``bits`` is an int or
     an array broadcast against ``c16``'s last axis."""
+    import numpy as np
     c = np.asarray(c16).astype(np.int64)
     b = np.asarray(bits, np.int64)
     d = 16 - b
@@ -309,6 +329,7 @@ def scale_bits16(c16: np.ndarray, bits) -> np.ndarray:
 def half_toward_zero(x: np.ndarray) -> np.ndarray:
     """float -> float16 rounding toward zero, finite values clamped to ±65504 (llvmpipe's
     rgba16f store)."""
+    import numpy as np
     f = np.asarray(x, dtype=np.float32)
     finite = np.isfinite(f)
     f = np.where(finite, np.clip(f, -65504.0, 65504.0), f)
@@ -322,6 +343,7 @@ def half_toward_zero(x: np.ndarray) -> np.ndarray:
 def flush_denormals(x: np.ndarray) -> np.ndarray:
     """Flush subnormal floats to (signed) zero, as llvmpipe does and CL does under
     ``-cl-denorms-are-zero``."""
+    import numpy as np
     x = np.asarray(x)
     if x.dtype.kind != "f":
         return x

@@ -29,13 +29,12 @@ import re
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
-import numpy as np
-
 from . import formats, ir
 from .diagnostics import PipegenError, Span
 from .formats import Format, Kind
 
-F32 = np.float32
+# numpy is imported inside the mirrors and the measurements that use it: ``build`` (what
+# compiling a technique calls) never needs it (tests/test_compile_imports.py).
 
 SCHEMES = ("bitplanes", "max_pairs", "channel_slots", "split16", "bitfield",
            "kircher", "spheremap", "octahedral")
@@ -158,11 +157,14 @@ def _code_expr(v: str, scale: int) -> str:
 
 
 def _codes(v: np.ndarray, scale: int) -> np.ndarray:
+    import numpy as np
+    F32 = np.float32
     v = np.asarray(v, dtype=F32)
     return np.clip(np.floor(v * F32(scale) + F32(0.5)), 0, scale).astype(np.uint32)
 
 
 def _u32(x) -> np.ndarray:
+    import numpy as np
     return np.asarray(x).astype(np.uint32)
 
 
@@ -278,6 +280,8 @@ class _BitPlanes(_Scheme):
         return {"plane_value": plane, "unpack": "\n".join(lines)}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         b, C, mask, cap = self.b, self.C, (1 << self.b) - 1, self.capacity
 
         def plane_value(index):
@@ -310,6 +314,7 @@ def blend_bitplanes(dst_codes, src_codes, bits_per_write: int, mode: str = "unor
     even): ``rint(src + dst * 2^-b)``.  Both saturate at 255, and both are exact while the
     bits shifted out are zero, i.e. up to capacity.
     """
+    import numpy as np
     dst = np.asarray(dst_codes, dtype=np.float64)
     src = np.asarray(src_codes, dtype=np.float64)
     if mode == "exact":
@@ -326,6 +331,8 @@ def emulate_bitplanes(indices, index_bits: int, target: Format | str = "rgba8",
                       mode: str = "unorm8") -> np.ndarray:
     """The vec4 a pixel reads after lights ``indices`` (1-based, oldest first) were blended
     into a cleared bit-plane target.  ``indices`` may be (L,) or (L, P) for P pixels."""
+    import numpy as np
+    F32 = np.float32
     fmt = formats.get(target) if isinstance(target, str) else target
     impl = numpy_impl("bitplanes", {"index_bits": index_bits}, fmt)
     b = index_bits // fmt.channels
@@ -410,6 +417,8 @@ class _MaxPairs(_Scheme):
         return {"pair": pair, "value": value, "unpack": unpack}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         sc = self.scale
 
         def pair(index):
@@ -438,6 +447,8 @@ def emulate_max_pairs(indices, scale: int = 255) -> np.ndarray:
     in draw order) over it, with the stencil exactly as in the paper and pipelines/
     lidr_max_stencil.pipe: pass 1 ``func greater ref 2 zpass incr`` (ref > stencil passes),
     pass 2 ``func equal ref 0 fail decr``."""
+    import numpy as np
+    F32 = np.float32
     codes = np.zeros(4, dtype=np.int64)
     stencil = 0
     for i in indices:                      # pass 1: RG, first two lights
@@ -502,6 +513,8 @@ class _ChannelSlots(_Scheme):
         return {"value": value, "unpack": "\n".join(lines)}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         sc, n = self.scale, self.slots
 
         def value(index):
@@ -525,6 +538,7 @@ def sort_lights_into_slots(centers, radii, slots: int) -> tuple[list[list[int]],
 
     Returns ``(sets, dropped)``: the light indices of each set, and the dropped ones.
     """
+    import numpy as np
     centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
     radii = np.asarray(radii, dtype=np.float64).reshape(-1)
     assert len(centers) == len(radii)
@@ -589,6 +603,8 @@ class _Split16(_Scheme):
         return {"pack": pack, "unpack": unpack}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         def pack(x):
             x = np.clip(np.asarray(x, dtype=F32), F32(0), F32(1))
             code = np.floor(x * F32(65535) + F32(0.5)).astype(np.uint32)
@@ -618,6 +634,8 @@ def measure_split16_error(target: Format | str = "rg8") -> tuple[float, float]:
     Evaluated exhaustively at those ends: for every code, the float32 values within 4 ulps of
     both rounding boundaries (c ± 0.5)/65535 (the float32 products x*65535 + 0.5 decide a
     boundary to within 2 ulps), and the codes themselves."""
+    import numpy as np
+    F32 = np.float32
     fmt = formats.get(target) if isinstance(target, str) else target
     f = numpy_impl("split16", {})
     c = np.arange(65536, dtype=np.float64)
@@ -670,6 +688,8 @@ def bitfield_round_trip_failure(fmt: Format | str, bits: int,
     """The first ``bits``-bit value that does not survive bitfield's ``to_unorm`` → a channel
     of ``fmt`` → ``from_unorm``, or None: every value 0 .. 2^bits - 1 is tried (in chunks,
     stopping at the first failure)."""
+    import numpy as np
+    F32 = np.float32
     fmt = formats.get(fmt) if isinstance(fmt, str) else fmt
     f = numpy_impl("bitfield", {"fields": [("v", bits)]})
     for lo in range(0, 1 << bits, chunk):
@@ -774,6 +794,8 @@ class _Bitfield(_Scheme):
         return out
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         shifts = list(self._shifts())
         mx = self.max
 
@@ -869,6 +891,8 @@ class _Kircher(_Normals):
         return {"encode": enc, "decode": dec}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         def encode(n):
             n = np.asarray(n, dtype=F32)
             h = n + np.array([0, 0, 1], dtype=F32)
@@ -914,6 +938,8 @@ class _Spheremap(_Normals):
         return {"encode": enc, "decode": dec}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         def encode(n):
             n = np.asarray(n, dtype=F32)
             h = n + np.array([0, 0, 1], dtype=F32)
@@ -959,6 +985,8 @@ class _Octahedral(_Normals):
         return {"encode": enc, "decode": dec}
 
     def mirror(self):
+        import numpy as np
+        F32 = np.float32
         def encode(n):
             n = np.asarray(n, dtype=F32)
             l1 = np.abs(n[..., 0]) + np.abs(n[..., 1]) + np.abs(n[..., 2])
@@ -981,6 +1009,7 @@ class _Octahedral(_Normals):
 
 def fibonacci_sphere(count: int, hemisphere: bool = False) -> np.ndarray:
     """``count`` nearly evenly spread unit vectors (float64), on z >= 0 if ``hemisphere``."""
+    import numpy as np
     i = np.arange(count, dtype=np.float64) + 0.5
     z = 1.0 - i / count if hemisphere else 1.0 - 2.0 * i / count
     r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
@@ -997,6 +1026,7 @@ def _special_normals(hemisphere: bool) -> np.ndarray:
     depends on the format's step, too close to the pole for an even grid to find), and both
     sides of the octahedral seams (x = 0 or y = 0 below the equator, which map to the edges of
     the square) at offsets 1e-7 .. 1e-2."""
+    import numpy as np
     pts = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (1, 1, 0), (-1, 1, 0),
            (1, -1, 0), (-1, -1, 0), (1, 1, 1), (-1, -1, 1), (1e-7, 0, 1), (1, 1e-7, 1e-7)]
     if not hemisphere:
@@ -1028,6 +1058,7 @@ def _special_normals(hemisphere: bool) -> np.ndarray:
 
 def angular_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle between vectors (need not be unit), in degrees; exact near 0 (atan2 form)."""
+    import numpy as np
     a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
     return np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1),
                                  np.sum(a * b, axis=-1)))
@@ -1036,6 +1067,7 @@ def angular_error_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _angle_to_unit_deg(n: np.ndarray, d: np.ndarray) -> np.ndarray:
     """``angular_error_deg(n, d)`` for unit ``n`` (float64), faster: 2 asin(|n - d/|d|| / 2),
     as accurate near 0 and exact to float64 rounding up to 180 degrees."""
+    import numpy as np
     d = np.asarray(d, np.float64)
     x, y, z = d[..., 0], d[..., 1], d[..., 2]
     inv = 1.0 / np.sqrt(x * x + y * y + z * z)
@@ -1077,11 +1109,14 @@ class NormalError:
 
 @functools.lru_cache(maxsize=4)
 def _normal_grid(hemisphere: bool, samples: int) -> np.ndarray:
+    import numpy as np
     return np.concatenate([fibonacci_sphere(samples, hemisphere), _special_normals(hemisphere)])
 
 
 def _store_normals(e: np.ndarray, fmt: Format) -> np.ndarray:
     """What a shader reads back after writing encoded normals ``e`` (..., 2) into ``fmt``."""
+    import numpy as np
+    F32 = np.float32
     pad = np.zeros(e.shape[:-1] + (fmt.channels,), np.float32)
     pad[..., :2] = e
     return fmt.dequantize(fmt.quantize(pad))[..., :2].astype(F32)
@@ -1102,6 +1137,8 @@ def measure_normal_error(scheme: str, storage: str, hemisphere: bool,
     cell), a ten times heavier search at most 0.2 % more, and fresh random normals stay below
     it (tests/test_packing_exhaustive.py).  The mean is over the Fibonacci points alone (they
     are equal-area, so it is the mean over the domain)."""
+    import numpy as np
+    F32 = np.float32
     fmt = formats.get(storage)
     impl = numpy_impl(scheme, {})
 

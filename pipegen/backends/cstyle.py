@@ -46,9 +46,8 @@ from __future__ import annotations
 import math
 from typing import Callable, Optional, Sequence, Union
 
-import numpy as np
-
 from .. import ir
+from ..float32 import f32, f32_str
 from ..ir import BOOL, FLOAT, INT, Scalar, Type
 
 FLT_MIN = 2.0 ** -126   # smallest normal float32: the normalize() guard
@@ -135,13 +134,12 @@ class CStyleLanguage:
         return name
 
     def render_float(self, x: float) -> str:
-        with np.errstate(over="ignore"):
-            f = np.float32(x)   # the value the shader holds (may overflow to inf)
+        f = f32(x)   # the value the shader holds (may overflow to inf)
         if math.isnan(f):
             return self.nan_literal
         if math.isinf(f):
             return self.inf_literal if f > 0 else "-" + self.inf_literal
-        s = str(f)  # numpy: the shortest digits that identify this float32
+        s = f32_str(f)  # the shortest digits that identify this float32 (as numpy prints it)
         if "." not in s and "e" not in s:
             s += ".0"
         return s + self.float_suffix

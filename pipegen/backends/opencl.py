@@ -69,8 +69,6 @@ import textwrap
 from dataclasses import replace
 from typing import Optional
 
-import numpy as np
-
 from .. import formats as F
 from .. import ir, irwalk
 from ..ir import DrawKind, Scalar, Type
@@ -78,6 +76,7 @@ from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
 from . import templating
 from ..builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
+from ..float32 import f32
 from ..passes import lower_mix_constant
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
 
@@ -495,8 +494,8 @@ def dialect(precision: str = "f32") -> type[OpenCLLanguage]:
 
 
 # numpy element type -> OpenCL C scalar type
-_CL_SCALAR = {"u1": "uchar", "i1": "char", "u2": "ushort", "i2": "short", "u4": "uint",
-              "f2": "half", "f4": "float"}
+_CL_SCALAR = {"uint8": "uchar", "int8": "char", "uint16": "ushort", "int16": "short",
+              "uint32": "uint", "float16": "half", "float32": "float"}
 
 
 def cl_format(name: str) -> dict:
@@ -513,8 +512,8 @@ def cl_format(name: str) -> dict:
     """
     fmt = F.get(name)
     n = fmt.channels
-    el = _CL_SCALAR[fmt.element_dtype.str[1:]]
-    np_name = fmt.element_dtype.name
+    np_name = fmt.element_dtype_name
+    el = _CL_SCALAR[np_name]
     if fmt.kind is F.Kind.DEPTH_STENCIL:
         top = f"{fmt.max_codes[0]}.0f"
         return {"name": name, "cls": f"d{fmt.bits[0]}", "storage": el, "reg": el, "np": np_name,
@@ -731,7 +730,7 @@ def _rcp(maxima) -> str:
     """float4 literal of the float32 reciprocals 1/max: llvmpipe turns unorm codes into floats
     as ``code * (1/max)`` (measured; 196 * (1/255) is one ulp above 196 / 255)."""
     lang = OpenCLLanguage()
-    vals = [lang.render_float(float(np.float32(1.0) / np.float32(m))) for m in maxima]
+    vals = [lang.render_float(f32(1.0 / f32(m))) for m in maxima]
     return f"(float4)({', '.join(vals)})"
 
 

@@ -16,9 +16,8 @@ from __future__ import annotations
 
 from typing import Optional
 
-import numpy as np
-
 from .. import ir, irwalk
+from ..float32 import f32
 
 
 def run(tech: ir.Technique) -> ir.Technique:
@@ -42,7 +41,7 @@ def lower_call(e: ir.Call) -> Optional[ir.Expr]:
     values = _float_constant(t)
     if values is None:
         return None
-    one_minus = tuple(float(np.float32(1.0) - np.float32(v)) for v in values)
+    one_minus = tuple(f32(1.0 - f32(v)) for v in values)      # float32's 1 - t
     om = ir.Const(t.type, one_minus if t.type.is_vector else one_minus[0])
     return ir.Binary("+", ir.Binary("*", x, om, e.type), ir.Binary("*", y, t, e.type), e.type)
 

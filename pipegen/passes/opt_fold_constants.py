@@ -1,6 +1,7 @@
 """opt_fold_constants: evaluate constant scalar expressions and branches at compile time.
 
-Folding follows the runtime's arithmetic, not Python's: floats in float32 (numpy), ints as
+Folding follows the runtime's arithmetic, not Python's: floats in float32 (``float32.f32``:
+numpy's float32 results without importing numpy), ints as
 32-bit two's complement, uints modulo 2^32.  Anything whose result could differ between
 backends (division by zero, shifts out of range, NaN-producing operations) is left alone so
 that both backends evaluate it the same way at run time.
@@ -8,11 +9,11 @@ that both backends evaluate it the same way at run time.
 
 from __future__ import annotations
 
+import math
 import operator
 
-import numpy as np
-
 from .. import ir, irwalk
+from ..float32 import f32
 
 _ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul}
 _COMPARE = {"==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,
@@ -31,7 +32,7 @@ def _scalar_const(e: ir.Expr) -> bool:
 def _wrap(value: int, t: ir.Type) -> int:
     if t.scalar is ir.Scalar.UINT:
         return value & 0xFFFFFFFF
-    return int(np.int64(value).astype(np.int32))   # two's complement wrap
+    return (value + 2 ** 31) % 2 ** 32 - 2 ** 31     # two's complement wrap
 
 
 def fold_expr(e: ir.Expr) -> ir.Expr:
@@ -44,7 +45,7 @@ def fold_expr(e: ir.Expr) -> ir.Expr:
         if e.op == "!" and e.type == ir.BOOL:
             return ir.Const(ir.BOOL, not v)
         if e.op == "-" and e.type == ir.FLOAT:
-            return ir.Const(ir.FLOAT, float(-np.float32(v)))
+            return ir.Const(ir.FLOAT, -f32(v))
         if e.op == "-" and e.type.scalar in (ir.Scalar.INT, ir.Scalar.UINT):
             return ir.Const(e.type, _wrap(-v, e.type))
     if isinstance(e, ir.Ternary) and isinstance(e.cond, ir.Const):
@@ -60,17 +61,16 @@ def _fold_binary(op: str, a: ir.Const, b: ir.Const):
     x, y = a.value, b.value
     if op in _COMPARE:
         if t == ir.FLOAT:
-            x, y = np.float32(x), np.float32(y)
+            x, y = f32(x), f32(y)
         return bool(_COMPARE[op](x, y))
     if op in ("&&", "||") and t == ir.BOOL:
         return (x and y) if op == "&&" else (x or y)
     if t == ir.FLOAT:
         if op in _ARITH:
-            with np.errstate(all="ignore"):
-                r = _ARITH[op](np.float32(x), np.float32(y))
-            return float(r) if np.isfinite(r) else None
+            r = f32(_ARITH[op](f32(x), f32(y)))   # double, then float32: float32's result
+            return r if math.isfinite(r) else None
         if op == "/" and y != 0:
-            return float(np.float32(x) / np.float32(y))
+            return _divide(f32(x), f32(y))
         return None
     if t.scalar in (ir.Scalar.INT, ir.Scalar.UINT):
         if op in _ARITH:
@@ -86,10 +86,20 @@ def _fold_binary(op: str, a: ir.Const, b: ir.Const):
     return None
 
 
+def _divide(x: float, y: float) -> float:
+    """float32 ``x / y`` (IEEE: a zero divisor gives ±inf, or NaN for 0/0 and NaN; the divisor
+    is a float32 that may have rounded to zero although the constant was not zero)."""
+    if y == 0:
+        if x == 0 or math.isnan(x):
+            return math.nan
+        return math.copysign(math.inf, x) * math.copysign(1.0, y)
+    return f32(x / y)
+
+
 def _fold_conversion(t: ir.Type, c: ir.Const):
     v = c.value
     if t == ir.FLOAT:
-        return ir.Const(t, float(np.float32(v)))
+        return ir.Const(t, f32(v))
     if t == ir.BOOL:
         return ir.Const(t, bool(v))
     if t.scalar in (ir.Scalar.INT, ir.Scalar.UINT):
