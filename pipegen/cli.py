@@ -87,8 +87,9 @@ rendering; --strict makes it an error (exit 1).
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(_join_negative_sizes(sys.argv[1:] if argv is None else argv))
+    argv = _join_negative_sizes(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(argv[0] if argv else None)
+    args = parser.parse_args(argv)
     if not getattr(args, "command", None):
         parser.print_help(sys.stderr)
         return 2
@@ -119,7 +120,12 @@ class _Version(argparse.Action):
         parser.exit()
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
+    """The ``pipegen`` argument parser.  ``command_word``: the first word of the command line,
+    when known; if it names one of ``COMMANDS``, the subcommands implemented elsewhere
+    (``sweep``, ``stress``: their modules import numpy and the scene code, tens of
+    milliseconds) are left out, which changes nothing for that command's parse, help or errors.
+    Without it (``--help``, an unknown word, ``sweep`` itself) every subcommand is added."""
     fmt = argparse.RawDescriptionHelpFormatter
     everything = "".join(EXAMPLES[c] for c in COMMANDS)
     parser = argparse.ArgumentParser(
@@ -253,6 +259,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"output size the target sizes and bytes assume "
                         f"(default: {DEFAULT_SIZE_TEXT}; each side 1..{MAX_SIZE})")
 
+    if command_word in COMMANDS:
+        return parser
     from .sweep import add_parser as add_sweep          # `pipegen sweep`: pipegen/sweep.py
     add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
     from .stress.command import add_parser as add_stress   # `pipegen stress`: pipegen/stress/
