@@ -69,7 +69,7 @@ def render(template: str, **context) -> str:
 
 def _multiline_ok(s: str) -> bool:
     return ("\n" in s and "\\" not in s and '"""' not in s and not s.endswith('"')
-            and all(c.isprintable() or c == "\n" for c in s))
+            and s.replace("\n", "").isprintable())   # every character printable or a newline
 
 
 @template_filter
