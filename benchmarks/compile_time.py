@@ -62,21 +62,26 @@ def _children_cpu() -> float:
 
 STAGES = r"""
 import sys, time
-T = [("start", time.perf_counter())]
-def mark(name): T.append((name, time.perf_counter()))
-import pipegen.cli as cli; mark("import pipegen.cli")
-cli.build_parser(); mark("cli.build_parser()")
-import numpy; mark("import numpy (rest)")
-import jinja2; mark("import jinja2 (rest)")
-import lark; mark("import lark (rest)")
-import pipegen.compiler as C; mark("import pipegen.compiler (rest)")
+T = [("start", time.perf_counter(), time.process_time())]
+def mark(name): T.append((name, time.perf_counter(), time.process_time()))
+import lark; mark("import lark")
+import jinja2; mark("import jinja2")
+import pipegen.cli as cli; mark("import pipegen.cli (rest)")
+argv = ["compile", sys.argv[1], "-o", sys.argv[2], "--force"]
+args = cli.build_parser(argv[0]).parse_args(argv); mark("cli.build_parser + parse_args")
+from pipegen.outdir import OutputDir
+out = OutputDir(args.out, "compile", args.force); mark("output folder checked")
+import pipegen.compiler; mark("import pipegen.compiler (rest)")
 from pipegen import syntax; syntax._parser(); mark("parser (cache or build)")
-c = C.compile_file(sys.argv[1]); mark("parse, lower, IR phases")
-c.write(sys.argv[2]); mark("emit GL + CL, write files")
-c.report(); mark("report")
-for (_, t0), (name, t1) in zip(T, T[1:]):
-    print(f"  {name:<32} {1000 * (t1 - t0):7.1f} ms")
-print(f"  {'total (after interpreter start)':<32} {1000 * (T[-1][1] - T[0][1]):7.1f} ms")
+c = cli._compile(args); mark("parse, lower, IR phases")
+c.write(out, ("gl", "cl"), args.size); mark("emit GL + CL, write files")
+c.report(args.size); mark("report")
+print(f"  {'stage':<34} {'wall ms':>8} {'CPU ms':>7}")
+for (_, w0, c0), (name, w1, c1) in zip(T, T[1:]):
+    print(f"  {name:<34} {1000 * (w1 - w0):8.1f} {1000 * (c1 - c0):7.1f}")
+print(f"  {'total (after interpreter start)':<34} {1000 * (T[-1][1] - T[0][1]):8.1f} "
+      f"{1000 * (T[-1][2] - T[0][2]):7.1f}")
+print("  numpy imported:", "yes" if "numpy" in sys.modules else "no")
 """
 
 
