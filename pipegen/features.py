@@ -41,6 +41,7 @@ class SceneFeatures:
     camera_inside: tuple[int, ...]               # lights whose sphere holds the camera
     object_ids: int
     normal_groups: int
+    shadow_lights: int = 0                       # lights casting shadows (``shadows = true``)
 
     @property
     def lights(self) -> int:
@@ -57,7 +58,7 @@ class SceneFeatures:
         """The compile-time facts a specialised technique assumes.  The light count is
         rounded up to a power of two so that similar scenes share a variant."""
         return ir.SceneFacts(self.light_types, _pow2(self.lights), self.translucent_objects > 0,
-                             self.opaque_objects > 0)
+                             self.opaque_objects > 0, self.shadow_lights > 0)
 
     def describe(self) -> list[str]:
         lights = ", ".join(f"{n} {t}" for t, n in self.light_counts) or "none"
@@ -93,7 +94,8 @@ def scene_features(scene) -> SceneFeatures:
         ambient=bool(np.any(np.asarray(scene.ambient) > 0)),
         camera_inside=inside,
         object_ids=len({o.id for o in objects}),
-        normal_groups=len(groups))
+        normal_groups=len(groups),
+        shadow_lights=sum(bool(getattr(l, "shadows", False)) for l in scene.lights))
 
 
 def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
@@ -132,6 +134,10 @@ class Capabilities:
     # per index packing: (pack, the faces its writers draw ("back": cull front, depth gequal;
     # "front": front faces in front of the surface), the index bank (n, k) or None)
     index_rules: tuple[tuple[str, str, Optional[tuple[int, int]]], ...] = ()
+    # shadow maps (``draw scene… from lights TYPES tiles N``): the light types drawn into an
+    # atlas, and the fewest tiles of any such draw (N^2; 0: the technique draws no shadows)
+    shadow_types: frozenset = frozenset()
+    shadow_capacity: int = 0
 
     def light_type(self, t: str) -> str:
         return dict(self.light_types)[t]
@@ -197,7 +203,11 @@ def capabilities(tech: ir.Technique) -> Capabilities:
                   for k in tech.packings if k.scheme == "channel_slots")
     rules = tuple((k.name,) + _packing_rule(tech, k) for k in tech.packings
                   if k.scheme in INDEX_SCHEMES and k.capacity)
-    return Capabilities(tuple(out), has_table, translucent, index, slots, rules)
+    shadow_draws = [p.draw for p in tech.passes if p.draw.shadow]
+    shadow_types = frozenset(t for d in shadow_draws for t in d.light_types)
+    shadow_capacity = min((d.shadow_tiles ** 2 for d in shadow_draws), default=0)
+    return Capabilities(tuple(out), has_table, translucent, index, slots, rules,
+                        shadow_types, shadow_capacity)
 
 
 _FRONT_TESTS = (ir.CompareFunc.LESS, ir.CompareFunc.LEQUAL)
@@ -321,6 +331,23 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                                             f"the {slots} light sets of `{pack}` hold: "
                                             f"{'it is' if len(dropped) == 1 else 'they are'} "
                                             f"dropped (lights {', '.join(map(str, dropped))})"))
+    casting: dict[str, int] = {}
+    for light in scene.lights:
+        if getattr(light, "shadows", False):
+            casting[light.type] = casting.get(light.type, 0) + 1
+    for t in LIGHT_TYPES:
+        n = casting.get(t, 0)
+        if n and t not in cap.shadow_types:
+            why = ("this technique does not render shadows" if not cap.shadow_capacity else
+                   f"no shadow-map pass draws from {t} lights")
+            out.append(Mismatch("shadows", f"{_n(n, t + ' light')} "
+                                           f"{'casts' if n == 1 else 'cast'} shadows that are "
+                                           f"not drawn ({why}): lit unshadowed"))
+    total = sum(casting.values())
+    if cap.shadow_capacity and total > cap.shadow_capacity:
+        out.append(Mismatch("capacity", f"the scene has {total} shadow-casting lights, the "
+                                        f"shadow atlas holds {cap.shadow_capacity}: the "
+                                        f"technique refuses the scene"))
     if tech.lights.fields and f.lights > tech.lights.capacity:
         out.append(Mismatch("table", f"the scene has {f.lights} lights, the light table holds "
                                      f"{tech.lights.capacity}"))

@@ -544,12 +544,22 @@ class Draw:
     light_set: Optional[tuple[str, int]] = None  # LIGHTS: (channel_slots pack, slot k)
     scissor: bool = False               # LIGHTS: rasterise only inside the light's screen rect
     order: DrawOrder = DrawOrder.SCENE  # SCENE: object order (runtime/draws.scene_order)
+    # SCENE ``from lights TYPES tiles N``: a shadow-map draw, the scene from each shadow-casting
+    # light of ``light_types`` into its tile of an N x N atlas (pipegen/shadows.py); 0: not one
+    shadow_tiles: int = 0
+
+    @property
+    def shadow(self) -> bool:
+        """A shadow-map draw: the scene seen from each shadow-casting light."""
+        return self.shadow_tiles > 0
 
     def describe(self) -> str:
         """The draw as the language spells it (for reports and shader header comments)."""
         if self.kind is DrawKind.SCENE:
             return "scene" + "".join("." + m for m in self.material) + (
-                " back_to_front" if self.order is DrawOrder.BACK_TO_FRONT else "")
+                " back_to_front" if self.order is DrawOrder.BACK_TO_FRONT else "") + (
+                " from lights " + " ".join(self.light_types) + f" tiles {self.shadow_tiles}"
+                if self.shadow else "")
         if self.kind is DrawKind.LIGHTS:
             text = f"lights as {(self.volume or Volume.SPHERE).value}"
             if self.light_types:
@@ -610,11 +620,13 @@ class SceneFacts:
     lights: int                         # the most lights a scene may have
     translucent: bool                   # whether any object is translucent
     opaque: bool = True                 # whether any object is opaque
+    shadows: bool = True                # whether any light casts shadows (``shadows = true``)
 
     def describe(self) -> str:
         types = ", ".join(self.light_types) or "no lights"
         return (f"{types}; at most {self.lights} lights; "
-                f"{'translucent objects' if self.translucent else 'nothing translucent'}")
+                f"{'translucent objects' if self.translucent else 'nothing translucent'}"
+                + ("" if self.shadows else "; no shadows"))
 
 
 @dataclass(frozen=True)

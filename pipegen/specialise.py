@@ -5,7 +5,8 @@ made, and refuse scenes that break the assumptions.
 features (``features.scene_features``) into compile-time facts (``ir.SceneFacts``) and runs
 the scene phases, each a pass in ``passes/`` verified after it in tests:
 
-    assume_scene → spec_light_types → fold → prune → cull_empty_draws → cull_unread
+    assume_scene → spec_light_types → spec_shadows → fold → prune → cull_empty_draws →
+    cull_unread
 
 and, before them, shrinks the light table: the parameter that sizes it is set to the smallest
 power of two (within its allowed values) that holds the scene's lights, so similar scenes
@@ -27,10 +28,11 @@ from . import ir
 from .verify import verify as verify_ir
 from .features import SceneFeatures, scene_features
 from .passes import (cull_empty_draws, cull_unread, opt_fold_constants, opt_unused_functions,
-                     spec_light_types)
+                     spec_light_types, spec_shadows)
 
 SCENE_PHASES: tuple[tuple[str, Callable[[ir.Technique], ir.Technique]], ...] = (
     ("spec_light_types", spec_light_types.run),
+    ("spec_shadows", spec_shadows.run),
     ("fold", opt_fold_constants.run),
     ("prune", opt_unused_functions.run),
     ("cull_empty_draws", cull_empty_draws.run),

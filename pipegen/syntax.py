@@ -365,7 +365,8 @@ class _ToAst(Transformer):
         if kind.type == "SCENE":
             material = self._name(ch[1]) if ch[1] is not None else None
             return ast.Draw("scene", material=material, span=span,
-                            back_to_front=len(ch) > 2 and ch[2] is not None)
+                            back_to_front=len(ch) > 2 and ch[2] is not None,
+                            from_lights=ch[3] if len(ch) > 3 else None)
         if kind.type == "FULLSCREEN":
             return ast.Draw("fullscreen", span=span)
         draw = ast.Draw("lights", volume=ch[1], span=span)
@@ -380,6 +381,11 @@ class _ToAst(Transformer):
             else:  # SCISSOR
                 draw.scissor = True
         return draw
+
+    def draw_from(self, meta, ch):
+        types = [c for c in ch if isinstance(c, ast.Word)]
+        tiles = ch[-1] if ch and not isinstance(ch[-1], (ast.Word, Token)) else None
+        return ast.DrawFrom(types, tiles, span=self._span(meta))
 
     def light_set(self, meta, ch):
         return _LightSet(self._name(ch[0]), ch[1])

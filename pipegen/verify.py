@@ -171,8 +171,12 @@ class _Verifier:
                 _check(pack is not None and pack.scheme == "channel_slots", where,
                        f"light set {d.light_set}")
         else:
-            _check(d.volume is None and not d.light_types and d.light_set is None
+            _check(d.volume is None and (not d.light_types or d.shadow) and d.light_set is None
                    and not d.scissor, where, f"light-draw options on a {d.kind.value} draw")
+            _check(not d.shadow or (d.kind is ir.DrawKind.SCENE and not p.writes and not p.body
+                                    and p.depth_target and p.repeat_group is None
+                                    and set(d.light_types) <= {"spot", "directional"}),
+                   where, "a shadow-map draw writes depth only, once per light")
         _check(d.kind is ir.DrawKind.SCENE or not d.material, where, "material filter")
         _check(p.state.cull is not ir.CullMode.AUTO or (
             d.kind is ir.DrawKind.LIGHTS and d.volume in (ir.Volume.SPHERE, ir.Volume.CONE)),

@@ -177,7 +177,8 @@ def plan_to_dict(plan: Plan) -> dict:
     if plan.scene is not None:
         f = plan.scene
         out["scene"] = {"light_types": list(f.light_types), "lights": f.lights,
-                        "translucent": f.translucent, "opaque": f.opaque}
+                        "translucent": f.translucent, "opaque": f.opaque,
+                        **({} if f.shadows else {"shadows": False})}
     if plan.precision != "f32":
         out["precision"] = plan.precision
     return out
@@ -204,7 +205,8 @@ def _pass_to_dict(p: PassPlan) -> dict:
                  "light_set": None if d.light_set is None else list(d.light_set),
                  "scissor": d.scissor,
                  # only when not the default, so plans of scene-order draws keep their text
-                 **({"order": d.order.value} if d.order is not ir.DrawOrder.SCENE else {})},
+                 **({"order": d.order.value} if d.order is not ir.DrawOrder.SCENE else {}),
+                 **({"shadow_tiles": d.shadow_tiles} if d.shadow else {})},
         "repeat_group": p.repeat_group,
         "repeat_types": list(p.repeat_types),
         "clears": [{"target": name, **_clear_to_dict(c)} for name, c in p.clears],
@@ -279,7 +281,8 @@ def _facts_from_dict(f: Optional[Mapping]) -> Optional[ir.SceneFacts]:
     if f is None:
         return None
     return ir.SceneFacts(tuple(f.get("light_types") or ()), int(f.get("lights") or 0),
-                         bool(f.get("translucent")), bool(f.get("opaque", True)))
+                         bool(f.get("translucent")), bool(f.get("opaque", True)),
+                         bool(f.get("shadows", True)))
 
 
 def _clear_from_dict(c: Mapping) -> ir.Clear:
@@ -302,7 +305,8 @@ def draw_from_dict(d: Optional[Mapping]) -> ir.Draw:
                    None if d.get("volume") is None else ir.Volume(d["volume"]),
                    tuple(d.get("light_types") or ()),
                    None if not light_set else (str(light_set[0]), int(light_set[1])),
-                   bool(d.get("scissor")), ir.DrawOrder(d.get("order") or "scene"))
+                   bool(d.get("scissor")), ir.DrawOrder(d.get("order") or "scene"),
+                   int(d.get("shadow_tiles") or 0))
 
 
 def _pass_from_dict(p: Mapping) -> PassPlan:

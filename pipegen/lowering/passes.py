@@ -68,6 +68,8 @@ class _PassLowerer:
                                f"scene draws filter by {' or '.join(_MATERIALS)}")
                 material = (d.material.name,)
             order = ir.DrawOrder.BACK_TO_FRONT if d.back_to_front else ir.DrawOrder.SCENE
+            if d.from_lights is not None:
+                return self._shadow_draw(d, material, order)
             return ir.Draw(ir.DrawKind.SCENE, material=material, order=order)
         if d.kind == "fullscreen":
             return ir.Draw(ir.DrawKind.FULLSCREEN)
@@ -85,6 +87,43 @@ class _PassLowerer:
         return ir.Draw(ir.DrawKind.LIGHTS, volume=ir.Volume(d.volume.value),
                        light_types=tuple(t for t in LIGHT_TYPES if t in types),
                        light_set=self._light_set(d), scissor=d.scissor)
+
+    def _shadow_draw(self, d: ast.Draw, material: tuple[str, ...],
+                     order: ir.DrawOrder) -> ir.Draw:
+        """``draw scene… from lights [spot] [directional] [tiles N]``: the scene from each
+        shadow-casting light into its tile of the depth target (pipegen/shadows.py)."""
+        f = d.from_lights
+        types: list[str] = []
+        for w in f.light_types:
+            if w.value == "point":
+                raise _err(w.span, "point lights cast no shadows (a shadow map is one "
+                           "frustum; a point light would need six)",
+                           "draw from spot and/or directional lights")
+            if w.value in types:
+                raise _err(w.span, f"light type '{w.value}' is listed twice", "list it once")
+            types.append(w.value)
+        tiles = 1 if f.tiles is None else self.low.integer(f.tiles, "the shadow atlas's tiles "
+                                                            "per side", 1, 64)
+        if order is not ir.DrawOrder.SCENE:
+            raise _err(f.span, "a shadow-map draw keeps the scene order",
+                       "drop `back_to_front`")
+        if self.group is not None or self.single.get(ast.RepeatPerLight) is not None:
+            raise _err(f.span, f"pass '{self.name}' draws from the lights already (once per "
+                       f"shadow-casting light) and cannot also repeat per light",
+                       "move it out of the `repeat per light` group")
+        for s in (self.single.get(ast.Writes), self.single.get(ast.Fragment),
+                  *self._all(ast.PassClear)):
+            if s is not None:
+                raise _err(s.span, f"pass '{self.name}' draws shadow maps: it writes only "
+                           f"depth (no `writes`, `fragment` or `clear`; the atlas is cleared "
+                           f"by its target's `clear` at the start of the frame)",
+                           "remove this statement")
+        if self.single.get(ast.Depth) is None:
+            raise _err(d.span, f"pass '{self.name}' draws shadow maps but attaches no depth "
+                       f"target", "add e.g. `depth shadow_atlas less write`")
+        return ir.Draw(ir.DrawKind.SCENE, material=material, order=order,
+                       light_types=tuple(t for t in LIGHT_TYPES if t in types) or
+                       ("spot", "directional"), shadow_tiles=tiles)
 
     def _light_set(self, d: ast.Draw) -> Optional[tuple[str, int]]:
         if d.light_set is None:

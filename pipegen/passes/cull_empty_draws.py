@@ -53,6 +53,11 @@ def _empty(p: ir.Pass, facts: ir.SceneFacts) -> Optional[str]:
             return f"it draws {d.describe()} and the scene has no opaque objects"
         if not material and not (facts.opaque or facts.translucent):
             return "it draws the scene and the scene has no objects"
+    if d.shadow:
+        if not facts.shadows:
+            return f"it draws {d.describe()} and no light of the scene casts a shadow"
+        if not present & set(d.light_types):
+            return f"it draws {d.describe()} and the scene has no {_lights(d.light_types)}"
     if d.kind is ir.DrawKind.LIGHTS:
         if not present:
             return f"it draws {d.describe()} and the scene has no lights"

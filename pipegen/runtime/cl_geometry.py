@@ -48,6 +48,17 @@ class Geo:
         self.flats: list = []
 
 
+@dataclasses.dataclass(frozen=True)
+class ShadowView:
+    """One light's tile of a shadow-map draw: the light, the tile (x, y, w, h) in the depth
+    target, and the frame structs (f32, and f64 or None) with the light's view and
+    projection in place of the camera's (``draws.shadow_view``)."""
+    light: int
+    rect: tuple
+    frame_buf: object
+    frame64_buf: object
+
+
 class Bins:
     """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
     work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
@@ -64,7 +75,8 @@ class Bins:
 
 
 def homogeneous_planes(clip64: np.ndarray, parent: np.ndarray, width: int, height: int,
-                       polygon_offset=None, depth_format: Optional[str] = None) -> np.ndarray:
+                       polygon_offset=None, depth_format: Optional[str] = None,
+                       viewport=None) -> np.ndarray:
     """The float64 evaluation's per-triangle planes (N, 4, 4) float64, from the clip positions
     in double (``clip64`` (V, 4), the vertex kernel's ``o_clip64``) of each set-up triangle's
     *parent* (the input triangle ``parent[n]``, vertices 3p, 3p + 1, 3p + 2: clipping makes
@@ -98,9 +110,12 @@ def homogeneous_planes(clip64: np.ndarray, parent: np.ndarray, width: int, heigh
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = np.where(det[:, None, None] != 0,
                        np.transpose(cof, (0, 2, 1)) / det[:, None, None], 0.0)
-    a = inv[:, :, 0] * (2.0 / width)
-    b = inv[:, :, 1] * (2.0 / height)
-    c = inv[:, :, 2] - inv[:, :, 0] - inv[:, :, 1]
+    # a viewport (x0, y0, w, h) inside the target (shadow tiles): NDC 2 (x - x0) / w - 1
+    x0, y0, vw, vh = viewport if viewport is not None else (0, 0, width, height)
+    a = inv[:, :, 0] * (2.0 / vw)
+    b = inv[:, :, 1] * (2.0 / vh)
+    c = (inv[:, :, 2] - inv[:, :, 0] * (1.0 + 2.0 * x0 / vw)
+         - inv[:, :, 1] * (1.0 + 2.0 * y0 / vh))
     out[:, :3, 0], out[:, :3, 1], out[:, :3, 2] = a, b, c
     zx = 0.5 * np.einsum("nk,nk->n", a, z)
     zy = 0.5 * np.einsum("nk,nk->n", b, z)
@@ -183,7 +198,7 @@ class DrawGeometry:
 
     # -- per pass -----------------------------------------------------------------------------
     def pass_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
-                       lights: Optional[list]):
+                       lights: Optional[list], shadow: Optional["ShadowView"] = None):
         """(geometry, tile bins) a pass draws, or None when it draws no triangle.
 
         Geometry (vertex kernel, clipping and setup, on the device) is cached per frame and
@@ -196,6 +211,12 @@ class DrawGeometry:
         are cut from the (triangle, tile) pairs of all their lights, found once."""
         if p.draw.kind is ir.DrawKind.LIGHTS:
             return self._light_triangles(k, p, width, height, timing, lights)
+        if shadow is not None:     # one light's tile of a shadow map: set up on its own
+            key = self._raster_key(p, width, height) + ("shadow", shadow.light)
+            if key not in self.frame:
+                self._set_up(k, p, width, height, timing, key, None, shadow)
+            geo = self.frame[key]
+            return None if geo is None else self._bins(geo, self.frame, width, height, timing)
         geo = self._geometry(k, p, width, height, timing, None)
         if geo is None:
             return None
@@ -276,7 +297,7 @@ class DrawGeometry:
             return ("lights", (draw.volume or ir.Volume.SPHERE).value, draw.scissor,
                     offset, depth_clamp, width, height, dfmt, center)
         return (draw.kind.value, draw.material, draw.order, p.state.cull.value, offset,
-                depth_clamp, width, height, dfmt, center)
+                depth_clamp, width, height, dfmt, center, draw.shadow_tiles)
 
     def _scene_group(self, key: tuple) -> tuple:
         """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
@@ -360,7 +381,7 @@ class DrawGeometry:
         return cut
 
     def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
-                lights: Optional[tuple]):
+                lights: Optional[tuple], shadow: Optional["ShadowView"] = None):
         """Run the vertex kernel(s), read back clip positions and varyings, clip and set up
         on the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
         import pyopencl as cl
@@ -370,7 +391,10 @@ class DrawGeometry:
         dfmt = p.depth_target and pipe.plan.target(p.depth_target).format.name
         center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
         names, flats, providers = [], [], [(k, [])]
-        if draw.kind is ir.DrawKind.SCENE:
+        if shadow is not None:     # depth only: no varyings
+            names, flats, providers, w_plane = [], [], [(k, [])], False
+            cull = p.state.cull.value
+        elif draw.kind is ir.DrawKind.SCENE:
             names, flats, providers, w_plane = self._scene_group(key)
             providers = providers or [(k, [])]
             cull = p.state.cull.value
@@ -392,6 +416,9 @@ class DrawGeometry:
                 self.frame[key] = None
                 return None
             nverts, attrs, flat = got
+            if shadow is not None:      # the tile: its viewport, and a scissor on it
+                x, y, w, h = shadow.rect
+                scissor = np.tile(np.array([x, y, x + w, y + h], np.int32), (nverts // 3, 1))
         elif draw.kind is ir.DrawKind.LIGHTS:
             mesh_verts, mesh_buf = self.mesh((draw.volume or ir.Volume.SPHERE).value)
             nverts = mesh_verts * len(lights)
@@ -405,6 +432,9 @@ class DrawGeometry:
             nverts = 3
         inst_buf = pipe._buffer(inst)
         f64 = pipe.f64
+        frame_buf = pipe._frame_buf if shadow is None else shadow.frame_buf
+        frame64_buf = pipe._frame64_buf if shadow is None else shadow.frame64_buf
+        viewport = None if shadow is None else shadow.rect
         clip64 = None
         clip = None
         vary = np.empty((len(names), nverts, 4), np.float32) if names else None
@@ -418,9 +448,9 @@ class DrawGeometry:
             extra = []
             if f64:      # the float64 evaluation: clip positions in double too
                 clip64_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 32)
-                extra = [pipe._frame64_buf, clip64_buf]
+                extra = [frame64_buf, clip64_buf]
             kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
-                          pipe._frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
+                          frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
             ev = cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,))
             if clip is None:
@@ -445,9 +475,10 @@ class DrawGeometry:
                                depth_clamp=depth_clamp, depth_format=dfmt, flat=flat,
                                vary=vary, scissor=scissor,
                                smooth=[i for i, f in enumerate(flats) if not f],
-                               pixel_center=center, w_plane=w_plane)
+                               pixel_center=center, w_plane=w_plane, viewport=viewport)
         if f64:
-            tris.h = homogeneous_planes(clip64, tris.parent, width, height, _offset(p), dfmt)
+            tris.h = homogeneous_planes(clip64, tris.parent, width, height, _offset(p), dfmt,
+                                        viewport)
         timing["setup"] = (time.perf_counter() - t0) * 1e3
         if tris.count == 0:
             self.frame[key] = None

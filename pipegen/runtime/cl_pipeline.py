@@ -75,8 +75,9 @@ from .. import ir
 from ..backends import opencl as clgen
 from ..backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from . import cl_context, draws
-from .common import check_light_capacity, check_param_overrides, check_scene_facts
-from .cl_geometry import DrawGeometry
+from .common import (check_light_capacity, check_param_overrides, check_scene_facts,
+                     check_shadow_capacity)
+from .cl_geometry import DrawGeometry, ShadowView
 from .cl_targets import TargetStore, d24_resolve, device_buffer
 
 __all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
@@ -276,6 +277,7 @@ class CLPipeline:
             return
         check_scene_facts(self.plan, scene)
         check_light_capacity(len(scene.lights), self.plan)
+        check_shadow_capacity(self.plan, scene)
         self._scene = scene
         self._selection = draws.LightSelection(self.plan, list(scene.lights))
         self.geometry.use_scene()
@@ -302,7 +304,11 @@ class CLPipeline:
             lights = self._selection.instance(p, light)
             if not lights:
                 return
-        drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights)
+        frame_buf, frame64_buf, shadow = self._frame_buf, self._frame64_buf, None
+        if p.draw.shadow:           # one light's tile, seen from the light
+            shadow = self._shadow_view(p, light, width, height)
+            frame_buf, frame64_buf = shadow.frame_buf, shadow.frame64_buf
+        drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow)
         if drawn is None:
             return
         geo, tb = drawn
@@ -314,7 +320,7 @@ class CLPipeline:
                 tb.tile_start, tb.tile_tris, bufs["a"], bufs["b"], bufs["c"],
                 bufs["z"], bufs["w"], bufs["coef"], np.int32(geo.ncoef),
                 bufs["zp"], bufs["zq"], bufs["flat"], bufs["vtx"], bufs["scissor"],
-                bufs["bbox"], bufs["vary"], np.int32(geo.tris.nverts), self._frame_buf,
+                bufs["bbox"], bufs["vary"], np.int32(geo.tris.nverts), frame_buf,
                 self._lights_buf, st, np.uint32(light or 0)]
         for name in p.writes:
             args.append(self._targets[name].buf)
@@ -336,7 +342,7 @@ class CLPipeline:
             attrs = [self._zeros4] * 4
             if p.draw.kind is ir.DrawKind.SCENE:
                 attrs = self.geometry.attributes(p.draw)[1]
-            args += [bufs["h"], bufs["parent"], self._frame64_buf, self._lights64_buf, *attrs]
+            args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
         kern = self._kernel(k, "pg_raster")
         kern.set_args(*args)
         T = self.tile
@@ -347,6 +353,21 @@ class CLPipeline:
                 self._targets[name].dirty = True
         timing["triangles"] = tb.triangles
         timing["tile_entries"] = tb.entries
+
+    def _shadow_view(self, p: PassPlan, light: int, width: int, height: int) -> ShadowView:
+        """A shadow-map draw of ``light``: its tile and the frame structs with the light's view
+        and projection in place of the camera's (``draws.shadow_view``; float32 as a camera's
+        are uploaded)."""
+        rect, view, proj = draws.shadow_view(self._scene, light, p.draw, width, height)
+        fr = self._frame_np.copy()
+        fr["view"], fr["proj"] = _colmajor(view), _colmajor(proj)
+        f8 = None
+        if self.f64:
+            f8 = self._frame64_np.copy()
+            f8["view"] = np.asarray(view, np.float64).T.reshape(16)
+            f8["proj"] = np.asarray(proj, np.float64).T.reshape(16)
+        return ShadowView(int(light), tuple(int(v) for v in rect), self._buffer(fr),
+                          None if f8 is None else self._buffer(f8))
 
     def _pass_size(self, p: PassPlan) -> tuple[int, int]:
         """The viewport of a pass: its first attachment's size, else the output size."""

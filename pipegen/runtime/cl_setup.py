@@ -424,13 +424,16 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
     return clip_out, vary_out, all_tri[order], parent[order]
 
 
-def _window_rows(clip: np.ndarray, width: int, height: int, n_orig: int) -> np.ndarray:
-    """``window_coords`` as (4, V) rows."""
+def _window_rows(clip: np.ndarray, width: int, height: int, n_orig: int,
+                 viewport=None) -> np.ndarray:
+    """``window_coords`` as (4, V) rows; ``viewport`` (x, y, w, h): a viewport other than the
+    whole ``width x height`` target (llvmpipe: scale w/2, translate x + w/2)."""
     f32 = np.float32
     cols = np.ascontiguousarray(np.asarray(clip, f32).T)
     out = np.empty((4, cols.shape[1]), f32)
-    scale = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
-    trans = (f32(width * 0.5), f32(height * 0.5), f32(0.5))
+    vx, vy, vw, vh = viewport if viewport is not None else (0, 0, width, height)
+    scale = (f32(vw * 0.5), f32(vh * 0.5), f32(0.5))
+    trans = (f32(vx + vw * 0.5), f32(vy + vh * 0.5), f32(0.5))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         oow = np.divide(f32(1.0), cols[3], out=out[0])
         for k in range(3):
@@ -454,7 +457,8 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
                     vary: Optional[np.ndarray] = None,
                     scissor: Optional[np.ndarray] = None,
                     samples: Optional[int] = None, smooth: Optional[list] = None,
-                    pixel_center: float = 0.5, w_plane: bool = True) -> Triangles:
+                    pixel_center: float = 0.5, w_plane: bool = True,
+                    viewport=None) -> Triangles:
     """Clip, project, snap, cull and build edge equations for a non-indexed triangle list.
 
     ``clip``: (3T, 4) clip-space positions; ``flat``: (T, 4) uint32 per input triangle (y, z,
@@ -465,12 +469,13 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     perspective correction (``coef``; default all of them); ``pixel_center``: the pixel
     centre folded into the planes' a0 (0.5; 0 for multisampled passes, which evaluate the
     planes at the pixel centre instead, as llvmpipe); ``w_plane``: set up the 1/w plane even
-    without smooth varyings (for ``frag_coord.w``; False leaves ``w`` zero).
+    without smooth varyings (for ``frag_coord.w``; False leaves ``w`` zero); ``viewport``:
+    (x, y, w, h) inside the target, default the whole target (shadow-map tiles).
     """
     clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp)
     W, H = int(width), int(height)
     # per-vertex rows (3, N) of 1/w and window x, y, z (vertex k of each triangle in row k)
-    iw, xw, yw, zw = _window_rows(clip_v, W, H, len(clip))[:, tri.T]
+    iw, xw, yw, zw = _window_rows(clip_v, W, H, len(clip), viewport)[:, tri.T]
     X = np.rint(xw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     Y = np.rint(yw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     area = (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0])

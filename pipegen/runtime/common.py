@@ -20,6 +20,30 @@ def check_light_capacity(lights: int, plan: Plan) -> None:
                              f"'{plan.technique or '?'}' holds {capacity}", hint=hint)
 
 
+def check_shadow_capacity(plan: Plan, scene) -> None:
+    """A scene with more shadow-casting lights than a shadow-map pass's atlas has tiles is a
+    user error (its lights would be drawn unshadowed): tile k belongs to the k-th shadow-casting
+    light (``shadows.shadow_lights``)."""
+    from ..shadows import shadow_lights
+    n = len(shadow_lights(scene.lights))
+    for p in plan.passes:
+        tiles = p.draw.shadow_tiles
+        if n and p.draw.shadow and n > tiles * tiles:
+            raise PipegenError(None, f"the scene has {n} shadow-casting lights but pass "
+                               f"'{p.name}' of technique '{plan.technique or '?'}' draws an "
+                               f"atlas of {tiles} x {tiles} tiles",
+                               hint="compile it with more tiles (e.g. -p shadow_tiles="
+                                    f"{_ceil_sqrt(n)} where the technique declares it), or "
+                                    "cast fewer shadows (`shadows = false`)")
+
+
+def _ceil_sqrt(n: int) -> int:
+    k = 1
+    while k * k < n:
+        k += 1
+    return k
+
+
 def check_scene_facts(plan: Plan, scene) -> None:
     """A pipeline specialised for a scene's features refuses a scene that breaks one of them:
     a light type it was specialised without, more lights, translucency (never a silently
@@ -38,6 +62,9 @@ def check_scene_facts(plan: Plan, scene) -> None:
     translucent = sum(o.material.translucent for o in scene.objects)
     if translucent and not facts.translucent:
         broken.append(f"specialised for no translucent objects; this scene has {translucent}")
+    casting = sum(bool(getattr(l, "shadows", False)) for l in scene.lights)
+    if casting and not facts.shadows:
+        broken.append(f"specialised for no shadow-casting lights; this scene has {casting}")
     opaque = len(scene.objects) - translucent
     if opaque and not facts.opaque:
         broken.append(f"specialised for no opaque objects; this scene has {opaque}")

@@ -103,6 +103,11 @@ def schedule(plan: Plan, selection: LightSelection) -> Iterator[tuple[int, Optio
     k = 0
     while k < len(passes):
         group = passes[k].repeat_group
+        if passes[k].draw.shadow:            # once per shadow-casting light: its atlas tile
+            for light in shadow_casters(passes[k].draw, selection.lights):
+                yield k, light
+            k += 1
+            continue
         if group is None:
             yield k, None
             k += 1
@@ -157,6 +162,32 @@ def scene_geometry(scene, draw: ir.Draw):
 def scene_key(draw: ir.Draw) -> tuple:
     """What a scene draw's uploaded geometry depends on (for the runtimes' caches)."""
     return (draw.material, draw.order)
+
+
+# ---- shadow maps -------------------------------------------------------------------------------
+
+
+def shadow_casters(draw: ir.Draw, lights: Sequence) -> list[int]:
+    """The lights a shadow-map draw (``draw scene… from lights TYPES tiles N``) draws, in
+    light order: the shadow-casting lights of its types whose tile (``shadows.shadow_lights``
+    order) fits the ``N x N`` atlas (``common.check_shadow_capacity`` refuses a scene with
+    more)."""
+    from ..shadows import shadow_lights
+    order = shadow_lights(lights)
+    cap = draw.shadow_tiles * draw.shadow_tiles
+    return [i for k, i in enumerate(order)
+            if k < cap and light_type(lights[i]) in draw.light_types]
+
+
+def shadow_view(scene, light: int, draw: ir.Draw, width: int, height: int):
+    """A shadow-map draw of light ``light``: (tile rectangle (x, y, w, h) in the depth
+    target of ``width x height``, view, projection) -- the float64 matrices of
+    ``shadows.light_view_proj``, which the runtimes upload as float32 like a camera's."""
+    from .. import shadows as S
+    lights = scene.lights
+    k = S.tile_of(lights, light)
+    view, proj = S.light_view_proj(scene, lights[light])
+    return S.tile_rect(k, draw.shadow_tiles, width, height), view, proj
 
 
 # ---- cull auto ---------------------------------------------------------------------------------
