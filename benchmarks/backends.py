@@ -1,7 +1,7 @@
 """GL (llvmpipe) vs CL (PoCL) frame time per technique, measured in one run.
 
     python benchmarks/backends.py [--scene examples/scenes/many_lights.toml] [--size 640x360]
-        [--frames 3] [--threads 2] [technique[:param=value,...] ...]
+        [--frames 3] [--threads 2] [--profile] [--png FILE] [technique[:param=value,...] ...]
 
 e.g. ``inferred:lbuffer_scale=0.625 inferred:lbuffer_scale=1.0 light_prepass deferred forward``.
 
@@ -9,6 +9,19 @@ Both backends run the full ``render()`` (all passes, then read-back of every tar
 ratio compares like with like.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to
 ``--threads`` before either runtime loads.  Each figure is the median of ``--frames`` renders
 after one warm-up render (which compiles shaders and kernels).
+
+``--profile`` adds, per technique and backend, where the frame goes, pass by pass (summed
+over the lights of a repeat group, medians over ``--frames`` frames), largest first:
+
+* GL: ``setup`` is host time from the start of a pass to its first draw call (clears,
+  uniforms, texture/framebuffer bindings, state transitions), ``draw`` is from there until
+  ``glFinish`` returns after its last draw (llvmpipe's rasterisation and shading, plus the
+  host's per-light draw calls).  The GPU is drained before every pass, so the profiled frame
+  is slower than an unprofiled one (printed too), but each pass is charged its own work.
+* CL: ``benchmarks/cl_profile.py``: host stages (vertex, set-up, binning) against the raster
+  kernel's device time (OpenCL profiling events).
+
+``--png FILE`` also draws the GL profile as horizontal stacked bars (matplotlib, if installed).
 """
 
 from __future__ import annotations
@@ -21,6 +34,78 @@ from pathlib import Path
 from common import ROOT, TECHNIQUES, compile_spec, median_time, scene_at
 
 
+def gl_profile(pipe, scene, frames: int = 3) -> dict:
+    """Per-pass host set-up and draw time (ms) of a ``GLPipeline`` (``--profile``)."""
+    import statistics
+    import time
+    pipe.frame(scene)
+    walls, per_frame = [], []
+    for _ in range(frames):
+        pipe.profile = []
+        t0 = time.perf_counter()
+        pipe.frame(scene)
+        walls.append((time.perf_counter() - t0) * 1e3)
+        passes: dict = {}
+        for name, _light, setup, draw in pipe.profile:
+            row = passes.setdefault(name, {"pass": name, "runs": 0, "setup": 0.0, "draw": 0.0})
+            row["runs"] += 1
+            row["setup"] += setup * 1e3
+            row["draw"] += draw * 1e3
+        per_frame.append(passes)
+    pipe.profile = None
+    rows = []
+    for name in per_frame[0]:
+        row = dict(per_frame[0][name])
+        for k in ("setup", "draw"):
+            row[k] = statistics.median(f[name][k] for f in per_frame)
+        rows.append(row)
+    rows.sort(key=lambda r: -(r["setup"] + r["draw"]))
+    return {"wall": statistics.median(walls), "plain": median_time(lambda: pipe.frame(scene),
+                                                                   frames),
+            "passes": rows}
+
+
+def format_gl_profile(name: str, prof: dict) -> str:
+    total = sum(r["setup"] + r["draw"] for r in prof["passes"]) or 1.0
+    lines = [f"{name} GL: profiled frame {prof['wall']:.1f} ms (unprofiled "
+             f"{prof['plain'] * 1e3:.1f} ms)",
+             f"  {'pass':<22} {'runs':>5} {'setup ms':>9} {'draw ms':>8} {'share':>6}"]
+    for r in prof["passes"]:
+        lines.append(f"  {r['pass']:<22} {r['runs']:>5} {r['setup']:>9.2f} {r['draw']:>8.2f} "
+                     f"{(r['setup'] + r['draw']) / total:>6.1%}")
+    setup = sum(r["setup"] for r in prof["passes"])
+    draw = sum(r["draw"] for r in prof["passes"])
+    lines.append(f"  {'total':<22} {'':>5} {setup:>9.2f} {draw:>8.2f}")
+    return "\n".join(lines)
+
+
+def plot_profiles(profiles: list[tuple[str, dict]], path: str) -> None:
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("--png: matplotlib is not installed; no chart", file=sys.stderr)
+        return
+    labels, setup, draw = [], [], []
+    for tech, prof in profiles:
+        for r in prof["passes"]:
+            labels.append(f"{tech}: {r['pass']} x{r['runs']}")
+            setup.append(r["setup"])
+            draw.append(r["draw"])
+    fig, ax = plt.subplots(figsize=(9, 0.28 * len(labels) + 1.2))
+    y = range(len(labels))
+    ax.barh(y, setup, color="tab:orange", label="host set-up")
+    ax.barh(y, draw, left=setup, color="tab:blue", label="draw (to glFinish)")
+    ax.set_yticks(list(y), labels, fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlabel("ms per frame")
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"GL profile chart: {path}", file=sys.stderr)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -28,6 +113,9 @@ def main() -> int:
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--threads", default="2")
+    ap.add_argument("--profile", action="store_true",
+                    help="per pass: host set-up vs draw/kernel time, both backends")
+    ap.add_argument("--png", default=None, help="with --profile: the GL profile as a bar chart")
     ap.add_argument("techniques", nargs="*", default=TECHNIQUES)
     args = ap.parse_args()
     os.environ["LP_NUM_THREADS"] = args.threads
@@ -38,7 +126,7 @@ def main() -> int:
     print(f"{Path(args.scene).name} at {w}x{h}: {len(scene.objects)} objects, "
           f"{len(scene.lights)} lights; LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {args.threads}",
           file=sys.stderr)
-    rows = []
+    rows, profiles = [], []
     for i, spec in enumerate(args.techniques, 1):
         compiled = compile_spec(spec)
         name = spec
@@ -46,12 +134,20 @@ def main() -> int:
         print(f"[{i}/{len(args.techniques)}] {name}", file=sys.stderr)
         gl_s = median_time(lambda: gl.render(scene), args.frames)
         cl_s = median_time(lambda: cl.render(scene), args.frames)
+        if args.profile:
+            from cl_profile import format_profile, profile
+            prof = gl_profile(gl, scene, args.frames)
+            profiles.append((name, prof))
+            print(format_gl_profile(name, prof))
+            print(format_profile(f"{name} CL", profile(cl, scene, args.frames)))
         gl.release()
         rows.append((name, gl_s, cl_s))
     width = max(20, *(len(r[0]) for r in rows))
     print(f"{'technique':<{width}} {'GL ms':>8} {'CL ms':>8} {'CL/GL':>7}")
     for name, g, c in rows:
         print(f"{name:<{width}} {g * 1e3:>8.1f} {c * 1e3:>8.1f} {c / g:>6.2f}x")
+    if args.png and profiles:
+        plot_profiles(profiles, args.png)
     return 0
 
 

@@ -50,8 +50,7 @@ from . import draws
 from . import gl_formats as GF
 from . import gl_state as GS
 from . import gl_transitions as GT
-from .common import (check_light_capacity, check_param_overrides, check_scene_facts,
-                     check_shadow_capacity)
+from .common import check_light_capacity, check_param_overrides, check_scene_facts
 from .gl_context import GL, check_error, clear_stale_errors, debug_enabled, get_context
 
 import moderngl
@@ -89,15 +88,19 @@ class _Target:
         g = GF.gl_format(self.format)
         return g.attachment + k if self.fmt.is_color else g.attachment
 
-    def clear(self, color=None, depth=None, stencil=None, partial: bool = False) -> None:
+    def clear(self, color=None, depth=None, stencil=None, partial: bool = False,
+              fbo: Optional[int] = None) -> None:
         """Clear to the given values (None -> 0).  With ``partial``, a d24s8 clear that names
         only depth or only stencil keeps the other aspect (a framebuffer clear, since
-        ``glClearTexImage`` writes whole texels)."""
+        ``glClearTexImage`` writes whole texels): through ``fbo`` when given (a framebuffer
+        with this target as its depth attachment, bound: llvmpipe then records the clear with
+        the pass's draws instead of flushing them), else through a framebuffer of its own."""
         if partial and self.fmt.kind is F.Kind.DEPTH_STENCIL and (depth is None) != (
                 stencil is None):
-            if self.fbo_clear is None:
+            if fbo is None and self.fbo_clear is None:
                 self.fbo_clear = _framebuffer([(self._attachment(0), self.tex)])
                 GL.glNamedFramebufferDrawBuffers(self.fbo_clear, 1, [GL.GL_NONE])
+            target_fbo = self.fbo_clear if fbo is None else fbo
             # framebuffer clears obey the scissor test and the depth / stencil write masks
             GT.TRACKER.scissor(None)
             key = ("partial", depth, stencil)
@@ -108,10 +111,10 @@ class _Target:
                     else (ctypes.c_float * 1)(float(depth)))
             if stencil is not None:
                 GT.TRACKER.apply(GT.CLEAR_STENCIL)
-                _CLEAR_FBO_IV(self.fbo_clear, GL.GL_STENCIL, 0, value)
+                _CLEAR_FBO_IV(target_fbo, GL.GL_STENCIL, 0, value)
             else:
                 GT.TRACKER.apply(GT.CLEAR_DEPTH)
-                _CLEAR_FBO_FV(self.fbo_clear, GL.GL_DEPTH, 0, value)
+                _CLEAR_FBO_FV(target_fbo, GL.GL_DEPTH, 0, value)
             self.dirty = self.samples > 1
             return
         key = (None if color is None else tuple(np.ravel(color).tolist()), depth, stencil)
@@ -370,7 +373,6 @@ class GLPipeline:
             return
         check_scene_facts(self.plan, scene)
         check_light_capacity(len(scene.lights), self.plan)
-        check_shadow_capacity(self.plan, scene)
         for p in self.passes:
             for key in [k for k in p.vaos if k[0] == "scene"]:
                 p.vaos.pop(key).release()
@@ -532,21 +534,6 @@ class GLPipeline:
                     u.write(data)
                     p.uploaded[name] = data
 
-    def _shadow_view(self, p: _Pass, light: int, w: int, h: int) -> None:
-        """A shadow-map draw of ``light``: viewport and scissor on its tile, the light's view
-        and projection in the pass's ``u_view``/``u_proj`` (``draws.shadow_view``)."""
-        rect, view, proj = draws.shadow_view(self._scene, light, p.draw, w, h)
-        for name, m in (("u_view", view), ("u_proj", proj)):
-            u = p.frame_uniforms.get(name)
-            if u is not None:
-                data = np.ascontiguousarray(np.asarray(m, np.float64).T,
-                                            dtype=np.float32).tobytes()
-                u.write(data)
-                p.uploaded[name] = data
-        GL.glViewport(*rect)
-        GT.TRACKER.view = None
-        GT.TRACKER.scissor(rect)
-
     def _run_pass(self, p: _Pass, light: Optional[int]) -> None:
         """One pass execution: clears, bindings and state (only what changed since the last
         pass: ``gl_transitions.TRACKER``), the draw.  With ``self.profile`` a list, the GPU is
@@ -558,8 +545,11 @@ class GLPipeline:
             t0 = time.perf_counter()
         if not self.transitions:      # the reference: everything set again before every pass
             tracker.invalidate()
-        for name, c in p.spec.clears:
-            self.targets[name].clear(c.color, c.depth, c.stencil, partial=True)
+        if p.spec.clears:
+            tracker.framebuffer(p.fbo)      # depth/stencil clears through the pass's own
+            for name, c in p.spec.clears:
+                self.targets[name].clear(c.color, c.depth, c.stencil, partial=True,
+                                         fbo=p.fbo if name == p.depth_target else None)
         if light is not None and p.u_light is not None:
             p.u_light.value = int(light)
         # reads: unit 0 is the light table
@@ -582,14 +572,8 @@ class GLPipeline:
             t1 = time.perf_counter()
         if p.kind is ir.DrawKind.SCENE:
             _, count = self._scene_vbo(p.draw)
-            if p.draw.shadow:       # the light's tile of the atlas, seen from the light
-                self._shadow_view(p, light, w, h)
             if count:
                 vao.render(moderngl.TRIANGLES, vertices=count)
-            if p.draw.shadow:
-                tracker.scissor(None)
-                GL.glViewport(0, 0, w, h)
-                tracker.view = (w, h)
         elif p.kind is ir.DrawKind.LIGHTS:
             lights = self._lights
             indices = self._instance(p, light)
