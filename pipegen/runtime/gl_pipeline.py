@@ -50,7 +50,8 @@ from . import draws
 from . import gl_formats as GF
 from . import gl_state as GS
 from . import gl_transitions as GT
-from .common import check_light_capacity, check_param_overrides, check_scene_facts
+from .common import (check_light_capacity, check_param_overrides, check_scene_facts,
+                     check_shadow_capacity)
 from .gl_context import GL, check_error, clear_stale_errors, debug_enabled, get_context
 
 import moderngl
@@ -373,6 +374,7 @@ class GLPipeline:
             return
         check_scene_facts(self.plan, scene)
         check_light_capacity(len(scene.lights), self.plan)
+        check_shadow_capacity(self.plan, scene)
         for p in self.passes:
             for key in [k for k in p.vaos if k[0] == "scene"]:
                 p.vaos.pop(key).release()
@@ -534,6 +536,21 @@ class GLPipeline:
                     u.write(data)
                     p.uploaded[name] = data
 
+    def _shadow_view(self, p: _Pass, light: int, w: int, h: int) -> None:
+        """A shadow-map draw of ``light``: viewport and scissor on its tile, the light's view
+        and projection in the pass's ``u_view``/``u_proj`` (``draws.shadow_view``)."""
+        rect, view, proj = draws.shadow_view(self._scene, light, p.draw, w, h)
+        for name, m in (("u_view", view), ("u_proj", proj)):
+            u = p.frame_uniforms.get(name)
+            if u is not None:
+                data = np.ascontiguousarray(np.asarray(m, np.float64).T,
+                                            dtype=np.float32).tobytes()
+                u.write(data)
+                p.uploaded[name] = data
+        GL.glViewport(*rect)
+        GT.TRACKER.view = None
+        GT.TRACKER.scissor(rect)
+
     def _run_pass(self, p: _Pass, light: Optional[int]) -> None:
         """One pass execution: clears, bindings and state (only what changed since the last
         pass: ``gl_transitions.TRACKER``), the draw.  With ``self.profile`` a list, the GPU is
@@ -572,8 +589,14 @@ class GLPipeline:
             t1 = time.perf_counter()
         if p.kind is ir.DrawKind.SCENE:
             _, count = self._scene_vbo(p.draw)
+            if p.draw.shadow:       # the light's tile of the atlas, seen from the light
+                self._shadow_view(p, light, w, h)
             if count:
                 vao.render(moderngl.TRIANGLES, vertices=count)
+            if p.draw.shadow:
+                tracker.scissor(None)
+                GL.glViewport(0, 0, w, h)
+                tracker.view = (w, h)
         elif p.kind is ir.DrawKind.LIGHTS:
             lights = self._lights
             indices = self._instance(p, light)
