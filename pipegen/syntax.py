@@ -10,7 +10,7 @@ from __future__ import annotations
 import functools
 import os
 import sys
-from typing import Optional
+from typing import Callable, Optional
 
 from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (UnexpectedCharacters, UnexpectedEOF, UnexpectedInput,
@@ -26,7 +26,24 @@ MAX_NESTING = 100
 
 
 def parse(text: str, filename: str = "<string>") -> ast.Module:
-    """Parse one ``.pipe`` file (or a packing scheme's generated functions)."""
+    """Parse one ``.pipe`` file (or a packing scheme's generated functions).
+
+    A text parsed before, under the same file name, grammar and front-end code, is loaded
+    from the user's cache folder instead (``_ast_cache_file``): a few milliseconds, where
+    loading the parser and parsing take tens (every technique includes the library's
+    ``common/lighting.pipe``).  Errors are never cached: a text that fails is parsed again."""
+    path = _ast_cache_file(text, filename)
+    if path is not None:
+        module = _load_cached(path, _load_ast)
+        if module is not None:
+            return module
+    module = _parse(text, filename)
+    if path is not None:
+        _save_ast(module, path)
+    return module
+
+
+def _parse(text: str, filename: str) -> ast.Module:
     try:
         tree = _parser().parse(text)
     except UnexpectedInput as e:
@@ -145,19 +162,29 @@ def _private(st: os.stat_result) -> bool:
     return st.st_uid == os.getuid() and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
 
 
-def _load_cached(path: str) -> Optional[Lark]:
+def _load_parser(f) -> Lark:
+    return Lark.__new__(Lark)._load(f, postlex=_WholeWords())
+
+
+def _load_cached(path: str, load: Callable = _load_parser):
+    """``load(file)`` of a cache file, or None when it is missing, unsafe to unpickle or
+    unreadable."""
     try:
         if not (_private(os.stat(os.path.dirname(path))) and _private(os.stat(path))):
             return None
         with open(path, "rb") as f:
-            return Lark.__new__(Lark)._load(f, postlex=_WholeWords())
+            return load(f)
     except Exception:      # missing, truncated, from another lark: build it again
         return None
 
 
-def _save_cached(parser: Lark, path: str) -> None:
-    """Write atomically (a temporary file renamed over the target), so that concurrent
-    processes never read a partial file."""
+def _save_parser(parser: Lark, f) -> None:
+    parser.save(f, exclude_options={"postlex"})
+
+
+def _save_cached(obj, path: str, save: Callable = _save_parser) -> None:
+    """``save(obj, file)`` into the cache file ``path``, atomically (a temporary file renamed
+    over the target), so that concurrent processes never read a partial file."""
     import tempfile
     folder = os.path.dirname(path)
     try:
@@ -167,12 +194,84 @@ def _save_cached(parser: Lark, path: str) -> None:
         fd, tmp = tempfile.mkstemp(prefix=".parser-", dir=folder)
         try:
             with os.fdopen(fd, "wb") as f:
-                parser.save(f, exclude_options={"postlex"})
+                save(obj, f)
             os.replace(tmp, path)
         except BaseException:
             os.unlink(tmp)
             raise
     except Exception:      # read-only or full disk, races with another process: not cached
+        pass
+
+
+# ---------------------------------------------------------------------------------------------
+# Parsed files, cached on disk
+# ---------------------------------------------------------------------------------------------
+
+#: Most syntax trees kept in the cache folder; the least recently written go first.
+AST_CACHE_FILES = 400
+
+
+def _ast_cache_file(text: str, filename: str) -> Optional[str]:
+    """Where the syntax tree of ``text`` (named ``filename``: spans carry it) is cached, keyed
+    by the text and everything that shapes the tree (``_front_end_key``); None without a
+    cache folder."""
+    base = cache_dir()
+    identity = _front_end_key()
+    if base is None or identity is None:
+        return None
+    import hashlib
+    h = hashlib.sha256(identity)
+    h.update(filename.encode("utf-8", "surrogatepass") + b"\0")
+    h.update(text.encode("utf-8", "surrogatepass"))
+    return os.path.join(base, "ast", f"ast-{h.hexdigest()[:40]}.pickle")
+
+
+@functools.cache
+def _front_end_key() -> Optional[bytes]:
+    """Digest of what turns text into ``ast`` nodes: the grammar, this module, ``ast.py`` and
+    ``diagnostics.py`` (the node and span classes) as they are on disk, lark's and Python's
+    versions.  Any edit to them starts a fresh set of cache files.  None when a source cannot
+    be read (then nothing is cached)."""
+    import hashlib
+    import lark
+    from . import diagnostics
+    h = hashlib.sha256()
+    h.update("\0".join([_CACHE_FORMAT, lark.__version__, "%d.%d" % sys.version_info[:2],
+                        _grammar_text()]).encode("utf-8"))
+    for module in (sys.modules[__name__], ast, diagnostics):
+        try:
+            with open(module.__file__, "rb") as f:
+                h.update(f.read())
+        except (OSError, TypeError):
+            return None
+    return h.digest()
+
+
+def _load_ast(f) -> ast.Module:
+    import pickle
+    module = pickle.load(f)
+    if not isinstance(module, ast.Module):
+        raise TypeError(f"not a syntax tree: {type(module).__name__}")
+    return module
+
+
+def _save_ast(module: ast.Module, path: str) -> None:
+    """Pickle ``module`` (before any caller can change it) and keep the folder small."""
+    import pickle
+    _save_cached(module, path, lambda m, f: pickle.dump(m, f, protocol=pickle.HIGHEST_PROTOCOL))
+    _prune(os.path.dirname(path), AST_CACHE_FILES)
+
+
+def _prune(folder: str, keep: int) -> None:
+    """Delete the least recently written ``ast-*`` files beyond ``keep``."""
+    try:
+        entries = [e for e in os.scandir(folder) if e.name.startswith("ast-")]
+        if len(entries) <= keep:
+            return
+        entries.sort(key=lambda e: e.stat().st_mtime)
+        for e in entries[:len(entries) - keep]:
+            os.unlink(e.path)
+    except OSError:        # another process pruned first, or the folder went away
         pass
 
 
