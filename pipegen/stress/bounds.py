@@ -5,7 +5,8 @@ The model (docs/stress.md, "The bound"), per target T, per pixel and channel, in
 
     bound(T) = store(T) + P(T) * blend(T) + arith(T) + position(T) + reads(T)
 
-- ``store``: one store of the format: half a code (fixed point rounded to nearest), one code
+- ``store``: one store of the format (two for a multisampled colour target, read through its
+  resolve, which stores the average of the samples again): half a code (fixed point rounded to nearest), one code
   (the narrow channels of 16-bit-path formats: Mesa's ``scale_bits`` truncates), one float16
   ulp (llvmpipe stores half toward zero), half a float32 ulp, and 2 codes / 4 ulps of depth
   (the float32 plane equation of window depth, DESIGN.md §7's cross-check allowance);
@@ -113,6 +114,7 @@ class TargetInfo:
     reads: tuple[str, ...]       # targets read (load/sample) by its writers
     sampled: tuple[str, ...]     # ... of those, read with sample()
     is_depth: bool
+    samples: int = 1             # a multisampled colour target is read through its resolve
 
 
 def plan_targets(compiled) -> dict[str, TargetInfo]:
@@ -129,7 +131,7 @@ def plan_targets(compiled) -> dict[str, TargetInfo]:
         exact = fmt.is_integer or (hints.get(t.name) == "index"
                                    and all(packed.get(t.name, (False,))))
         out[t.name] = TargetInfo(t.name, fmt, exact, tuple(p.name for p in writers), reads,
-                                 sampled, fmt.has_depth)
+                                 sampled, fmt.has_depth, t.samples)
     return out
 
 
@@ -153,6 +155,10 @@ def local_bound(t: TargetInfo, v: np.ndarray, blends: Optional[np.ndarray]) -> n
     if t.exact:
         return np.zeros(np.shape(v))
     b = store_error(t.format, v)
+    if t.samples > 1 and not t.is_depth:
+        # the resolve stores the average of the sample values once more (llvmpipe: the mean
+        # of the codes, rounded to a code; the float64 evaluation averages exactly)
+        b = b + store_error(t.format, v)
     if not t.is_depth:
         b = b + arith_error(v)
     if blends is not None:

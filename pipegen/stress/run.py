@@ -370,12 +370,16 @@ class Stress:
         from ..reference.raster import rasterize
         g = rasterize(scene)
         out = []
+        rules = {r[0]: r[1:] for r in caps.index_rules}
         for pack, scheme, capacity, types in caps.index_packings:
-            sub = dataclasses.replace(scene, lights=tuple(l for l in scene.lights
-                                                          if l.type in types))
+            faces, bank = rules.get(pack, ("back", None))      # features.capabilities
+            sub = dataclasses.replace(scene, lights=tuple(
+                l for i, l in enumerate(scene.lights) if l.type in types and
+                (bank is None or i % bank[0] == bank[1])))
             if not sub.lights:
                 continue
-            n = lights_per_pixel(g, sub, conservative=True) - capacity
+            n = lights_per_pixel(g, sub, conservative=True, faces=faces,
+                                 sky=faces == "front" and scene.has_translucent) - capacity
             n = np.maximum(n, 0)
             out.append(f"{pack}: <={int(n.max())}/px on {int((n > 0).sum())} px")
         for pack, slots, types in caps.slot_packings:
