@@ -1,9 +1,9 @@
 """GL state transitions (``pipegen.runtime.gl_transitions``) render exactly what full state does.
 
-* every shipped technique, on scenes with point, spot and directional lights: a pipeline that
-  sets only the differences between passes (the default) and one that sets all state before
-  every pass (``transitions=False``, ``gl_state.apply_state``) give bit-identical targets,
-  depth and stencil included, and so do their per-pass captures;
+* every shipped technique, on scenes with point, spot and directional lights and with shadow
+  maps: a pipeline that sets only the differences between passes (the default) and one that
+  sets all state before every pass (``transitions=False``, ``gl_state.apply_state``) give
+  bit-identical targets, depth and stencil included, and so do their per-pass captures;
 * the tracker's GL state read back with ``glGet*`` after every vector of random pass
   sequences (from random junk state) equals what each vector asks for, slot by slot, and what
   ``apply_state`` sets for the same pass;
@@ -67,7 +67,7 @@ def _assert_same(a: dict, b: dict, what: str) -> None:
 
 
 @pytest.mark.parametrize("technique", SHIPPED)
-@pytest.mark.parametrize("scene_name", ["mixed_lights", "many_lights"])
+@pytest.mark.parametrize("scene_name", ["mixed_lights", "many_lights", "shadows"])
 def test_transitions_render_what_full_state_renders(plans, technique, scene_name):
     scene = _scene(scene_name)
     fast = GLPipeline(plans(technique))
