@@ -74,7 +74,7 @@ from .. import ir, irwalk
 from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
-from . import templating
+from . import cl_wide, templating
 from ..builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
 from ..float32 import f32
 from ..passes import lower_mix_constant
@@ -898,6 +898,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
     varyings = varying_slots(pass_)
+    # the wide fragment function (cl_wide.py: PG_W pixels per call), when the emitter made one
+    wide = not f64 and bool(code.fragment) and cl_wide.MARK in code.fragment
     if f64:
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
@@ -912,7 +914,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         fragment=code.fragment, discard=code.discard,
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
-        inside=_inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float")
+        inside=_inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
+        wide=wide, wide_helpers=cl_wide.wide_helpers() if wide else "", wide_w=cl_wide.W)
 
 
 # ---- emission from the IR -----------------------------------------------------------------------------
@@ -936,7 +939,7 @@ def emit_cl(tech: ir.Technique, precision: str = "f32") -> Plan:
 
 
 def emit_fragment(tech: ir.Technique, p: ir.Pass,
-                  language: type[OpenCLLanguage] = OpenCLLanguage) -> dict:
+                  language: type[OpenCLLanguage] = OpenCLLanguage, wide: bool = True) -> dict:
     """The fragment function of a pass (OpenCL C) and what it reads (``language``: the
     dialect, ``OpenCLLanguage64`` for the float64 evaluation)."""
     lang = language(tech, p)
@@ -968,4 +971,9 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass,
     main = "\n".join(["static inline bool pg_fragment(const pg_in *in, pg_out *out) {", *body,
                       "    return true;", "}"])
     text = "\n\n".join(code + [main]) + "\n"
+    if language is OpenCLLanguage and wide:
+        # the same code for PG_W pixels at once (explicit SIMD over pixels), where it can
+        wtext = cl_wide.wide_fragment(tech, p, OpenCLLanguage(tech, p))
+        if wtext is not None:
+            text += "\n" + wtext
     return {"fragment": text, "inputs": sorted(inputs), "discard": discard, "sampled": sampled}

@@ -1,0 +1,155 @@
+"""The CL backend's wide fragment function (``backends/cl_wide.py``: the fragment code for 8
+pixels at once, explicit SIMD over pixels) computes, lane for lane, what the scalar
+``pg_fragment`` computes: every target of every shipped technique that has wide passes is
+bit-identical with and without it, and so is a technique written to exercise what the wide
+form lowers (if/else and ternaries on per-pixel conditions, loops left per pixel with break
+and continue, a function returning under a per-pixel condition, discard, integer arithmetic,
+load, sample).  The wide path's speed is in benchmarks/ (no timings here)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipegen.backends import cl_wide, opencl
+from pipegen.compiler import compile_file, compile_source
+from pipegen.scene import load_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+
+CONTROL = """
+technique wide_control "per-pixel control flow for the wide fragment function"
+lights[128] { position: vec3, radius: float, color: vec3 }
+target color : rgba8 clear (0, 0, 0, 1)
+target hdr   : rgba16f clear (0, 0, 0, 0)
+target ds    : d24s8 clear depth 1.0 stencil 0
+output color
+
+float bump(float x, vec3 p) {
+  if (x > 0.5) return x * 0.5;
+  float s = 0.0;
+  for (int i = 0; i < 8; i++) {
+    if (s > p.y + 0.3) break;
+    if (fract(p.x * float(i)) < 0.3) continue;
+    s += 0.125 + 0.01 * float(i);
+  }
+  return s;
+}
+
+pass base {
+  draw scene.opaque
+  writes hdr
+  depth ds less write
+  cull back
+  fragment {
+    vec3 n = normalize(normal);
+    float v = bump(abs(n.x), world_pos);
+    vec3 c = vec3(0.0);
+    for (int i = 0; i < 128; i++) {
+      if (uint(i) >= num_lights) break;
+      vec3 d = lights[i].position - world_pos;
+      c += lights[i].color * max(dot(n, normalize(d)), 0.0) / (1.0 + length(d));
+    }
+    if (frag_coord.x < 20.0) { c.x = 1.0; } else if (v > 0.3) { c *= v; } else { c = c.zyx; }
+    int k = int(frag_coord.y) % 3;
+    uint u = uint(frag_coord.x) * 7u;
+    c.y += float(k) * 0.1 + float(u & 3u) * 0.05;
+    c.z = c.x > 0.5 ? pow(c.z, 2.2) : sqrt(c.z);
+    if (fract(world_pos.z * 3.0) < 0.1) discard;
+    hdr = vec4(c, v);
+  }
+}
+
+pass resolve {
+  draw fullscreen
+  reads hdr
+  writes color
+  fragment {
+    vec4 a = load(hdr);
+    vec4 b = sample(hdr, frag_coord.xy / output_size + vec2(0.01, 0.0));
+    vec3 m = mix(a.xyz, b.xyz, a.w);
+    color = vec4(m + vec3(smoothstep(0.2, 0.8, a.w) * 0.1), 1.0);
+  }
+}
+"""
+
+
+def _pipes(compile_fn, monkeypatch, min_cost=None, wmin=None):
+    """The CL pipeline with the scalar fragment functions only, and with the wide ones."""
+    if min_cost is not None:
+        monkeypatch.setattr(cl_wide, "MIN_COST", min_cost)
+    if wmin is not None:
+        monkeypatch.setattr(cl_wide, "WMIN", wmin)
+    monkeypatch.setattr(cl_wide, "ENABLED", False)
+    scalar = compile_fn().pipeline("cl")
+    monkeypatch.setattr(cl_wide, "ENABLED", True)
+    wide = compile_fn().pipeline("cl")
+    return scalar, wide
+
+
+def _wide_passes(pipe) -> list[str]:
+    return [p.name for p in pipe.plan.passes
+            if p.code.fragment and cl_wide.MARK in p.code.fragment]
+
+
+def _assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        x, y = np.asarray(a[k]), np.asarray(b[k])
+        assert x.dtype == y.dtype and x.shape == y.shape, k
+        diff = np.count_nonzero(x.view(np.uint8) != y.view(np.uint8))
+        assert diff == 0, f"{k}: {diff} bytes differ between the scalar and the wide path"
+
+
+def _scene(name: str, w: int = 96, h: int = 54):
+    return load_scene(ROOT / f"examples/scenes/{name}.toml").with_size(w, h)
+
+
+@pytest.mark.cl
+@pytest.mark.parametrize("wmin", [1, cl_wide.WMIN])
+def test_control_flow_lowering_is_exact(monkeypatch, wmin):
+    scalar, wide = _pipes(lambda: compile_source(CONTROL), monkeypatch, min_cost=0, wmin=wmin)
+    assert _wide_passes(wide) == ["base", "resolve"]
+    frag = next(p for p in wide.plan.passes if p.name == "base").code.fragment
+    # the lowerings this technique is here to exercise
+    for what in ("pg_wdone", "pg_wbrk", "pg_wcont", "pg_live &= ", "select("):
+        assert what in frag, what
+    for name in ("many_lights", "mixed_lights"):
+        scene = _scene(name)
+        out = wide.render(scene)
+        _assert_same(scalar.render(scene), out)
+        assert np.count_nonzero(out["color"][..., :3]) > 0.3 * out["color"][..., :3].size
+
+
+@pytest.mark.cl
+@pytest.mark.parametrize("technique", ["forward", "forward_multipass", "light_prepass",
+                                       "inferred", "deferred", "deferred_calver"])
+def test_shipped_techniques_are_exact(monkeypatch, technique):
+    scalar, wide = _pipes(lambda: compile_file(ROOT / f"pipelines/{technique}.pipe"),
+                          monkeypatch, wmin=1)
+    for name in ("many_lights", "mixed_lights"):
+        scene = _scene(name)
+        _assert_same(scalar.render(scene), wide.render(scene))
+
+
+def test_what_stays_scalar():
+    """Light-indexed shading (each pixel its own lights) and trivial fragments keep the
+    scalar function; the per-light loops of forward shading get the wide one."""
+    def wide_passes(t):
+        plan = compile_file(ROOT / f"pipelines/{t}.pipe").plan("cl")
+        return {p.name for p in plan.passes if p.code.fragment and cl_wide.MARK in p.code.fragment}
+    assert "shade" in wide_passes("forward")
+    assert "per_light" in wide_passes("forward_multipass")
+    assert not {"shade", "depth_prepass"} & wide_passes("lidr_bitplanes")
+    assert "gbuffer" not in wide_passes("deferred")
+
+
+def test_unsupported_code_falls_back():
+    """What the wide form does not lower gives no wide function, never a wrong one."""
+    src = CONTROL.replace("vec3 c = vec3(0.0);", "vec3 c = vec3(0.0); mat3 q = mat3(n, n, n);"
+                          " c += q * n;")
+    tech = compile_source(src).technique
+    p = next(p for p in tech.passes if p.name == "base")
+    assert cl_wide.wide_fragment(tech, p, opencl.OpenCLLanguage(tech, p)) is None
