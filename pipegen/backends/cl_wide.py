@@ -46,6 +46,7 @@ scalar interpolation, calls ``pg_fragment_w`` and blends lane by lane, in pixel 
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Optional
 
@@ -57,7 +58,9 @@ from .cstyle import _max0, _positive_const
 W = 8                       # lanes: llvmpipe shades 8 pixels at once as well
 MIN_COST = 150              # below this estimated work per pixel, the scalar function only
 WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by pixel
-ENABLED = True              # False: every pass keeps the scalar path (tests, benchmarks)
+# False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
+# before/after benchmarks); the emitted text then is the scalar path's alone
+ENABLED = os.environ.get("PIPEGEN_CL_WIDE", "1") != "0"
 MARK = "/* pg_fragment_w */"
 
 # stage inputs that differ per pixel (the others are uniform over a triangle: frame values,

@@ -52,8 +52,16 @@ class LightSelection:
     lights: Sequence
     sets: dict[str, list[list[int]]] = field(default_factory=dict)
     dropped: dict[str, list[int]] = field(default_factory=dict)
+    _of: dict = field(default_factory=dict, repr=False)
 
     def of(self, draw: ir.Draw) -> list[int]:
+        # once per draw and scene: a repeat group asks for every light (it was O(lights^2))
+        cached = self._of.get(draw)
+        if cached is None:
+            cached = self._of[draw] = tuple(self._select(draw))
+        return list(cached)
+
+    def _select(self, draw: ir.Draw) -> list[int]:
         idx = list(range(len(self.lights)))
         if draw.light_types:
             idx = [i for i in idx if light_type(self.lights[i]) in draw.light_types]
