@@ -121,9 +121,30 @@ def _parser() -> Lark:
 
 
 def _grammar_text() -> str:
+    text = package_text("pipegen.grammar", "pipe.lark")
+    if text is None:
+        raise FileNotFoundError("pipe.lark is missing from pipegen.grammar")
+    return text
+
+
+def package_text(package: str, name: str) -> Optional[str]:
+    """The text (UTF-8) of file ``name`` shipped in ``package``, None when there is none.
+    Read from the package's folder; only a package that is not a folder (a zip) goes
+    through ``importlib.resources``, whose imports cost a compile several milliseconds."""
+    import importlib
+    module = importlib.import_module(package)
+    folders = list(getattr(module, "__path__", ()))
+    if folders and all(os.path.isdir(f) for f in folders):
+        for folder in folders:
+            try:
+                with open(os.path.join(folder, name), encoding="utf-8") as f:
+                    return f.read()
+            except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+                continue
+        return None
     import importlib.resources
-    return importlib.resources.files("pipegen.grammar").joinpath("pipe.lark").read_text(
-        encoding="utf-8")
+    res = importlib.resources.files(package).joinpath(name)
+    return res.read_text(encoding="utf-8") if res.is_file() else None
 
 
 def cache_dir() -> Optional[str]:

@@ -1,7 +1,8 @@
 """jinja2 for whole files (glad's generator is the model): the templates ship inside the wheel as
-the ``pipegen.templates`` package (the top-level ``templates/`` folder), are read through
-``importlib.resources``, and render with ``StrictUndefined``, ``trim_blocks`` and
-``lstrip_blocks``.  Filters are plain Python functions registered with ``@template_filter``.
+the ``pipegen.templates`` package (the top-level ``templates/`` folder), are read from it
+(``syntax.package_text``: its folder, or ``importlib.resources`` inside a zip), and render
+with ``StrictUndefined``, ``trim_blocks`` and ``lstrip_blocks``.  Filters are plain Python
+functions registered with ``@template_filter``.
 
 Python renders expressions (``cstyle.py``); templates only lay out files.
 """
@@ -9,7 +10,6 @@ Python renders expressions (``cstyle.py``); templates only lay out files.
 from __future__ import annotations
 
 import functools
-import importlib.resources
 from typing import Callable, Optional
 
 import jinja2
@@ -27,8 +27,8 @@ def template_filter(fn: Callable) -> Callable:
 def _load(name: str):
     if "/" in name or "\\" in name or name.startswith("."):
         return None
-    res = importlib.resources.files("pipegen.templates").joinpath(name)
-    return res.read_text(encoding="utf-8") if res.is_file() else None
+    from ..syntax import package_text
+    return package_text("pipegen.templates", name)
 
 
 def _bytecode_cache() -> Optional[jinja2.BytecodeCache]:
