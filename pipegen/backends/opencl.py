@@ -16,7 +16,10 @@ pipeline the GLSL backend describes, with the fixed-function stages written out.
   the tile's triangles in submission order and testing only the row's pixels inside each
   triangle's bounding box: edge functions in 8-sub-pixel fixed point with the top-left
   rule, llvmpipe's perspective-correct plane interpolation, early or late depth/stencil, the
-  fragment function, blending in registers, colour masks, stores in the target formats).
+  fragment function, blending in registers, colour masks, stores in the target formats);
+  where the emitter could lower the fragment code to ``pg_fragment_w`` (``cl_wide.py``: 8
+  pixels per call, explicit SIMD with the same per-pixel arithmetic), the row's pixels a
+  triangle covers are shaded in batches of 8 instead, then blended pixel by pixel in order.
   The prelude routes the OpenCL builtins the generated code calls most (fma, fmin, fmax,
   min, max, clamp, sqrt, floor, fabs, copysign, sub_sat, vload_half*, vstore_half*_rtz) to
   inline equivalents of PoCL's library functions (which LLVM does not inline here: every one
