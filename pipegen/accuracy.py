@@ -8,7 +8,8 @@ targets *bottom row first* and :func:`pipegen.reference.metrics.to_top_down` fli
 - the **scene reference** (:func:`scene_reference`): the scene as the shared lighting equation
   (``reference.lighting``) lights it in float64, at full resolution, with its translucent
   objects blended over the opaque surface back to front (``reference.translucent``; without
-  translucent objects that is ``reference.lighting.reference_image``).  One truth for every
+  translucent objects that is ``reference.lighting.reference_image``), the shadow-casting
+  lights' exact (ray-cast) shadows on the opaque surface.  One truth for every
   technique: what a technique approximates (a low-resolution L-buffer, a light-buffer specular
   colour, packed light indices that drop lights) counts as its error.
 - the **equation reference** (:func:`equation_reference`): the float64 evaluation of the
@@ -68,9 +69,12 @@ class SceneReference:
 
 
 def scene_reference(scene) -> SceneReference:
-    """The scene as the shared lighting equation renders it in float64 (module docstring)."""
+    """The scene as the shared lighting equation renders it in float64 (module docstring);
+    the lights that cast shadows (``shadows = true``) shadow the opaque surface exactly
+    (``reference.shadows.visibility``: ray casting, the hard shadows shadow maps approximate)."""
     from .reference.translucent import reference_composite
-    rgb, info = reference_composite(scene)
+    casting = any(getattr(l, "shadows", False) for l in scene.lights)
+    rgb, info = reference_composite(scene, shadows="exact" if casting else None)
     return SceneReference(rgb, info["silhouette"], bool(len(info["surfaces"])))
 
 

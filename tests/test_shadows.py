@@ -298,3 +298,21 @@ def test_a_no_shadow_variant_refuses_a_scene_with_shadows():
     s = dataclasses.replace(small, lights=small.lights + (scene().lights[2],))
     with pytest.raises(PipegenError, match="no shadow-casting lights; this scene has 1"):
         c.pipeline("gl").render(s)
+
+
+# ---- the sweep's truth: exact visibility -------------------------------------------------------
+
+def test_exact_visibility_agrees_with_the_float64_shadow_maps_off_edges():
+    from pipegen.reference.shadows import visibility
+    s = scene()
+    sun = s.lights[2]
+    box = next(o for o in s.objects if o.name == "box")
+    centre = box.bounds_centre
+    # straight "up the sun" from a floor point behind the box is the box; far away is sky
+    behind = centre + np.asarray(sun.direction) * (centre[1] / -sun.direction[1])
+    assert visibility(s, sun, np.array([behind, [5.5, 0.0, 5.5]])).tolist() == [0.0, 1.0]
+    exact, gb = reference_image(s, shadows="exact")
+    mapped, _ = reference_image(s, shadows=(shadow_maps(s, 2, 2048, 2048), 1, 0.1))
+    d = np.abs(exact - mapped).max(axis=2) * 255
+    assert np.mean(d <= 2) > 0.98, np.mean(d <= 2)       # shadow edges aside
+    assert np.abs(exact - reference_image(s)[0]).max() * 255 > 100   # and there are shadows

@@ -77,7 +77,9 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows=None) -> np.ndarray:
     """float64 (H, W, 3) colour before clamping: ambient plus every light, sky = clear colour.
 
     ``shadows``: ``(maps, pcf_taps, bias)`` with ``maps`` from ``reference.shadows.shadow_maps``:
-    the contribution of each light with a map is scaled by its ``shadow_factor``."""
+    the contribution of each light with a map is scaled by its ``shadow_factor``; ``"exact"``:
+    each shadow-casting light's by the exact visibility of the light (``shadows.visibility``,
+    ray casting: the hard shadows shadow maps approximate)."""
     out = np.zeros((gbuffer.height, gbuffer.width, 3))
     out[:] = scene.clear_color
     cov = gbuffer.coverage
@@ -94,7 +96,10 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows=None) -> np.ndarray:
             r = float(_f32(light.radius))
             sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
         term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
-        if shadows is not None and i in shadows[0]:
+        if isinstance(shadows, str) and getattr(light, "shadows", False):
+            from .shadows import visibility
+            term = term * visibility(scene, light, P[sel])[:, None]
+        elif shadows is not None and not isinstance(shadows, str) and i in shadows[0]:
             from .shadows import shadow_factor
             term = term * shadow_factor(shadows[0][i], P[sel], shadows[1], shadows[2])[:, None]
         colour[sel] += term

@@ -58,7 +58,7 @@ def translucent_surfaces(scene: Scene, opaque_depth: np.ndarray,
 
 
 def reference_composite(scene: Scene, clamp_layers: bool = True,
-                        cull: str = "back") -> tuple[np.ndarray, dict]:
+                        cull: str = "back", shadows=None) -> tuple[np.ndarray, dict]:
     """(rgb float64 (H, W, 3) top row first, info) of the opaque scene with its translucent
     layers blended over it back to front (see the module docstring).
 
@@ -79,9 +79,11 @@ def reference_composite(scene: Scene, clamp_layers: bool = True,
       where it goes behind opaque geometry) or crosses a crease;
     - ``"order"``: int64 (K, H, W), translucent surface indices per pixel, back to front; only
       the first ``count`` entries of a pixel are meaningful.
+
+    ``shadows`` (``lighting.shade``'s argument) shadows the opaque surface only.
     """
     gb = rasterize(scene, ("opaque",))
-    opaque = shade(gb, scene)
+    opaque = shade(gb, scene, shadows)         # shadows on the opaque surface (lighting.shade)
     surfaces = translucent_surfaces(scene, gb.depth, cull)
     H, W = gb.height, gb.width
     K = len(surfaces)
