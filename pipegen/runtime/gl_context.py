@@ -95,12 +95,14 @@ _NAMES = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INV
           0x0505: "GL_OUT_OF_MEMORY", 0x0506: "GL_INVALID_FRAMEBUFFER_OPERATION"}
 
 
-def check_error(where: str = "") -> None:
+def check_error(where: str = "", hint: bool = True) -> None:
     """Raise if GL recorded an error since the last check (by any call: PyOpenGL's or
-    moderngl's); ``where`` names what ran since (a frame, a pass)."""
+    moderngl's); ``where`` names what ran since (a frame, a pass).  ``hint``: say how to
+    find the pass (per-pass checks pass False)."""
     err = int(GL.glGetError())
     if err != GL.GL_NO_ERROR:
-        hint = "" if debug_enabled() else " (PIPEGEN_GL_DEBUG=1 checks after every pass)"
+        hint = (" (PIPEGEN_GL_DEBUG=1 checks after every pass)"
+                if hint and not debug_enabled() else "")
         raise RuntimeError(f"OpenGL error 0x{err:04x} {_NAMES.get(err, '')} {where}".rstrip()
                            + hint)
 

@@ -496,7 +496,8 @@ class GLPipeline:
             p = self.passes[k]
             self._run_pass(p, light)
             if self.debug:
-                check_error(f"in pass '{p.name}'" + ("" if light is None else f" light {light}"))
+                check_error(f"in pass '{p.name}'" + ("" if light is None else f" light {light}"),
+                            hint=False)
             if capture_passes:
                 captures.append({"pass": p.name, "light": light, "targets": self._read_all()})
         check_error("rendering a frame")

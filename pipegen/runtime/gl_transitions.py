@@ -69,7 +69,6 @@ RESET: tuple[tuple[Any, Any], ...] = (
     ("depth_range", (0.0, 1.0)),
 )
 
-_FACES = (GL.GL_FRONT, GL.GL_BACK)
 SLOTS: tuple = (
     *(s for s, _ in RESET),
     ("enable", GL.GL_DEPTH_TEST), "depth_func", "depth_mask", ("enable", GL.GL_DEPTH_CLAMP),
