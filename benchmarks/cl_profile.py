@@ -13,6 +13,11 @@ with, per pass (summed over the lights of a repeat group), the medians over the 
 sets up the next pass, so the frame's wall time is about the larger of host and kernel time
 plus the read-back, not their sum.
 
+``--compare``: GL (llvmpipe) against CL per technique with the frames *interleaved* (GL, CL,
+GL, CL, ... after a warm-up of each), so that both see the same load on a shared machine: the
+median wall time of each, their ratio, and the ratio of process CPU time (all threads; less
+sensitive to other processes than wall time).
+
 Both ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to ``--threads`` before PoCL
 loads.
 """
@@ -56,6 +61,20 @@ def profile(pipe, scene, frames: int = 3) -> dict:
     return {"wall": statistics.median(walls), "passes": rows}
 
 
+def compare(gl, cl, scene, frames: int = 5) -> dict:
+    """Interleaved GL/CL frames: median wall and CPU ms of each (see the module docstring)."""
+    gl.render(scene)
+    cl.render(scene)
+    out: dict = {"gl": [], "cl": [], "gl_cpu": [], "cl_cpu": []}
+    for _ in range(frames):
+        for name, pipe in (("gl", gl), ("cl", cl)):
+            c0, t0 = time.process_time(), time.perf_counter()
+            pipe.render(scene)
+            out[name].append((time.perf_counter() - t0) * 1e3)
+            out[name + "_cpu"].append((time.process_time() - c0) * 1e3)
+    return {k: statistics.median(v) for k, v in out.items()}
+
+
 def format_profile(name: str, prof: dict) -> str:
     lines = [f"{name}: wall {prof['wall']:.1f} ms",
              f"  {'pass':<22} {'runs':>5} {'tris':>7} {'entries':>8} {'vertex':>7} "
@@ -81,6 +100,8 @@ def main() -> int:
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--threads", default="2")
+    ap.add_argument("--compare", action="store_true",
+                    help="GL vs CL with interleaved frames (wall and CPU time ratios)")
     ap.add_argument("techniques", nargs="*")
     args = ap.parse_args()
     os.environ["LP_NUM_THREADS"] = args.threads
@@ -92,9 +113,21 @@ def main() -> int:
     scene = scene_at(args.scene or str(ROOT / "examples/scenes/many_lights.toml"), args.size)
     print(f"load: {os.getloadavg()[0]:.2f}; {scene.width}x{scene.height}, "
           f"{len(scene.objects)} objects, {len(scene.lights)} lights", file=sys.stderr)
+    if args.compare:
+        print(f"{'technique':<20} {'GL ms':>8} {'CL ms':>8} {'CL/GL':>6} {'GL cpu':>8} "
+              f"{'CL cpu':>8} {'cpu CL/GL':>9}  load")
     for spec in args.techniques or TECHNIQUES:
-        pipe = compile_spec(spec).pipeline("cl")
-        print(format_profile(spec, profile(pipe, scene, args.frames)))
+        compiled = compile_spec(spec)
+        pipe = compiled.pipeline("cl")
+        if args.compare:
+            gl = compiled.pipeline("gl")
+            r = compare(gl, pipe, scene, args.frames)
+            gl.release()
+            print(f"{spec:<20} {r['gl']:>8.1f} {r['cl']:>8.1f} {r['cl'] / r['gl']:>5.2f}x "
+                  f"{r['gl_cpu']:>8.1f} {r['cl_cpu']:>8.1f} {r['cl_cpu'] / r['gl_cpu']:>8.2f}x  "
+                  f"{os.getloadavg()[0]:.1f}", flush=True)
+        else:
+            print(format_profile(spec, profile(pipe, scene, args.frames)))
         pipe.release()
     return 0
 
