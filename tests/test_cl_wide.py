@@ -80,6 +80,7 @@ def _pipes(compile_fn, monkeypatch, min_cost=None, wmin=None):
     """The CL pipeline with the scalar fragment functions only, and with the wide ones."""
     if min_cost is not None:
         monkeypatch.setattr(cl_wide, "MIN_COST", min_cost)
+        monkeypatch.setattr(cl_wide, "GATHER_COST", 0)
     if wmin is not None:
         monkeypatch.setattr(cl_wide, "WMIN", wmin)
     monkeypatch.setattr(cl_wide, "ENABLED", False)
@@ -144,6 +145,8 @@ def test_what_stays_scalar():
     assert "per_light" in wide_passes("forward_multipass")
     assert not {"shade", "depth_prepass"} & wide_passes("lidr_bitplanes")
     assert "gbuffer" not in wide_passes("deferred")
+    # tabulated lighting: most of its work is gathers (measured slower wide)
+    assert "point_lights" not in wide_passes("deferred_calver")
 
 
 def test_unsupported_code_falls_back():

@@ -34,7 +34,8 @@ None when the code uses what this form does not support (the pass then keeps the
   not supported (None: the scalar path).  Passes whose estimated work per pixel (``cost``)
   is below ``MIN_COST`` keep the scalar path too (the batching does not pay there), and the
   raster kernel shades a triangle's row batch of fewer than ``WMIN`` pixels with the scalar
-  function.
+  function.  A ``load``/``sample`` counts ``GATHER_COST`` against the estimate (gathered
+  lane by lane).
 
 Builtins the generated code calls with varying operands have ``W``-wide overloads in
 ``wide_helpers()`` (the prelude's definitions applied lane by lane, so the values are the
@@ -50,13 +51,14 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from .. import ir
+from .. import ir, irwalk
 from ..ir import Scalar, Type
 from . import plan as planlib
 from .cstyle import _max0, _positive_const
 
 W = 8                       # lanes: llvmpipe shades 8 pixels at once as well
 MIN_COST = 150              # below this estimated work per pixel, the scalar function only
+GATHER_COST = 25            # what a load()/sample() costs the wide form more (lane by lane)
 WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by pixel
 # False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
 # before/after benchmarks); the emitted text then is the scalar path's alone
@@ -883,7 +885,8 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
     if not p.body or not ENABLED:
         return None
     functions = planlib.pass_functions(tech, p.body)
-    if cost(p.body, {f.name: f for f in functions}) < MIN_COST:
+    fmap = {f.name: f for f in functions}
+    if cost(p.body, fmap) - GATHER_COST * gathers(p.body, fmap) < MIN_COST:
         return None
     try:
         return WideEmitter(tech, p, lang).fragment(functions)
@@ -1000,6 +1003,19 @@ def cost(body, functions: dict) -> int:
         return n
 
     return stmts(body)
+
+
+def gathers(body, functions: dict) -> int:
+    """How many ``load``/``sample`` calls the code holds (functions counted with theirs): the
+    wide form gathers them lane by lane, which measured slower than the scalar code where
+    they are a large share of the work (deferred_calver's tabulated point lights)."""
+    n = 0
+    for e in irwalk.walk_exprs(body):
+        if isinstance(e, (ir.Load, ir.Sample)):
+            n += 1
+        elif isinstance(e, ir.Call) and not e.builtin and e.name in functions:
+            n += gathers(functions[e.name].body, functions)
+    return n
 
 
 def _children(e) -> list:
