@@ -9,6 +9,7 @@ splice statements).  ``walk_*`` visit without rebuilding.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Callable, Iterable, Iterator, Optional
 
 from . import ir
@@ -24,9 +25,14 @@ def is_expr(x: object) -> bool:
     return isinstance(x, _EXPR_TYPES)
 
 
+@functools.cache
+def _field_names(cls: type) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(cls))
+
+
 def _children(node) -> Iterator[tuple[str, object]]:
-    for f in dataclasses.fields(node):
-        yield f.name, getattr(node, f.name)
+    for name in _field_names(type(node)):
+        yield name, getattr(node, name)
 
 
 def rewrite_expr(e: Optional[ir.Expr], fn: ExprFn) -> Optional[ir.Expr]:
