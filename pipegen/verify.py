@@ -345,9 +345,11 @@ class _Body:
     def expr(self, e: ir.Expr, allow_void: bool = False) -> ir.Type:
         """Check ``e`` and return its (declared) type."""
         method = getattr(self, "_" + type(e).__name__, None)
-        self.check(method is not None, f"unknown expression {e!r}")
+        if method is None:        # the messages repr the whole expression: only on failure
+            self.check(False, f"unknown expression {e!r}")
         method(e)
-        self.check(allow_void or not e.type.is_void, f"void value {e!r}")
+        if not allow_void and e.type.is_void:
+            self.check(False, f"void value {e!r}")
         return e.type
 
     def _Const(self, e: ir.Const) -> None:
