@@ -81,9 +81,8 @@ def pyrepr(obj, indent: int = 0, width: int = 100) -> str:
     if isinstance(obj, str):
         return '"""\\\n' + obj + '"""' if _multiline_ok(obj) else repr(obj)
     if isinstance(obj, (dict, list, tuple)):
-        flat = repr(obj)
-        if len(flat) + indent <= width and not any(
-                isinstance(v, str) and _multiline_ok(v) for v in _leaves(obj)):
+        flat = _flat(obj, width - indent)
+        if flat is not None:
             return flat
         if isinstance(obj, dict):
             items = [f"{inner}{k!r}: {pyrepr(v, indent + 4, width)}," for k, v in obj.items()]
@@ -92,6 +91,41 @@ def pyrepr(obj, indent: int = 0, width: int = 100) -> str:
         items = [f"{inner}{pyrepr(v, indent + 4, width)}," for v in obj]
         return open_ + "\n" + "\n".join(items) + f"\n{pad}{close}"
     return repr(obj)
+
+
+def _flat(obj, room: int):
+    """``repr(obj)`` when it fits in ``room`` characters and holds no string that ``pyrepr``
+    writes as a block, else None.  Built piece by piece for plain dicts, lists and tuples, so
+    that a long container (the plan's shader sources) is given up as soon as it is too long
+    instead of being repr'd whole at every level of ``pyrepr``'s descent."""
+    kind = type(obj)
+    if kind is dict or kind is list or kind is tuple:
+        left = room - 1                       # the opening bracket
+        parts = []
+        for item in (obj.items() if kind is dict else obj):
+            prefix = repr(item[0]) + ": " if kind is dict else ""
+            left -= len(prefix) + (2 if parts else 0)        # the key, ", "
+            value = _flat(item[1] if kind is dict else item, left) if left >= 0 else None
+            if value is None:
+                return None
+            left -= len(value)
+            parts.append(prefix + value)
+        text = ", ".join(parts)
+        if kind is dict:
+            text = "{" + text + "}"
+        elif kind is list:
+            text = "[" + text + "]"
+        else:
+            text = "(" + text + (",)" if len(parts) == 1 else ")")
+    elif isinstance(obj, (dict, list, tuple)):        # a subclass: its own repr
+        if any(isinstance(v, str) and _multiline_ok(v) for v in _leaves(obj)):
+            return None
+        text = repr(obj)
+    elif isinstance(obj, str) and _multiline_ok(obj):
+        return None
+    else:
+        text = repr(obj)
+    return text if len(text) <= room else None
 
 
 def _leaves(obj):
