@@ -316,3 +316,20 @@ def test_exact_visibility_agrees_with_the_float64_shadow_maps_off_edges():
     d = np.abs(exact - mapped).max(axis=2) * 255
     assert np.mean(d <= 2) > 0.98, np.mean(d <= 2)       # shadow edges aside
     assert np.abs(exact - reference_image(s)[0]).max() * 255 > 100   # and there are shadows
+
+
+@pytest.mark.cl
+def test_float64_evaluation_draws_the_same_tiles():
+    """The f64 evaluation sets shadow tiles up through their viewport too
+    (``cl_geometry.homogeneous_planes(viewport=…)``): its atlas is the float32 one up to
+    float32 rounding of the depth plane (measured: 28 ulp), its image within 1 code."""
+    c = compile_file(ROOT / "pipelines/forward.pipe", params={"shadow_size": ATLAS})
+    s = scene()
+    f32 = c.pipeline("cl").render(s)
+    f64 = c.pipeline("cl", precision="f64").render(s)
+    a32, a64 = f32["shadow_atlas"].astype(np.float64), f64["shadow_atlas"]
+    assert np.array_equal(a32 < 1, a64 < 1) or np.mean((a32 < 1) != (a64 < 1)) < 1e-3
+    both = (a32 < 1) & (a64 < 1)
+    assert np.abs(a32 - a64)[both].max() < 64 * 2.0 ** -24
+    rgb = np.clip(f64["color"][..., :3], 0, 1) * 255
+    assert np.abs(f32["color"][..., :3] - rgb).max() <= 1.5
