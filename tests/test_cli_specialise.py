@@ -147,7 +147,7 @@ def test_check_specialise_compares_the_variant(capsys, tmp_path, fresh_cache):
     assert main(["check", tech("deferred_calver"), "--scene", scene("small"), "--size", "32x18",
                  "--specialise", "-o", str(tmp_path / "c")]) == 0
     captured = capsys.readouterr()
-    assert "variant: compiled (" in captured.err and "passes 10 -> 7)" in captured.err
+    assert "variant: compiled (" in captured.err and "passes 11 -> 7)" in captured.err
     rows = {l.split()[0] for l in captured.out.splitlines()[2:] if l.strip()}
     assert "spot_lut" not in rows and "accum" in rows        # the variant's targets only
     assert "all targets agree" in captured.out
@@ -163,17 +163,17 @@ def test_specialise_prints_features_cuts_and_lists(capsys):
     assert lines[0].startswith("deferred_calver on ")
     assert "scene features" in lines and "  lights: 4 point" in lines
     assert "  nothing: the technique renders everything this scene has" in lines
-    assert "specialised for: point; at most 4 lights; nothing translucent" in lines
+    assert "specialised for: point; at most 4 lights; nothing translucent; no shadows" in lines
     assert ("  pass `tabulate_spot` culled: it writes `spot_lut`, read only by culled pass "
             "`spot_lights`") in lines
     assert ("  target `spot_lut` culled: used only by culled passes `tabulate_spot`, "
             "`spot_lights`") in lines
     assert "  parameter max_lights = 4" in lines
-    before = next(l for l in lines if l.startswith("passes   before (10): "))
+    before = next(l for l in lines if l.startswith("passes   before (11): "))
     assert "spot_lights" in before
     after = next(l for l in lines if l.strip().startswith("after  (7): "))
     assert "spot_lights" not in after
-    assert any(l.startswith("targets  before (11)") for l in lines)
+    assert any(l.startswith("targets  before (12)") for l in lines)
     memory = next(l for l in lines if l.startswith("target memory at 96x64: "))
     assert "saved)" in memory and "(0 B saved)" not in memory
 
