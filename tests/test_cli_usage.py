@@ -203,7 +203,7 @@ def test_save_pngs_from_python(tmp_path):
     scene = pipegen.default_scene().with_size(64, 36)
     targets = compiled.pipeline("gl").render(scene)
     paths = pipegen.save_pngs(compiled, scene, targets, tmp_path / "pics")
-    assert set(paths) == set(targets) == {"color", "ds", "ds.stencil"}
+    assert set(paths) == set(targets) == {"color", "ds", "ds.stencil", "shadow_atlas"}
     from PIL import Image
     assert all(p.exists() for p in paths.values())
     assert Image.open(paths["color"]).size == (64, 36)
