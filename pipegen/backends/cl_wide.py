@@ -56,7 +56,8 @@ from ..ir import Scalar, Type
 from . import plan as planlib
 from .cstyle import _max0, _positive_const
 
-W = 8                       # lanes: llvmpipe shades 8 pixels at once as well
+W = 8                       # lanes: llvmpipe shades 8 pixels at once as well (the helpers
+                            # below are written for 8)
 MIN_COST = 150              # below this estimated work per pixel, the scalar function only
 GATHER_COST = 25            # what a load()/sample() costs the wide form more (lane by lane)
 WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by pixel
