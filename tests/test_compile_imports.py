@@ -7,6 +7,7 @@ imported a forbidden module, so that a failure names the import chain to cut."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -26,14 +27,17 @@ PROBE = r"""
 import json, sys, traceback
 
 FORBIDDEN = tuple(json.loads(sys.argv[1]))
-techniques, out = json.loads(sys.argv[2]), sys.argv[3]
+techniques, out, stop = json.loads(sys.argv[2]), sys.argv[3], sys.argv[4] == "stop"
 first = {}
 
 class Recorder:
-    '''Notes the stack of the first import of each forbidden module; imports nothing.'''
+    '''Notes the stack of the first import of each forbidden module (not a mere
+    importlib.util.find_spec); imports nothing.'''
     def find_spec(self, name, path=None, target=None):
         if name in FORBIDDEN and name not in first:
-            first[name] = "".join(traceback.format_stack(limit=12)[:-1])
+            stack = traceback.format_stack(limit=12)[:-1]
+            if not any("importlib/util.py" in frame for frame in stack[-3:]):
+                first[name] = "".join(stack)
         return None
 
 sys.meta_path.insert(0, Recorder())
@@ -43,16 +47,19 @@ for i, technique in enumerate(techniques):
     rc = main(["compile", technique, "-o", f"{out}/{i}", "--force"])
     loaded = sorted(m for m in FORBIDDEN if m in sys.modules)
     report.append({"technique": technique, "rc": rc, "loaded": loaded})
-    if loaded:
+    if loaded and stop:
         break
 print(json.dumps({"report": report, "stacks": first}))
 """
 
 
-def run_probe(techniques: list[str], out: Path) -> dict:
-    proc = subprocess.run([sys.executable, "-c", PROBE, json.dumps(FORBIDDEN),
-                           json.dumps(techniques), str(out)],
-                          cwd=ROOT, capture_output=True, text=True, timeout=300)
+def run_probe(techniques: list[str], out: Path, forbidden=FORBIDDEN, env=None,
+              stop: bool = True) -> dict:
+    """Compile ``techniques`` in one fresh interpreter; which of ``forbidden`` each left
+    imported (stopping at the first that imports one, unless not ``stop``)."""
+    proc = subprocess.run([sys.executable, "-c", PROBE, json.dumps(forbidden),
+                           json.dumps(techniques), str(out), "stop" if stop else "all"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
@@ -68,11 +75,26 @@ def test_compiling_every_shipped_technique_imports_nothing_it_does_not_need(tmp_
     assert [r["technique"] for r in result["report"]] == TECHNIQUES
 
 
+def test_with_every_syntax_tree_cached_a_compile_imports_no_lark(tmp_path):
+    """The second compile of the same files loads their trees (syntax.parse's cache): neither
+    lark nor the transformer (syntax_tree.py) is imported, the parser not loaded."""
+    env = {**os.environ, "PIPEGEN_CACHE_DIR": str(tmp_path / "cache")}
+    forbidden = FORBIDDEN + ("lark", "pipegen.syntax_tree")
+    first = run_probe(TECHNIQUES, tmp_path / "1", forbidden, env, stop=False)
+    assert "lark" in first["report"][0]["loaded"]       # an empty cache: parsed
+    second = run_probe(TECHNIQUES, tmp_path / "2", forbidden, env)
+    for row in second["report"]:
+        assert row["rc"] == 0 and not row["loaded"], (
+            f"{row}; first imported from:\n" + "\n".join(
+                f"{m}:\n{second['stacks'].get(m, '?')}" for m in row["loaded"]))
+    assert len(second["report"]) == len(TECHNIQUES)
+
+
 def test_the_probe_sees_an_import_when_there_is_one(tmp_path):
     """The check can fail: with --scene a compile loads the scene, which uses numpy."""
     probe = PROBE.replace('"--force"]', '"--force", "--scene", "examples/scenes/small.toml"]')
     proc = subprocess.run([sys.executable, "-c", probe, json.dumps(FORBIDDEN),
-                           json.dumps(TECHNIQUES[:1]), str(tmp_path)],
+                           json.dumps(TECHNIQUES[:1]), str(tmp_path), "stop"],
                           cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout.strip().splitlines()[-1])
