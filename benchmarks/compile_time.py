@@ -71,7 +71,6 @@ STAGES = r"""
 import sys, time
 T = [("start", time.perf_counter(), time.process_time())]
 def mark(name): T.append((name, time.perf_counter(), time.process_time()))
-import lark; mark("import lark")
 import jinja2; mark("import jinja2")
 import pipegen.cli as cli; mark("import pipegen.cli (rest)")
 argv = ["compile", sys.argv[1], "-o", sys.argv[2], "--force"]
@@ -88,7 +87,8 @@ for (_, w0, c0), (name, w1, c1) in zip(T, T[1:]):
     print(f"  {name:<34} {1000 * (w1 - w0):8.1f} {1000 * (c1 - c0):7.1f}")
 print(f"  {'total (after interpreter start)':<34} {1000 * (T[-1][1] - T[0][1]):8.1f} "
       f"{1000 * (T[-1][2] - T[0][2]):7.1f}")
-print("  numpy imported:", "yes" if "numpy" in sys.modules else "no", "| parser loaded:",
+print("  imported: numpy", "yes" if "numpy" in sys.modules else "no", "| lark",
+      "yes" if "lark" in sys.modules else "no", "| parser loaded:",
       "yes" if syntax._parser.cache_info().currsize else "no (every syntax tree was cached)")
 """
 
