@@ -7,8 +7,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+# Every shipped technique (pipelines/*.pipe), the default of the benchmarks that take a list.
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes", "lidr_transparent"]
+              "lidr_bitplanes", "lidr_transparent", "light_prepass", "inferred", "deferred_calver"]
 
 
 def median_time(fn, repeat: int, warmup: bool = True) -> float:

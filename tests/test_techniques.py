@@ -87,3 +87,13 @@ def _where(diff, mask):
     d = np.where(mask[..., None], diff, 0)
     y, x, c = np.unravel_index(np.argmax(d), d.shape)
     return f"max {d.max()} codes at pixel (x={x}, y={y}) channel {c}"
+
+
+def test_benchmarks_default_to_every_shipped_technique():
+    """benchmarks/backends.py, frame_times.py and cl_profile.py run common.TECHNIQUES by
+    default: a technique missing there is never measured."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("bench_common", ROOT / "benchmarks" / "common.py")
+    common = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(common)
+    assert sorted(common.TECHNIQUES) == sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
