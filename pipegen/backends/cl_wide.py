@@ -51,7 +51,7 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from .. import ir, irwalk
+from .. import ir
 from ..ir import Scalar, Type
 from . import plan as planlib
 from .cstyle import _max0, _positive_const
@@ -1010,12 +1010,17 @@ def gathers(body, functions: dict) -> int:
     """How many ``load``/``sample`` calls the code holds (functions counted with theirs): the
     wide form gathers them lane by lane, which measured slower than the scalar code where
     they are a large share of the work (deferred_calver's tabulated point lights)."""
-    n = 0
-    for e in irwalk.walk_exprs(body):
-        if isinstance(e, (ir.Load, ir.Sample)):
-            n += 1
-        elif isinstance(e, ir.Call) and not e.builtin and e.name in functions:
-            n += gathers(functions[e.name].body, functions)
+    return _gathers(body, functions, {})
+
+
+def _gathers(body, functions: dict, memo: dict) -> int:
+    facts = planlib.code_facts(body)      # one walk per body (memoised in plan.py)
+    n = facts.loads
+    for name in facts.call_list:
+        if name in functions:
+            if name not in memo:
+                memo[name] = _gathers(functions[name].body, functions, memo)
+            n += memo[name]
     return n
 
 

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from typing import Optional
 
-from .. import ir, irwalk
+from .. import ir
 from ..ir import DrawKind, Scalar, Type, Volume
 from . import plan as planlib
 from .plan import GLPassCode, Plan
@@ -198,7 +198,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
     uses_light = bool(inputs & {"light", "light_index"})
     assert not uses_light or kind is DrawKind.LIGHTS or p.repeat_per_light, p.name
 
-    written = {s.target for s in irwalk.walk_stmts(p.body) if isinstance(s, ir.Output)}
+    written = planlib.code_facts(p.body).outputs
     assert written <= set(p.writes), f"pass {p.name} writes {written - set(p.writes)} undeclared"
     code = [lang.function(f) for f in functions]
     body = lang.stmts(p.body, 1)

@@ -66,6 +66,7 @@ folded to ``x * 2.1``).
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 import textwrap
@@ -73,7 +74,7 @@ from dataclasses import replace
 from typing import Optional
 
 from .. import formats as F
-from .. import ir, irwalk
+from .. import ir
 from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
@@ -720,10 +721,12 @@ def c_comment(text: str, width: int = 95) -> str:
     return "\n".join(lines)
 
 
+@functools.lru_cache(maxsize=None)
 def prelude_source(tile: int = TILE, precision: str = "f32", previous: bool = False) -> str:
     """The prelude every pass program starts with (``templates/cl_prelude.cl.j2``); with
     ``precision="f64"`` followed by the float64 evaluation's building blocks; ``previous``:
-    the frame structs end with the previous frame's camera (``prev_view``, ``prev_proj``)."""
+    the frame structs end with the previous frame's camera (``prev_view``, ``prev_proj``).
+    Rendered once per arguments (every pass program of a plan starts with the same one)."""
     return templating.render("cl_prelude.cl.j2", tile=tile, enums=_enum_defines(),
                              scaled16=scaled16_conversions(), f64=precision == "f64",
                              previous=previous)
@@ -959,8 +962,7 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass,
         assert all(f in names for f in
                    VOLUME_LIGHT_FIELDS[(p.draw.volume or ir.Volume.SPHERE).value]), p.name
     sampled = sorted(planlib.sampled_targets(p.body, functions))
-    discard = any(isinstance(s, ir.Discard) for s in irwalk.walk_stmts(p.body)) or any(
-        isinstance(s, ir.Discard) for f in functions for s in irwalk.walk_stmts(f.body))
+    discard = planlib.may_discard(p.body, functions)
     if not p.body:
         return {"fragment": None, "inputs": sorted(inputs), "discard": False, "sampled": sampled}
     code = [lang.function(f) for f in functions]
