@@ -304,3 +304,27 @@ def test_help_shows_the_examples(capsys, command):
     examples = text[text.index("examples:"):]
     assert {l.split()[1] for l in examples.splitlines()
             if l.strip().startswith("pipegen ")} == {command}
+
+
+
+def test_general_build_says_what_unused_shadow_maps_cost():
+    """forward.pipe's general build clears its atlas and runs the (untaken) shadow lookup on
+    a scene where no light casts shadows: run and check print a note pointing at --specialise;
+    none where lights cast shadows, none for the specialised variant (compile --scene), none
+    for a technique without shadow maps."""
+    from pipegen import compile_file, load_scene
+    from pipegen.cli import unused_cost_note
+    small, shadows = load_scene(scene("small")), load_scene(scene("shadows"))
+    forward = compile_file(tech("forward"))
+    note = unused_cost_note(forward, small)
+    assert note.startswith("no light in this scene casts shadows") and "--specialise" in note
+    assert unused_cost_note(forward, shadows) is None
+    assert unused_cost_note(forward.specialise(small), small) is None
+    assert unused_cost_note(compile_file(tech("deferred")), small) is None
+
+
+@pytest.mark.gl
+def test_run_prints_the_unused_shadow_note(capsys, tmp_path):
+    assert main(["run", tech("forward"), "--scene", scene("small"), "--size", "16x9",
+                 "-o", str(tmp_path / "r")]) == 0
+    assert "note: no light in this scene casts shadows" in capsys.readouterr().err
