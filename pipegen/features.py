@@ -5,10 +5,13 @@
   groups in use; ``lights_per_pixel_bound(scene)`` (costly: a float64 rasterisation) bounds
   the lights whose volumes a light-index packing must hold at one pixel.
 - ``capabilities(tech)``: derived from the IR, not declared: which light types the technique
-  draws and evaluates, whether it draws translucent objects, its light-index capacity.
+  draws and evaluates, whether it draws translucent objects, its light-index capacity, the
+  faces its light-index passes draw, and the translucent passes reading a back-face index.
 - ``mismatches(tech, scene)``: what the technique will not render of this scene, in words
   ("2 spot lights are lit as point lights ..."): ``run``, ``check`` and the API report them,
   ``--strict`` makes them an error.  A silently wrong image is the worst bug.
+- ``translucent_missed_lights(scene, lights)`` (costly: a float64 rasterisation): the lights a
+  back-face light index misses at the translucent surfaces they reach.
 """
 
 from __future__ import annotations
@@ -98,6 +101,53 @@ def scene_features(scene) -> SceneFeatures:
         shadow_lights=sum(bool(getattr(l, "shadows", False)) for l in scene.lights))
 
 
+def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]:
+    """Of the scene's lights ``lights`` (point/spot indices), those a light index written by
+    light-volume back faces (``cull front``, ``depth gequal`` against the opaque depth) misses
+    at a visible translucent surface they reach: the light's sphere holds the translucent
+    surface point, but its circumscribing volume (the mesh the light pass draws) has no back
+    face at or behind the opaque surface along the pixel's ray (on sky pixels: none at all).
+    Returns (the missed lights, sorted; how many translucent objects miss one).  A float64
+    rasterisation of the scene's opaque depth and of each translucent object on its own, at
+    the scene's resolution."""
+    from .reference.lighting import _f32, light_volume
+    from .reference.raster import rasterize, rasterize_each
+    if not lights or not scene.has_translucent:
+        return [], 0
+    opaque = rasterize(scene, ("opaque",))
+    cam = np.asarray(scene.camera.position, dtype=np.float64)
+    grow = float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
+    missed: set[int] = set()
+    objects = 0
+    for _obj, gb in rasterize_each(scene, ("translucent",)):
+        visible = gb.coverage & (gb.depth < opaque.depth)
+        if not visible.any():
+            continue
+        T = gb.position[visible]
+        ray = T - cam
+        u = ray / np.maximum(np.linalg.norm(ray, axis=1), 1e-300)[:, None]
+        t_opaque = np.where(opaque.coverage[visible],
+                            np.linalg.norm(opaque.position[visible] - cam, axis=1), np.inf)
+        hit = False
+        for i in lights:
+            light = scene.lights[i]
+            centre, r = _f32(light.position), float(_f32(light.radius))
+            d = T - centre
+            reaches = np.einsum("ij,ij->i", d, d) < r * r
+            if not reaches.any():
+                continue
+            R = r * grow
+            oc = centre - cam
+            b = u @ oc
+            disc = b * b - (oc @ oc - R * R)
+            behind = (disc > 0) & (b + np.sqrt(np.maximum(disc, 0.0)) >= t_opaque)
+            if (reaches & ~behind).any():
+                missed.add(i)
+                hit = True
+        objects += hit
+    return sorted(missed), objects
+
+
 def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
                            faces: str = "back", residue: Optional[tuple[int, int]] = None) -> int:
     """The most lights (of ``types``; None: all) whose volumes a light-index pass may write
@@ -138,6 +188,10 @@ class Capabilities:
     # atlas, and the fewest tiles of any such draw (N^2; 0: the technique draws no shadows)
     shadow_types: frozenset = frozenset()
     shadow_capacity: int = 0
+    # passes drawing scene.translucent that read a light-index packing whose writers test
+    # depth greater/gequal (light-volume back faces behind the opaque surface): (pass, pack,
+    # the point/spot light types those writers draw)
+    translucent_back_reads: tuple[tuple[str, str, frozenset], ...] = ()
 
     def light_type(self, t: str) -> str:
         return dict(self.light_types)[t]
@@ -207,7 +261,40 @@ def capabilities(tech: ir.Technique) -> Capabilities:
     shadow_types = frozenset(t for d in shadow_draws for t in d.light_types)
     shadow_capacity = min((d.shadow_tiles ** 2 for d in shadow_draws), default=0)
     return Capabilities(tuple(out), has_table, translucent, index, slots, rules,
-                        shadow_types, shadow_capacity)
+                        shadow_types, shadow_capacity, _translucent_back_reads(tech, rules))
+
+
+_BEHIND_TESTS = (ir.CompareFunc.GREATER, ir.CompareFunc.GEQUAL)
+
+
+def _translucent_back_reads(tech: ir.Technique, rules) -> tuple:
+    """(pass, pack, types) for each pass drawing ``scene.translucent`` that reads a light-index
+    packing (its target in ``reads``, or its unpack functions called from the body or the
+    functions it reaches) written with back faces: the writers that keep only fragments at or
+    behind the opaque surface (``depth … greater|gequal``) and the point/spot types they draw.
+    Such an index holds the lights reaching the opaque surface, not those reaching only a
+    translucent surface in front of it."""
+    faces = {r[0]: r[1] for r in rules}
+    out = []
+    for p in tech.passes:
+        if not (p.draw.kind is ir.DrawKind.SCENE and
+                (not p.draw.material or "translucent" in p.draw.material)):
+            continue
+        calls = {e.name for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]
+                 for e in irwalk.walk_exprs(stmts) if isinstance(e, ir.Call)}
+        for k in tech.packings:
+            if faces.get(k.name) != "back":
+                continue
+            if not (dict(k.options).get("target") in p.reads or
+                    calls & {f.name for f in k.functions}):
+                continue
+            behind = [w for w in _writers(tech, k)
+                      if w.depth_target and w.state.depth.func in _BEHIND_TESTS]
+            types = frozenset(t for w in behind for t in (w.draw.light_types or LIGHT_TYPES)
+                              if t != "directional" and _types_match(w.repeat_types, t))
+            if types:
+                out.append((p.name, k.name, types))
+    return tuple(out)
 
 
 _FRONT_TESTS = (ir.CompareFunc.LESS, ir.CompareFunc.LEQUAL)
@@ -319,6 +406,26 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                     else f"up to {bound} {kinds} lights{which} reach a pixel")
             out.append(Mismatch("capacity", f"{what}, the packing `{pack}` ({scheme}) holds "
                                             f"{capacity}: lights will be dropped"))
+    if f.translucent_objects and cap.translucent_back_reads:
+        readers: dict[str, list] = {}
+        for pass_name, pack, types in cap.translucent_back_reads:
+            readers.setdefault(pass_name, []).append((pack, types))
+        for pass_name, packs in readers.items():
+            lights = sorted({i for pack, types in packs
+                             for i, l in enumerate(scene.lights) if l.type in types and
+                             (rules.get(pack, ("back", None))[1] is None or
+                              i % rules[pack][1][0] == rules[pack][1][1])})
+            missed, objects = translucent_missed_lights(scene, lights)
+            if missed:
+                names = ", ".join(f"`{pack}`" for pack, _ in packs)
+                out.append(Mismatch(
+                    "translucent", f"{_n(objects, 'translucent object')} "
+                    f"{'is' if objects == 1 else 'are'} lit from a light index written by "
+                    f"light-volume back faces ({names}, read by pass {pass_name}): "
+                    f"{_n(len(missed), 'light')} that reach{'es' if len(missed) == 1 else ''} "
+                    f"{'it' if objects == 1 else 'them'} but not the opaque surface behind "
+                    f"{'is' if len(missed) == 1 else 'are'} missed (lights "
+                    f"{', '.join(map(str, missed))})"))
     for pack, slots, types in cap.slot_packings:
         from .packing import sort_lights_into_slots
         members = [i for i, l in enumerate(scene.lights) if l.type in types]

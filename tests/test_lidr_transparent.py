@@ -9,7 +9,8 @@
   and the same technique in scene order is measurably wrong (tens of codes).
 - why front faces: the same technique drawing the other LIDRs' back faces behind the opaque
   surface misses the lights between a translucent surface and the opaque one (tens of codes
-  where translucent layers cover the pixel), and front faces do not.
+  where translucent layers cover the pixel), and front faces do not; ``features.mismatches``
+  reports the back-face variant (the lights it misses), not the technique.
 - the technique's capacity report: its index banks are written by light-volume front faces, so
   ``features.mismatches`` counts the volumes along each pixel's ray (per bank) and reports the
   scenes that overflow a bank (stress_overlap, cornell_box), not the example scenes it renders.
@@ -342,13 +343,21 @@ def test_back_faces_would_miss_the_lights_of_translucent_surfaces():
     surface (``cull front``, ``depth gequal``) lights the opaque surfaces as well but misses
     the lights between a translucent surface and the opaque one behind it (measured on
     translucent_layers: mean 32.8, max 158 codes where translucent layers cover the pixel;
-    max 1 elsewhere)."""
+    max 1 elsewhere).  ``features.mismatches`` says so (no silent wrong image): the 9 lights
+    that reach translucent surfaces but not the opaque surface behind them are named; the
+    front-face technique gets no such report."""
     src = TECHNIQUE.read_text()
     front = "depth dsi lequal nowrite clamp inside always\n  cull auto"
     assert src.count(front) == 6
     back = compile_source(src.replace(front, "depth dsi gequal nowrite\n  cull front"),
                           filename=str(TECHNIQUE))
     s = scene("translucent_layers")
+    found = [m.message for m in back.mismatches(s) if m.kind == "translucent"]
+    assert found == ["15 translucent objects are lit from a light index written by light-volume "
+                     "back faces (`b0`, `b1`, `b2`, read by pass shade_translucent): 9 lights "
+                     "that reach them but not the opaque surface behind are missed (lights 3, "
+                     "4, 5, 6, 7, 8, 9, 10, 11)"]
+    assert compiled().mismatches(s) == []
     img = back.pipeline("gl").render(s)["color"]
     composite, info = reference_composite(s)
     covered = info["covered"] & ~info["silhouette"]
