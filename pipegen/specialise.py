@@ -71,10 +71,13 @@ def clear_cache() -> None:
     _CACHE.clear()
 
 
-def _key(compiled, facts: ir.SceneFacts) -> tuple:
+def _key(compiled, facts: ir.SceneFacts, shrinks: bool) -> tuple:
+    """The variant's cache key.  ``shrinks``: whether the light table may be shrunk (only
+    with ``recompile``): ``Compiled.specialise`` keeps the table, ``compile_file(scene=)``
+    shrinks it, so the two make different variants of the same technique and facts."""
     tech = compiled.technique
     digest = hashlib.sha256(repr(tech).encode()).hexdigest()
-    return (tech.source, digest, tuple(sorted(compiled.params.items())), facts)
+    return (tech.source, digest, tuple(sorted(compiled.params.items())), facts, shrinks)
 
 
 def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
@@ -86,7 +89,7 @@ def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
     from .compiler import Compiled
     features = features or scene_features(scene)
     facts = features.facts()
-    key = _key(compiled, facts)
+    key = _key(compiled, facts, recompile is not None)
     hit = _CACHE.get(key)
     if hit is not None:
         return dataclasses.replace(hit, specialisation=dataclasses.replace(

@@ -348,3 +348,17 @@ def test_mismatch_report_of_every_shipped_technique_on_mixed_lights(path):
     expected = [] if path.stem in ("inferred", "lidr_transparent") else [
         "1 translucent object is not drawn (no pass draws scene.translucent)"]
     assert got == expected
+
+
+def test_a_variant_without_the_shrunk_table_is_not_reused_for_one_with_it():
+    """Compiled.specialise keeps the light table (it cannot recompile); compile_file(scene=)
+    shrinks it.  Both are cached by technique and facts: the one asked for first must not be
+    handed out for the other (the suite once got a 128-light 'variant' from compile_file)."""
+    clear_cache()
+    small = scene("small")
+    kept = compile_file(ROOT / "pipelines/forward.pipe").specialise(small)
+    assert kept.technique.lights.capacity == 128
+    shrunk = compile_file(ROOT / "pipelines/forward.pipe", scene=small)
+    assert shrunk.technique.lights.capacity == 4 and not shrunk.specialisation.reused
+    again = compile_file(ROOT / "pipelines/forward.pipe").specialise(small)
+    assert again.technique.lights.capacity == 128 and again.specialisation.reused
