@@ -164,6 +164,15 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
                             "passes and targets never run; see pipegen specialise) "
                             "(default: the general technique)")
 
+    def scene_and_size(p: argparse.ArgumentParser) -> None:
+        """The scene a command renders and its size (run, check)."""
+        p.add_argument("--scene", metavar="FILE",
+                       help="scene .toml, or a glTF file (.gltf, .glb) (default: the built-in "
+                            "default scene)")
+        p.add_argument("--size", type=size_arg, metavar="WxH",
+                       help=f"output size (default: the scene file's width x height, "
+                            f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
+
     def force(p: argparse.ArgumentParser) -> None:
         p.add_argument("--force", action="store_true",
                        help="write into an output folder that holds files pipegen did not "
@@ -189,12 +198,7 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
                 mismatch_note=True)
     r.add_argument("-o", "--out", required=True, metavar="DIR",
                    help="output folder (required; only files pipegen wrote are replaced)")
-    r.add_argument("--scene", metavar="FILE",
-                   help="scene .toml, or a glTF file (.gltf, .glb) (default: the built-in "
-                        "default scene)")
-    r.add_argument("--size", type=size_arg, metavar="WxH",
-                   help=f"output size (default: the scene file's width x height, "
-                        f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
+    scene_and_size(r)
     r.add_argument("--backend", choices=list(registry.BACKENDS), default="gl",
                    help="; ".join(f"{b.name}: {b.description}" for b in registry.BACKENDS.values())
                    + " (default: gl)")
@@ -208,12 +212,7 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
 
     k = command("check", "render on GL and CL, compare every target", cmd_check,
                 mismatch_note=True)
-    k.add_argument("--scene", metavar="FILE",
-                   help="scene .toml, or a glTF file (.gltf, .glb) (default: the built-in "
-                        "default scene)")
-    k.add_argument("--size", type=size_arg, metavar="WxH",
-                   help=f"output size (default: the scene file's width x height, "
-                        f"{DEFAULT_SIZE_TEXT} for the built-in scene; each side 1..{MAX_SIZE})")
+    scene_and_size(k)
     k.add_argument("-o", "--out", metavar="DIR",
                    help="folder for the error images (default: build/check/<technique>)")
     k.add_argument("--precision", choices=("f32", "f64"), default="f32",

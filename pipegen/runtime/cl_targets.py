@@ -201,19 +201,15 @@ class TargetStore:
         import pyopencl as cl
         fmt = t.fmt
         h, w = t.height, t.width
-        if self._doubles(fmt):
-            shape = (planes, h, w) + ((fmt.channels,) if fmt.channels > 1 and fmt.is_color
-                                      else ())
-            d = np.empty(shape, np.float64)
-            cl.enqueue_copy(self.queue, d, buf)
-            st = None
-            if fmt.kind is F.Kind.DEPTH_STENCIL:
-                st = np.empty((planes, h, w), np.uint8)
-                cl.enqueue_copy(self.queue, st, sbuf)
-            return d, st
-        if fmt.kind in (F.Kind.DEPTH_STENCIL, F.Kind.DEPTH):
-            d = np.empty((planes, h, w), np.uint32 if fmt.kind is F.Kind.DEPTH_STENCIL
-                         else np.float32)
+        doubles = self._doubles(fmt)
+        if doubles or fmt.kind in (F.Kind.DEPTH_STENCIL, F.Kind.DEPTH):
+            if doubles:
+                shape = (planes, h, w) + ((fmt.channels,) if fmt.channels > 1 and fmt.is_color
+                                          else ())
+                d = np.empty(shape, np.float64)
+            else:
+                d = np.empty((planes, h, w), np.uint32 if fmt.kind is F.Kind.DEPTH_STENCIL
+                             else np.float32)
             cl.enqueue_copy(self.queue, d, buf)
             st = None
             if fmt.kind is F.Kind.DEPTH_STENCIL:
