@@ -39,6 +39,7 @@ from typing import Optional
 import numpy as np
 
 from . import formats
+from .shadows import shadow_lights
 from .reference.metrics import dilate, heat_map, reference_codes, rgb_error, to_top_down
 
 # families whose image is the light-buffer equation (reference.light_buffer), by technique name
@@ -73,7 +74,7 @@ def scene_reference(scene) -> SceneReference:
     the lights that cast shadows (``shadows = true``) shadow the opaque surface exactly
     (``reference.shadows.visibility``: ray casting, the hard shadows shadow maps approximate)."""
     from .reference.translucent import reference_composite
-    casting = any(getattr(l, "shadows", False) for l in scene.lights)
+    casting = bool(shadow_lights(scene.lights))
     rgb, info = reference_composite(scene, shadows="exact" if casting else None)
     return SceneReference(rgb, info["silhouette"], bool(len(info["surfaces"])))
 

@@ -552,7 +552,8 @@ def unused_cost_note(compiled, scene) -> str | None:
         return None
     if not any(p.draw.shadow for p in compiled.technique.passes):
         return None
-    if any(getattr(light, "shadows", False) for light in scene.lights):
+    from .shadows import shadow_lights
+    if shadow_lights(scene.lights):
         return None
     return ("no light in this scene casts shadows, but this build still clears the shadow "
             "atlas and runs the shadow lookup for every light; --specialise removes both "

@@ -23,7 +23,8 @@ from typing import Optional
 import numpy as np
 
 from . import ir, irwalk
-from .backends.plan import pass_functions
+from . import shadows as S
+from .codefacts import pass_functions
 
 LIGHT_TYPES = ("point", "spot", "directional")
 INDEX_SCHEMES = ("bitplanes", "max_pairs")        # packings with a per-pixel light capacity
@@ -98,7 +99,7 @@ def scene_features(scene) -> SceneFeatures:
         camera_inside=inside,
         object_ids=len({o.id for o in objects}),
         normal_groups=len(groups),
-        shadow_lights=sum(bool(getattr(l, "shadows", False)) for l in scene.lights))
+        shadow_lights=len(S.shadow_lights(scene.lights)))
 
 
 def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]:
@@ -440,7 +441,7 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                                             f"dropped (lights {', '.join(map(str, dropped))})"))
     casting: dict[str, int] = {}
     for light in scene.lights:
-        if getattr(light, "shadows", False):
+        if S.casts_shadows(light):
             casting[light.type] = casting.get(light.type, 0) + 1
     for t in LIGHT_TYPES:
         n = casting.get(t, 0)

@@ -196,11 +196,6 @@ def test_scene_order_sorts_by_view_depth_of_the_bounds_centre():
 # ---------------------------------------------------------------------------------------------
 
 
-def _composite_codes(s):
-    rgb, info = reference_composite(s)
-    return rgb, info
-
-
 @pytest.mark.gl
 @pytest.mark.cl
 def test_back_to_front_blends_like_the_composite_on_both_backends():

@@ -52,6 +52,7 @@ from dataclasses import dataclass
 from typing import Optional
 
 from .. import ir
+from ..builtins import BIT_CAST_BUILTINS
 from ..ir import Scalar, Type
 from . import plan as planlib
 from .cstyle import _max0, _positive_const
@@ -769,8 +770,7 @@ class WideEmitter:
             tc = t.comps if len(t.comps) == n else t.comps * n
             return Val([f"({x} + (({y} - {x}) * {z}))" for x, y, z in zip(a.comps, b.comps, tc)],
                        ret, vary)
-        if name in ("floatBitsToUint", "floatBitsToInt", "uintBitsToFloat", "intBitsToFloat",
-                    "packHalf2x16", "unpackHalf2x16"):
+        if name in BIT_CAST_BUILTINS:
             if vary:
                 raise Unsupported("varying bit cast")
             text = self.lang.render_builtin(name, [self._cvec(v) for v in vals],
@@ -1014,7 +1014,7 @@ def gathers(body, functions: dict) -> int:
 
 
 def _gathers(body, functions: dict, memo: dict) -> int:
-    facts = planlib.code_facts(body)      # one walk per body (memoised in plan.py)
+    facts = planlib.code_facts(body)      # one walk per body (memoised in codefacts.py)
     n = facts.loads
     for name in facts.call_list:
         if name in functions:

@@ -79,7 +79,7 @@ from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
 from . import cl_wide, templating
-from ..builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
+from ..builtins import BIT_CAST_BUILTINS, PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
 from ..float32 import f32
 from ..passes import lower_mix_constant
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
@@ -242,8 +242,7 @@ class OpenCLLanguage(CStyleLanguage):
         "pow": "pg_pow({0}, {1})", "exp2": "pg_exp2", "log2": "pg_log2", "exp": "pg_exp",
         "log": "pg_log",
         "atan": lambda self, a, t, r: f"atan2({a[0]}, {a[1]})" if len(a) == 2 else f"atan({a[0]})",
-        **{n: _bitcast(n) for n in ("floatBitsToUint", "floatBitsToInt", "uintBitsToFloat",
-                                    "intBitsToFloat", "packHalf2x16", "unpackHalf2x16")},
+        **{n: _bitcast(n) for n in sorted(BIT_CAST_BUILTINS)},
     }
     # llvmpipe (NIR) lowers mix(x, y, constant t) to x * (1 - t) + y * t (measured); emit_cl
     # runs the pass on the technique, this catches expressions rendered on their own
@@ -872,7 +871,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     the same program with double arithmetic and storage, docs/internals.md)."""
     if not 1 <= int(tile) <= 64:       # pg_raster keeps a row's drawn pixels in a ulong mask
         raise ValueError(f"tile size {tile}: the raster kernel supports 1 to 64")
-    precision = getattr(plan, "precision", "f32")
+    precision = plan.precision
     f64 = precision == "f64"
     fmt_of = cl_format64 if f64 else cl_format
     code = pass_.code if pass_.code is not None else CLPassCode("", None)

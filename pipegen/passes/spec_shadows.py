@@ -80,7 +80,7 @@ def _until_return(body: tuple) -> tuple:
 
 def _targets_read(tech: ir.Technique, p: ir.Pass) -> set[str]:
     """The targets the code of pass ``p`` (its body and the functions it reaches) reads."""
-    from ..backends.plan import pass_functions
+    from ..codefacts import pass_functions
     out: set[str] = set()
     for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]:
         for e in irwalk.walk_exprs(stmts):

@@ -23,6 +23,7 @@ import numpy as np
 from .. import formats
 from ..meshes import light_volume
 from ..scene import Light, Scene
+from ..shadows import casts_shadows
 from .raster import GBuffer, rasterize
 
 EPS_DIST = 1e-6
@@ -96,7 +97,7 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows=None) -> np.ndarray:
             r = float(_f32(light.radius))
             sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
         term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
-        if isinstance(shadows, str) and getattr(light, "shadows", False):
+        if isinstance(shadows, str) and casts_shadows(light):
             from .shadows import visibility
             term = term * visibility(scene, light, P[sel])[:, None]
         elif shadows is not None and not isinstance(shadows, str) and i in shadows[0]:

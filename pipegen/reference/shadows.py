@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import shadows as S
+from .lighting import _f32
 from .raster import rasterize_triangles
 
 
@@ -36,10 +37,6 @@ class ShadowMap:
     matrix: np.ndarray         # float64 4x4: projection @ view as the light table holds it
     direction: np.ndarray      # float64 (3,): the light's direction as the table holds it
     depth: np.ndarray          # float64 (h, w), GL row order (row 0 = the tile's bottom row)
-
-
-def _f32(x) -> np.ndarray:
-    return np.asarray(x, np.float32).astype(np.float64)
 
 
 def shadow_maps(scene, tiles: int, width: int, height: int,

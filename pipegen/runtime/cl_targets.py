@@ -80,7 +80,7 @@ class TargetStore:
     def __init__(self, ctx, queue, plan: Plan):
         self.ctx, self.queue = ctx, queue
         self.specs = {t.name: t for t in plan.targets}
-        self.f64 = getattr(plan, "precision", "f32") == "f64"
+        self.f64 = plan.precision == "f64"
         self.targets: dict[str, Target] = {}
         self.blend_counts: dict = {}        # target name -> this frame's count buffer
         self._count_pool: dict = {}         # count buffers, reused every frame

@@ -4,8 +4,11 @@ is ``draws.py``.)"""
 
 from __future__ import annotations
 
+import math
+
 from ..backends.plan import Plan
 from ..diagnostics import PipegenError
+from ..shadows import shadow_lights
 
 
 def check_light_capacity(lights: int, plan: Plan) -> None:
@@ -24,7 +27,6 @@ def check_shadow_capacity(plan: Plan, scene) -> None:
     """A scene with more shadow-casting lights than a shadow-map pass's atlas has tiles is a
     user error (its lights would be drawn unshadowed): tile k belongs to the k-th shadow-casting
     light (``shadows.shadow_lights``)."""
-    from ..shadows import shadow_lights
     n = len(shadow_lights(scene.lights))
     for p in plan.passes:
         tiles = p.draw.shadow_tiles
@@ -33,15 +35,8 @@ def check_shadow_capacity(plan: Plan, scene) -> None:
                                f"'{p.name}' of technique '{plan.technique or '?'}' draws an "
                                f"atlas of {tiles} x {tiles} tiles",
                                hint="compile it with more tiles (e.g. -p shadow_tiles="
-                                    f"{_ceil_sqrt(n)} where the technique declares it), or "
+                                    f"{math.isqrt(n - 1) + 1} where the technique declares it), or "
                                     "cast fewer shadows (`shadows = false`)")
-
-
-def _ceil_sqrt(n: int) -> int:
-    k = 1
-    while k * k < n:
-        k += 1
-    return k
 
 
 def check_scene_facts(plan: Plan, scene) -> None:
@@ -62,7 +57,7 @@ def check_scene_facts(plan: Plan, scene) -> None:
     translucent = sum(o.material.translucent for o in scene.objects)
     if translucent and not facts.translucent:
         broken.append(f"specialised for no translucent objects; this scene has {translucent}")
-    casting = sum(bool(getattr(l, "shadows", False)) for l in scene.lights)
+    casting = len(shadow_lights(scene.lights))
     if casting and not facts.shadows:
         broken.append(f"specialised for no shadow-casting lights; this scene has {casting}")
     opaque = len(scene.objects) - translucent
