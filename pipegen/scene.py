@@ -341,10 +341,12 @@ class Scene:
                 raise PipegenError(None, f"light field '{name}' has type "
                                    f"{LIGHT_FIELDS[name][0][0]}, not {type_str}")
         table = np.zeros((capacity, len(fields), 4), dtype=np.float32)
+        from .shadows import SHADOW_FIELDS, light_fields, shadow_table
+        shadows = None                          # shadow fields: from the scene, not the light
         for k, (name, _) in enumerate(fields):
-            if name.startswith("shadow_"):      # from the scene, not the light alone
-                from .shadows import light_fields
-                table[:len(self.lights), k] = light_fields(self, name)
+            if name in SHADOW_FIELDS:
+                shadows = shadow_table(self) if shadows is None else shadows
+                table[:len(self.lights), k] = light_fields(self, name, shadows)
                 continue
             for i, light in enumerate(self.lights):
                 v = np.atleast_1d(np.asarray(light_field(light, name), dtype=np.float64))

@@ -31,6 +31,7 @@ loader refuses ``shadows = true`` on them.
 from __future__ import annotations
 
 import math
+from typing import Optional
 
 import numpy as np
 
@@ -147,11 +148,11 @@ def shadow_table(scene) -> dict[int, tuple[int, np.ndarray]]:
     return out
 
 
-def light_fields(scene, name: str) -> np.ndarray:
+def light_fields(scene, name: str, table: Optional[dict] = None) -> np.ndarray:
     """float64 (lights, 4): the light-table field ``name`` (one of ``SHADOW_FIELDS``) of every
     light: ``shadow_tile`` (k or -1) in x; ``shadow_mR`` row R of projection @ view (zero for
-    lights that cast no shadow)."""
-    table = shadow_table(scene)
+    lights that cast no shadow).  ``table``: ``shadow_table(scene)`` when the caller has it."""
+    table = shadow_table(scene) if table is None else table
     out = np.zeros((len(scene.lights), 4))
     for i in range(len(scene.lights)):
         if name == "shadow_tile":

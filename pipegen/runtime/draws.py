@@ -55,11 +55,21 @@ class LightSelection:
     _of: dict = field(default_factory=dict, repr=False)
 
     def of(self, draw: ir.Draw) -> list[int]:
-        # once per draw and scene: a repeat group asks for every light (it was O(lights^2))
+        """The lights ``draw`` takes, in table order."""
+        return list(self._cached(draw)[0])
+
+    def members(self, draw: ir.Draw) -> frozenset:
+        """``of(draw)`` as a set."""
+        return self._cached(draw)[1]
+
+    def _cached(self, draw: ir.Draw) -> tuple[tuple[int, ...], frozenset]:
+        # once per draw and scene (the list and its set): a repeat group asks for every
+        # light (it was O(lights^2))
         cached = self._of.get(draw)
         if cached is None:
-            cached = self._of[draw] = tuple(self._select(draw))
-        return list(cached)
+            idx = tuple(self._select(draw))
+            cached = self._of[draw] = (idx, frozenset(idx))
+        return cached
 
     def _select(self, draw: ir.Draw) -> list[int]:
         idx = list(range(len(self.lights)))
@@ -97,7 +107,7 @@ class LightSelection:
         ``light`` (none when the draw's filter excludes it), else the draw's whole list."""
         if light is None:
             return self.of(p.draw)
-        if light_filter(p.draw) and light not in self.of(p.draw):
+        if light_filter(p.draw) and light not in self.members(p.draw):
             return []
         return [light]
 
@@ -123,7 +133,7 @@ def schedule(plan: Plan, selection: LightSelection) -> Iterator[tuple[int, Optio
         end = k
         while end < len(passes) and passes[end].repeat_group == group:
             end += 1
-        lists = {j: set(selection.of(passes[j].draw)) for j in range(k, end)
+        lists = {j: selection.members(passes[j].draw) for j in range(k, end)
                  if passes[j].draw.kind is ir.DrawKind.LIGHTS and light_filter(passes[j].draw)}
         for light in range(len(selection.lights)):
             for j in range(k, end):

@@ -384,7 +384,6 @@ class GLPipeline:
         lights = list(scene.lights)
         self._selection = draws.LightSelection(self.plan, lights)
         self._lights = lights
-        self._drawn: dict[int, tuple[list[int], set[int]]] = {}   # per pass, for this scene
         if self.fields:
             table = np.asarray(scene.light_table([list(f) for f in self.fields],
                                                  self.capacity), dtype=np.float32)
@@ -600,7 +599,7 @@ class GLPipeline:
                 tracker.view = (w, h)
         elif p.kind is ir.DrawKind.LIGHTS:
             lights = self._lights
-            indices = self._instance(p, light)
+            indices = self._selection.instance(p, light)
             runs = draws.light_runs(p.state.cull, p.draw.volume, lights, indices,
                                     self._scene.camera.position, self._proj)
             for run in runs:
@@ -638,19 +637,6 @@ class GLPipeline:
         if self.profile is not None:
             GL.glFinish()
             self.profile.append((p.name, light, t1 - t0, time.perf_counter() - t1))
-
-    def _instance(self, p: _Pass, light: Optional[int]) -> list[int]:
-        """``draws.LightSelection.instance`` with each draw's light list computed once per
-        scene (not once per light of a repeat group)."""
-        drawn = self._drawn.get(p.index)
-        if drawn is None:
-            idx = self._selection.of(p.draw)
-            drawn = self._drawn[p.index] = (idx, set(idx))
-        if light is None:
-            return drawn[0]
-        if draws.light_filter(p.draw) and light not in drawn[1]:
-            return []
-        return [light]
 
     def _draw_lights(self, p: _Pass, vao, indices: Sequence[int]) -> None:
         if p.instance_buffer is not None:
