@@ -547,8 +547,8 @@ class GLPipeline:
                                             dtype=np.float32).tobytes()
                 u.write(data)
                 p.uploaded[name] = data
-        GL.glViewport(*rect)
-        GT.TRACKER.view = None
+        x, y, tw, th = rect
+        GT.TRACKER.viewport(tw, th, x, y)
         GT.TRACKER.scissor(rect)
 
     def _run_pass(self, p: _Pass, light: Optional[int]) -> None:
@@ -595,8 +595,7 @@ class GLPipeline:
                 vao.render(moderngl.TRIANGLES, vertices=count)
             if p.draw.shadow:
                 tracker.scissor(None)
-                GL.glViewport(0, 0, w, h)
-                tracker.view = (w, h)
+                tracker.viewport(w, h)
         elif p.kind is ir.DrawKind.LIGHTS:
             lights = self._lights
             indices = self._selection.instance(p, light)

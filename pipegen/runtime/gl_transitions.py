@@ -286,7 +286,7 @@ class StateTracker:
         set again.  Call at the start of a frame and after anyone else touched the context."""
         self.state = TransitionTable.UNKNOWN
         self.fbo: Optional[int] = None
-        self.view: Optional[tuple[int, int]] = None
+        self.view: Optional[tuple[int, int, int, int]] = None     # x, y, w, h
         self.scissor_rect: Any = ()        # () unknown, None off, (x, y, w, h) on
         self.units: dict[int, tuple[int, int]] = {}
 
@@ -311,10 +311,12 @@ class StateTracker:
             GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, fbo)
             self.fbo = fbo
 
-    def viewport(self, w: int, h: int) -> None:
-        if self.view != (w, h):
-            GL.glViewport(0, 0, w, h)
-            self.view = (w, h)
+    def viewport(self, w: int, h: int, x: int = 0, y: int = 0) -> None:
+        """The viewport ``w`` x ``h`` at ``(x, y)`` (a shadow-map tile; else the origin)."""
+        view = (int(x), int(y), int(w), int(h))
+        if self.view != view:
+            GL.glViewport(*view)
+            self.view = view
 
     def scissor(self, rect) -> None:
         """``(x, y, w, h)`` in window pixels enables the scissor test there; None disables."""
