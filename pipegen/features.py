@@ -111,13 +111,13 @@ def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]
     Returns (the missed lights, sorted; how many translucent objects miss one).  A float64
     rasterisation of the scene's opaque depth and of each translucent object on its own, at
     the scene's resolution."""
-    from .reference.lighting import _f32, light_volume
+    from .reference.lighting import _f32, ray_volume_span, volume_grow
     from .reference.raster import rasterize, rasterize_each
     if not lights or not scene.has_translucent:
         return [], 0
     opaque = rasterize(scene, ("opaque",))
     cam = np.asarray(scene.camera.position, dtype=np.float64)
-    grow = float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
+    grow = volume_grow()
     missed: set[int] = set()
     objects = 0
     for _obj, gb in rasterize_each(scene, ("translucent",)):
@@ -137,11 +137,8 @@ def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]
             reaches = np.einsum("ij,ij->i", d, d) < r * r
             if not reaches.any():
                 continue
-            R = r * grow
-            oc = centre - cam
-            b = u @ oc
-            disc = b * b - (oc @ oc - R * R)
-            behind = (disc > 0) & (b + np.sqrt(np.maximum(disc, 0.0)) >= t_opaque)
+            meets, _, t_far = ray_volume_span(light, cam, u, grow)
+            behind = meets & (t_far >= t_opaque)
             if (reaches & ~behind).any():
                 missed.add(i)
                 hit = True

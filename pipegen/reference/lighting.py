@@ -158,7 +158,7 @@ def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False,
         u[open_] = d[open_]
         t_surface[open_] = np.inf
     count = np.zeros(len(P), dtype=np.int64)
-    grow = float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
+    grow = volume_grow()
     for light in scene.lights:
         if light.type == "directional":
             count += 1
@@ -168,16 +168,30 @@ def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False,
             L = centre - P
             count += np.einsum("ij,ij->i", L, L) < r * r
             continue
-        R = r * grow
-        oc = centre - cam
-        b = u @ oc
-        disc = b * b - (oc @ oc - R * R)
-        t_far = b + np.sqrt(np.maximum(disc, 0.0))
+        hit, t_near, t_far = ray_volume_span(light, cam, u, grow)
         if front:
-            t_near = b - np.sqrt(np.maximum(disc, 0.0))
-            count += (disc > 0) & (t_far >= 0) & (t_near <= t_surface)
+            count += hit & (t_far >= 0) & (t_near <= t_surface)
         else:
-            count += (disc > 0) & (t_far >= t_surface)
+            count += hit & (t_far >= t_surface)
     out = np.zeros(cov.shape, dtype=np.int64)
     out[where] = count
     return out
+
+
+def volume_grow() -> float:
+    """How far the sphere mesh a light pass draws reaches, in radii (it circumscribes the
+    light's sphere)."""
+    return float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
+
+
+def ray_volume_span(light: Light, cam: np.ndarray, u: np.ndarray, grow: float):
+    """Where the rays from ``cam`` along the unit directions ``u`` (N, 3) meet the sphere of
+    radius ``grow`` x the light's radius around it (float32 centre and radius, as the light
+    table holds them): (hit (N,) bool, t_near, t_far)."""
+    centre, r = _f32(light.position), float(_f32(light.radius))
+    R = r * grow
+    oc = centre - cam
+    b = u @ oc
+    disc = b * b - (oc @ oc - R * R)
+    s = np.sqrt(np.maximum(disc, 0.0))
+    return disc > 0, b - s, b + s
