@@ -24,7 +24,7 @@ import numpy as np
 
 from . import ir, irwalk
 from . import shadows as S
-from .codefacts import pass_functions
+from .codefacts import code_facts, pass_functions
 
 LIGHT_TYPES = ("point", "spot", "directional")
 INDEX_SCHEMES = ("bitplanes", "max_pairs")        # packings with a per-pixel light capacity
@@ -278,8 +278,7 @@ def _translucent_back_reads(tech: ir.Technique, rules) -> tuple:
         if not (p.draw.kind is ir.DrawKind.SCENE and
                 (not p.draw.material or "translucent" in p.draw.material)):
             continue
-        calls = {e.name for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]
-                 for e in irwalk.walk_exprs(stmts) if isinstance(e, ir.Call)}
+        calls = _calls(tech, p)
         for k in tech.packings:
             if faces.get(k.name) != "back":
                 continue
@@ -298,11 +297,16 @@ def _translucent_back_reads(tech: ir.Technique, rules) -> tuple:
 _FRONT_TESTS = (ir.CompareFunc.LESS, ir.CompareFunc.LEQUAL)
 
 
+def _calls(tech: ir.Technique, p: ir.Pass) -> set[str]:
+    """The user and packing functions pass ``p`` calls, directly or through the functions it
+    reaches."""
+    return set(code_facts(p.body).calls) | {f.name for f in pass_functions(tech, p.body)}
+
+
 def _writers(tech: ir.Technique, k: ir.Packing) -> list:
     names = {f.name for f in k.functions}
     return [p for p in tech.passes
-            if p.draw.kind is ir.DrawKind.LIGHTS and
-            {e.name for e in irwalk.walk_exprs(p.body) if isinstance(e, ir.Call)} & names]
+            if p.draw.kind is ir.DrawKind.LIGHTS and _calls(tech, p) & names]
 
 
 def _packing_rule(tech: ir.Technique, k: ir.Packing) -> tuple[str, Optional[tuple[int, int]]]:
@@ -344,8 +348,7 @@ def _packing_types(tech: ir.Technique, k: ir.Packing) -> frozenset:
     names = {f.name for f in k.functions}
     types: set[str] = set()
     for p in tech.passes:
-        calls = {e.name for e in irwalk.walk_exprs(p.body) if isinstance(e, ir.Call)}
-        if not (calls & names or (p.draw.light_set and p.draw.light_set[0] == k.name)):
+        if not (_calls(tech, p) & names or (p.draw.light_set and p.draw.light_set[0] == k.name)):
             continue
         if p.draw.kind is not ir.DrawKind.LIGHTS and not p.repeat_per_light:
             continue        # a reader (the shading pass), not a writer

@@ -177,3 +177,21 @@ def test_translucent_over_the_sky_misses_every_light_reaching_it():
     src = PLANE.split("[[objects]]\nname = \"wall\"")[0]
     s = parse_scene(src + LIGHT.format(z=-0.5, r=3.0))
     assert features.translucent_missed_lights(s, [0]) == ([0], 1)
+
+
+def test_a_light_pass_writing_through_a_helper_function_is_a_writer():
+    """The packing's writers are found through the functions a light pass calls, not only in
+    its body: lidr_bitplanes with its index writes (point and spot passes) moved into a
+    helper reports the same per-pixel capacity as the original on stress_overlap."""
+    path = ROOT / "pipelines/lidr_bitplanes.pipe"
+    src = path.read_text()
+    direct = "    lightidx = slots.plane_value(light.index + 1u);\n"
+    assert src.count(direct) == 2
+    helper = "vec4 index_value(uint i) {\n  return slots.plane_value(i + 1u);\n}\n\n"
+    wrapped = src.replace(direct, "    lightidx = index_value(light.index);\n").replace(
+        "pass light_indices {", helper + "pass light_indices {", 1)
+    s = scene("stress_overlap")
+    original = [m.message for m in features.mismatches(compile_file(path).technique, s)]
+    via_helper = compile_source(wrapped, filename=str(path)).technique
+    assert any("holds 4" in m for m in original)
+    assert [m.message for m in features.mismatches(via_helper, s)] == original
