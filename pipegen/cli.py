@@ -514,10 +514,9 @@ def _specialise(args, compiled, scene, say_variant: bool = False):
                          recompile=lambda ps: compile_file(args.file, ps))
     if say_variant:
         spec = special.specialisation
-        culled = sum(c.kind == "pass" for c in spec.cuts)
         print(f"variant: {'reused' if spec.reused else 'compiled'} (specialised for "
               f"{spec.facts.describe()}; {len(spec.cuts)} cuts, passes "
-              f"{len(spec.general.passes)} -> {len(spec.general.passes) - culled})",
+              f"{len(spec.general.passes)} -> {len(special.technique.passes)})",
               file=sys.stderr)
     return special
 

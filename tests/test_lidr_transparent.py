@@ -166,7 +166,7 @@ def test_back_to_front_only_on_scene_draws():
     bad = BLEND.format(order="").replace("draw scene.opaque", "draw fullscreen back_to_front")
     with pytest.raises(PipegenError) as e:
         compile_source(bad, filename="bad.pipe")
-    text = str(e.value.render() if hasattr(e.value, "render") else e.value)
+    text = e.value.render()
     assert "bad.pipe:" in text and "back_to_front" in text
 
 

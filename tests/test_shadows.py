@@ -66,7 +66,7 @@ def test_shadows_on_a_point_light_is_a_positioned_error():
     text = HEAD + '[[lights]]\nposition = [0, 2, 0]\nradius = 4\ncolor = [1, 1, 1]\nshadows = true\n'
     with pytest.raises(PipegenError) as e:
         parse_scene(text)
-    msg = e.value.render() if hasattr(e.value, "render") else str(e.value)
+    msg = e.value.render()
     assert "point lights cannot cast shadows" in str(e.value)
     assert e.value.span is not None and e.value.span.line == text.splitlines().index(
         "shadows = true") + 1, msg
