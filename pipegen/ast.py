@@ -10,13 +10,14 @@ as ``Word`` nodes: their spelling is already validated by the grammar.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Optional, Union
 
 from .diagnostics import Span
+from .records import record
 
 
-@dataclass
+@record
 class Node:
     span: Span = field(kw_only=True, repr=False, compare=False)
 
@@ -26,19 +27,19 @@ class Node:
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass
+@record
 class Name(Node):
     name: str
 
 
-@dataclass
+@record
 class Word(Node):
     """A keyword argument of a pass statement, e.g. ``less`` or ``one_minus_src_alpha``."""
 
     value: str
 
 
-@dataclass
+@record
 class Number(Node):
     """A numeric literal. ``kind`` is "float", "int" or "uint" (``u`` suffix)."""
 
@@ -46,32 +47,32 @@ class Number(Node):
     kind: str
 
 
-@dataclass
+@record
 class Bool(Node):
     value: bool
 
 
-@dataclass
+@record
 class UnaryOp(Node):
     op: str            # "-", "+", "!", "~"
     operand: "Expr"
 
 
-@dataclass
+@record
 class BinaryOp(Node):
     op: str
     left: "Expr"
     right: "Expr"
 
 
-@dataclass
+@record
 class Conditional(Node):
     cond: "Expr"
     then: "Expr"
     other: "Expr"
 
 
-@dataclass
+@record
 class Call(Node):
     """``f(args)``: a builtin, a user function or a type constructor."""
 
@@ -79,7 +80,7 @@ class Call(Node):
     args: list["Expr"]
 
 
-@dataclass
+@record
 class MethodCall(Node):
     """``obj.method(args)``: only packing functions (``slots.unpack(v, k)``) are valid."""
 
@@ -88,7 +89,7 @@ class MethodCall(Node):
     args: list["Expr"]
 
 
-@dataclass
+@record
 class Field(Node):
     """``base.name``: a swizzle, ``light.radius``, ``lights[i].radius`` or ``pack.constant``."""
 
@@ -96,20 +97,20 @@ class Field(Node):
     name: Name
 
 
-@dataclass
+@record
 class Subscript(Node):
     base: "Expr"
     index: "Expr"
 
 
-@dataclass
+@record
 class TupleLit(Node):
     """``(0, 0, 0, 1)`` in declarations (clear colours, the blend constant)."""
 
     items: list["Expr"]
 
 
-@dataclass
+@record
 class Option(Node):
     """``key: value`` in a pack declaration."""
 
@@ -117,7 +118,7 @@ class Option(Node):
     value: Union["Expr", str, "Record"]
 
 
-@dataclass
+@record
 class Record(Node):
     """``(name: bits, …)``: a nested option list (``bitfield(fields: (id: 8, group: 8))``)."""
 
@@ -133,33 +134,33 @@ Expr = Union[Name, Number, Bool, UnaryOp, BinaryOp, Conditional, Call, MethodCal
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass
+@record
 class VarDecl(Node):
     type: Name
     name: Name
     init: Optional[Expr]
 
 
-@dataclass
+@record
 class Assign(Node):
     target: Expr
     op: str            # "=", "+=", "-=", "*=", "/="
     value: Expr
 
 
-@dataclass
+@record
 class ExprStmt(Node):
     expr: Expr
 
 
-@dataclass
+@record
 class If(Node):
     cond: Expr
     then: list["Stmt"]
     other: Optional[list["Stmt"]]
 
 
-@dataclass
+@record
 class For(Node):
     """``for (TYPE var = start; cond; step_var++)``; ``step`` is the increment (1 for ``++``)."""
 
@@ -172,22 +173,22 @@ class For(Node):
     body: list["Stmt"]
 
 
-@dataclass
+@record
 class Break(Node):
     pass
 
 
-@dataclass
+@record
 class Continue(Node):
     pass
 
 
-@dataclass
+@record
 class Return(Node):
     value: Optional[Expr]
 
 
-@dataclass
+@record
 class Discard(Node):
     pass
 
@@ -200,18 +201,18 @@ Stmt = Union[VarDecl, Assign, ExprStmt, If, For, Break, Continue, Return, Discar
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass
+@record
 class TechniqueDecl(Node):
     name: Name
     title: str
 
 
-@dataclass
+@record
 class Include(Node):
     path: str
 
 
-@dataclass
+@record
 class ParamDecl(Node):
     name: Name
     type: Optional[Name]
@@ -219,35 +220,35 @@ class ParamDecl(Node):
     allowed: Optional[list[Expr]]
 
 
-@dataclass
+@record
 class LightFieldDecl(Node):
     name: Name
     type: Name
 
 
-@dataclass
+@record
 class LightsDecl(Node):
     capacity: Expr
     fields: list[LightFieldDecl]
 
 
-@dataclass
+@record
 class SizeAbs(Node):
     width: Expr
     height: Expr
 
 
-@dataclass
+@record
 class SizeRel(Node):
     scale: Optional[Expr]      # None: `size output` (scale 1)
 
 
-@dataclass
+@record
 class Samples(Node):
     value: Expr
 
 
-@dataclass
+@record
 class ClearSpec(Node):
     """One of: ``color`` (a tuple), ``all`` (one value for every channel), or depth/stencil."""
 
@@ -257,32 +258,32 @@ class ClearSpec(Node):
     stencil: Optional[Expr] = None
 
 
-@dataclass
+@record
 class TargetDecl(Node):
     name: Name
     format: Name
     options: list[Union[SizeAbs, SizeRel, Samples, ClearSpec]]
 
 
-@dataclass
+@record
 class OutputDecl(Node):
     name: Name
 
 
-@dataclass
+@record
 class PackDecl(Node):
     name: Name
     scheme: Name
     options: list[Option]
 
 
-@dataclass
+@record
 class ParamDef(Node):
     type: Name
     name: Name
 
 
-@dataclass
+@record
 class FunctionDef(Node):
     ret: Name
     name: Name
@@ -295,7 +296,7 @@ class FunctionDef(Node):
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass
+@record
 class Draw(Node):
     kind: str                                  # "scene", "lights", "fullscreen"
     material: Optional[Name] = None            # scene.MATERIAL
@@ -307,24 +308,24 @@ class Draw(Node):
     from_lights: Optional["DrawFrom"] = None  # scene... from lights TYPES [tiles N]
 
 
-@dataclass
+@record
 class DrawFrom(Node):
     """``from lights [TYPES …] [tiles N]`` after ``draw scene…``: shadow-map passes."""
     light_types: list[Word] = field(default_factory=list)
     tiles: Optional[Expr] = None
 
 
-@dataclass
+@record
 class Writes(Node):
     targets: list[Name]
 
 
-@dataclass
+@record
 class Reads(Node):
     targets: list[Name]
 
 
-@dataclass
+@record
 class Depth(Node):
     target: Name
     func: Optional[Word]          # None: `depth T off`
@@ -332,26 +333,26 @@ class Depth(Node):
     inside: Optional[Word] = None  # `inside FUNC` (with `cull auto`)
 
 
-@dataclass
+@record
 class StencilItem(Node):
     key: str                      # func ref read write fail zfail pass (zpass is read as pass)
     value: Union[Word, Expr]
 
 
-@dataclass
+@record
 class Stencil(Node):
     face: Optional[Word]          # None: both faces
     items: list[StencilItem]
 
 
-@dataclass
+@record
 class BlendEq(Node):
     op: Word
     src: Optional[Word]
     dst: Optional[Word]
 
 
-@dataclass
+@record
 class Blend(Node):
     """``blend T eq`` (rgb and alpha alike), ``blend T rgb eq alpha eq``, ``blend T off``."""
 
@@ -360,40 +361,40 @@ class Blend(Node):
     alpha: Optional[BlendEq]
 
 
-@dataclass
+@record
 class BlendConstant(Node):
     value: Expr                   # a TupleLit or one value for all four channels
 
 
-@dataclass
+@record
 class Mask(Node):
     target: Name
     channels: Name
 
 
-@dataclass
+@record
 class Cull(Node):
     mode: Word
 
 
-@dataclass
+@record
 class Offset(Node):
     factor: Expr
     units: Expr
 
 
-@dataclass
+@record
 class PassClear(Node):
     target: Name
     clear: ClearSpec
 
 
-@dataclass
+@record
 class RepeatPerLight(Node):
     light_types: list[Word] = field(default_factory=list)   # `repeat per light spot …`
 
 
-@dataclass
+@record
 class Fragment(Node):
     body: list[Stmt]
 
@@ -402,13 +403,13 @@ PassStmt = Union[Draw, Writes, Reads, Depth, Stencil, Blend, BlendConstant, Mask
                  PassClear, RepeatPerLight, Fragment]
 
 
-@dataclass
+@record
 class PassDecl(Node):
     name: Name
     stmts: list[PassStmt]
 
 
-@dataclass
+@record
 class RepeatBlock(Node):
     """``repeat per light { pass … pass … }``: the passes run in sequence once per light."""
 
@@ -420,7 +421,7 @@ Item = Union[TechniqueDecl, Include, ParamDecl, LightsDecl, TargetDecl, OutputDe
              FunctionDef, PassDecl, RepeatBlock]
 
 
-@dataclass
+@record
 class Module(Node):
     items: list[Item]
     filename: str

@@ -1,6 +1,6 @@
 """The backend-neutral intermediate representation.
 
-Frozen dataclasses and enums only: no GL enums, no moderngl strings, no OpenCL types.  The front
+Frozen dataclasses (``records.record``) and enums only: no GL enums, no moderngl strings, no OpenCL types.  The front
 end (``lower.py``) builds it from the AST; compiler passes (``passes/``) rewrite it; backends
 (``backends/``) turn it into text.  ``verify.py`` checks its invariants after every phase.
 
@@ -11,11 +11,12 @@ errors at the right place in the ``.pipe`` source.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Optional, Union
 
 from .diagnostics import Span
 from .formats import Format
+from .records import record
 
 # ---------------------------------------------------------------------------------------------
 # Fixed-function state
@@ -80,7 +81,7 @@ class CullMode(enum.Enum):
     AUTO = "auto"
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class DepthState:
     func: CompareFunc = CompareFunc.ALWAYS   # ALWAYS + write False == depth test off
     write: bool = False
@@ -93,7 +94,7 @@ class DepthState:
         return self.func is not CompareFunc.ALWAYS or self.write
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class StencilFace:
     func: CompareFunc = CompareFunc.ALWAYS
     ref: int = 0
@@ -109,7 +110,7 @@ class StencilFace:
                 and self.zfail is StencilOp.KEEP and self.zpass is StencilOp.KEEP)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class StencilState:
     front: StencilFace = StencilFace()
     back: StencilFace = StencilFace()
@@ -119,14 +120,14 @@ class StencilState:
         return not (self.front.is_noop and self.back.is_noop)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class BlendEquation:
     op: BlendOp = BlendOp.ADD
     src: BlendFactor = BlendFactor.ONE
     dst: BlendFactor = BlendFactor.ZERO
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class TargetBlend:
     """Blend and write-mask state for one colour attachment of a pass."""
 
@@ -136,13 +137,13 @@ class TargetBlend:
     write_mask: tuple[bool, bool, bool, bool] = (True, True, True, True)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class PolygonOffset:
     factor: float = 0.0
     units: float = 0.0
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class PassState:
     depth: DepthState = DepthState()
     stencil: StencilState = StencilState()
@@ -170,7 +171,7 @@ class Scalar(enum.Enum):
     BOOL = "bool"
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Type:
     """A scalar, vector (``size`` 2–4) or square matrix (``mat`` 3 or 4) type, or void."""
 
@@ -241,13 +242,13 @@ def parse_type(name: str) -> Optional[Type]:
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Const:
     type: Type
     value: Union[float, int, bool, tuple]   # tuple for vector constants
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Var:
     """A local, a function parameter, a parameter of the technique or a stage input.
 
@@ -260,14 +261,14 @@ class Var:
     kind: str = "local"
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Unary:
     op: str          # "-", "!", "~"
     operand: "Expr"
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Binary:
     op: str          # + - * / % == != < <= > >= && || & | ^ << >>
     left: "Expr"
@@ -275,7 +276,7 @@ class Binary:
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Ternary:
     cond: "Expr"
     then: "Expr"
@@ -283,7 +284,7 @@ class Ternary:
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Call:
     """A builtin (``builtin=True``, name from ``builtins.BUILTINS``) or user function call."""
 
@@ -293,7 +294,7 @@ class Call:
     builtin: bool = True
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Construct:
     """``vec3(x)``, ``vec4(v.xyz, 1.0)``, ``uint(f)``: a type constructor or conversion."""
 
@@ -301,21 +302,21 @@ class Construct:
     args: tuple["Expr", ...]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Swizzle:
     base: "Expr"
     components: str   # over "xyzw"; the front end normalises rgba/stpq to xyzw
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Index:
     base: "Expr"      # vector or matrix (array of vectors)
     index: "Expr"
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class LightField:
     """``lights[i].radius`` / ``light.radius``: one field of the light table.
 
@@ -328,7 +329,7 @@ class LightField:
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Load:
     """Texel fetch of a target (``load(t)`` at this pixel, ``load(t, ivec2)`` elsewhere).
 
@@ -341,7 +342,7 @@ class Load:
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Sample:
     """Bilinear sample of a target at normalised coordinates (clamp to edge)."""
 
@@ -350,7 +351,7 @@ class Sample:
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class TargetSize:
     """``size(t)``: the target's size in pixels as ivec2."""
 
@@ -362,14 +363,14 @@ Expr = Union[Const, Var, Unary, Binary, Ternary, Call, Construct, Swizzle, Index
              Load, Sample, TargetSize]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Declare:
     name: str
     type: Type
     init: Optional[Expr]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Assign:
     """``target op= value``; ``target`` is a Var, Swizzle-of-Var or Index-of-Var."""
 
@@ -378,7 +379,7 @@ class Assign:
     value: Expr
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Output:
     """Write of a colour target from a fragment body (``color = vec4(...)``).
 
@@ -390,14 +391,14 @@ class Output:
     span: Optional[Span] = field(default=None, compare=False)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class If:
     cond: Expr
     then: tuple["Stmt", ...]
     other: tuple["Stmt", ...] = ()
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class For:
     """``for (int i = start; i < bound; i++)``: bounded loops only (``bound`` constant after
     parameter folding, ``step`` +1)."""
@@ -409,27 +410,27 @@ class For:
     body: tuple["Stmt", ...]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Break:
     pass
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Continue:
     pass
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Return:
     value: Optional[Expr]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Discard:
     pass
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class ExprStmt:
     expr: Expr
 
@@ -437,7 +438,7 @@ class ExprStmt:
 Stmt = Union[Declare, Assign, Output, If, For, Break, Continue, Return, Discard, ExprStmt]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Function:
     """A user function (also the functions generated by packing schemes)."""
 
@@ -453,7 +454,7 @@ class Function:
 # ---------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Param:
     name: str
     type: Type
@@ -462,7 +463,7 @@ class Param:
     span: Optional[Span] = field(default=None, compare=False)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Size:
     """Absolute (``width``/``height``) or relative to the output (``scale``) size."""
 
@@ -480,14 +481,14 @@ class Size:
         return max(1, int(out_w * self.scale + 0.5)), max(1, int(out_h * self.scale + 0.5))
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Clear:
     color: Optional[tuple[float, float, float, float]] = None   # colour targets
     depth: Optional[float] = None
     stencil: Optional[int] = None
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Target:
     name: str
     format: Format
@@ -497,13 +498,13 @@ class Target:
     span: Optional[Span] = field(default=None, compare=False)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class LightAttr:
     name: str
     type: Type
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class LightTable:
     """The light table schema: which fields every light record has, and the capacity."""
 
@@ -535,7 +536,7 @@ class DrawOrder(enum.Enum):
     BACK_TO_FRONT = "back_to_front"  # farthest object first (view depth of its bounds centre)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Draw:
     kind: DrawKind
     material: tuple[str, ...] = ()      # SCENE: required material flags ("opaque", "translucent")
@@ -570,7 +571,7 @@ class Draw:
         return "fullscreen"
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Pass:
     name: str
     draw: Draw
@@ -589,7 +590,7 @@ class Pass:
         return self.repeat_group is not None
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Packing:
     """A packing scheme: generated functions plus its static properties.
 
@@ -610,7 +611,7 @@ class Packing:
     span: Optional[Span] = field(default=None, compare=False)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class SceneFacts:
     """What a scene-specialised technique assumes of every scene it renders (``features.py``
     computes them; the runtimes refuse a scene that breaks one).  Set by the ``assume_scene``
@@ -629,7 +630,7 @@ class SceneFacts:
                 + ("" if self.shadows else "; no shadows"))
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Cut:
     """Something scene specialisation removed, and why: ``kind`` is "pass", "target",
     "branch" or "table"; ``reason`` names the scene fact or the earlier cut it follows from."""
@@ -645,7 +646,7 @@ class Cut:
         return f"{self.kind} `{self.name}` {verb}: {self.reason}"
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Technique:
     name: str
     title: str
