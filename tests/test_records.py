@@ -1,0 +1,69 @@
+"""``records.record`` behaves as ``dataclass(eq=True)`` where the IR and the syntax tree rely on
+it: equality (same class, compared fields only), hashing of frozen records, unhashable mutable
+ones, and the same ``repr`` text (the specialisation cache keys on it)."""
+
+from dataclasses import dataclass, field, replace
+from typing import Optional
+
+import pytest
+
+from pipegen.records import record
+
+
+@record(frozen=True)
+class Frozen:
+    a: int
+    b: tuple = ()
+    span: Optional[str] = field(default=None, compare=False)
+
+
+@dataclass(frozen=True)
+class FrozenDC:
+    a: int
+    b: tuple = ()
+    span: Optional[str] = field(default=None, compare=False)
+
+
+@record
+class Mutable:
+    x: int
+    span: str = field(default="", repr=False, compare=False)
+
+
+@record(frozen=True)
+class Empty:
+    pass
+
+
+@record(frozen=True)
+class One:
+    v: float
+
+
+def test_equality_ignores_uncompared_fields_and_other_classes():
+    assert Frozen(1, (2,), "here") == Frozen(1, (2,), "there")
+    assert Frozen(1) != Frozen(2)
+    assert Frozen(1) != FrozenDC(1)          # another class, even with the same fields
+    assert (Frozen(1) == 1) is False
+    assert Empty() == Empty() and One(1.5) == One(1.5) and One(1.5) != One(2.5)
+
+
+def test_frozen_records_hash_their_compared_fields_and_mutable_ones_are_unhashable():
+    assert hash(Frozen(1, (2,), "a")) == hash(Frozen(1, (2,), "b"))
+    assert len({Frozen(1), Frozen(1, (), "x"), Frozen(2)}) == 2
+    assert len({Empty(), Empty()}) == 1
+    with pytest.raises(TypeError):
+        hash(Mutable(1))
+    with pytest.raises(Exception):           # dataclasses.FrozenInstanceError
+        Frozen(1).a = 2
+
+
+def test_repr_is_dataclass_repr():
+    assert repr(Frozen(1, (2,), "s")) == repr(FrozenDC(1, (2,), "s")).replace("FrozenDC", "Frozen")
+    assert repr(Mutable(3, "hidden")) == "Mutable(x=3)"
+    assert repr(Empty()) == "Empty()"
+
+
+def test_dataclass_tools_still_work():
+    assert replace(Frozen(1, (2,)), a=5) == Frozen(5, (2,))
+    assert Frozen.__doc__ == "Frozen(a, b, span)"
