@@ -77,7 +77,7 @@ _LANEWISE = {"sin", "cos", "tan", "atan", "atan2", "ceil", "rint", "step"}
 
 _STATE = ("varying_locals", "env", "fixed", "mask", "dyn", "loop_masks", "loops",
           "masked_loops", "retmode", "main", "ret_type", "ret_varying", "returned_varying",
-          "ntmp", "pre", "final_ret_varying")
+          "ntmp", "pre", "final_ret_varying", "dirty")
 
 
 class Unsupported(Exception):
@@ -119,9 +119,14 @@ class WideEmitter:
     def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang):
         self.tech, self.pass_, self.lang = tech, pass_, lang
         self.functions: dict = {}
+        # what the emitted text holds: the structs and specialised functions the current
+        # render uses (a discarded render's additions are taken back, see _function_body)
         self.out_funcs: dict[str, str] = {}      # specialised name -> source
-        self.func_ret: dict[str, Val] = {}       # specialised name -> return shape
         self.structs: dict[str, str] = {}
+        self.func_ret: dict[str, Val] = {}       # specialised name -> return shape (all renders)
+        # specialised name -> the (dict, key, text) entries its emission added, itself last:
+        # a function a discarded render emitted is put back without rendering it again
+        self.emitted: dict[str, list] = {}
 
     # ---- entry -------------------------------------------------------------------------------
     def fragment(self, functions) -> str:
@@ -140,7 +145,10 @@ class WideEmitter:
         ret_varying = [False]
         masked_loops: set = set()
         retmode = False
+        kept = (len(self.structs), len(self.out_funcs))
         for _ in range(200):
+            _truncate(self.structs, kept[0])
+            _truncate(self.out_funcs, kept[1])
             self.varying_locals = set(varying)
             self.env = dict(params)
             self.fixed = set(params)
@@ -155,6 +163,7 @@ class WideEmitter:
             self.returned_varying = False
             self.ntmp = 0
             self.pre: list[str] = []
+            self.dirty = False
             head: list[str] = []
             if retmode:
                 head.append(f"    int{W} pg_wdone = (int{W})(0);")
@@ -168,10 +177,20 @@ class WideEmitter:
             except _Restart:
                 varying = set(self.varying_locals)
                 continue
-            except _RetMode:
+            except (_RetMode, Unsupported) as e:
+                # a render that found new varying locals ran on in a state it had already
+                # proven wrong: only a render without new ones may give up or change mode
+                if self.dirty:
+                    varying = set(self.varying_locals)
+                    continue
+                if isinstance(e, Unsupported):
+                    raise
                 if retmode:
                     raise Unsupported("return mode")
                 retmode = True
+                continue
+            if self.dirty:
+                varying = set(self.varying_locals)
                 continue
             if not main and self.returned_varying and not ret_varying[0]:
                 ret_varying[0] = True
@@ -195,9 +214,14 @@ class WideEmitter:
                 + [f"{pad}  return pg_wr; }}"])
 
     def _mark_varying(self, name: str) -> None:
+        """``name`` is varying: the function is rendered again with it declared varying.  The
+        render goes on meanwhile (its text is discarded) to find every other local that
+        becomes varying in the same render: one render per round of discoveries instead of
+        one per local (a local marked here is varying in the final render too, since
+        varyingness only grows with the set of varying locals)."""
         if name not in self.varying_locals:
             self.varying_locals.add(name)
-            raise _Restart()
+            self.dirty = True
 
     # ---- temporaries ---------------------------------------------------------------------------
     def tmp(self, v: Val, force: bool = False) -> Val:
@@ -821,8 +845,14 @@ class WideEmitter:
         vals = [self.expr(a) for a in e.args]
         flags = tuple(v.varying for v in vals)
         spec = f"{self.lang.ident(f.name)}_w{''.join('v' if x else 'u' for x in flags) or '0'}"
-        if spec not in self.func_ret:
+        if spec in self.emitted:
+            for table, key, text in self.emitted[spec]:
+                table.setdefault(key, text)
+        else:
+            before = (dict(self.structs), dict(self.out_funcs))
             self._emit_function(f, flags, spec)
+            self.emitted[spec] = [(table, k, t) for table, old in zip(
+                (self.structs, self.out_funcs), before) for k, t in table.items() if k not in old]
         ret = self.func_ret[spec]
         args = ["in", "win"] + [c for v in vals for c in v.comps]
         call = f"{spec}({', '.join(args)})"
@@ -1042,3 +1072,9 @@ def _stmt_exprs(s) -> list:
         if v is not None and not isinstance(v, str):
             out.append(v)
     return out
+
+
+def _truncate(table: dict, n: int) -> None:
+    """Drop the entries added after the first ``n`` (dicts keep insertion order)."""
+    for key in list(table)[n:]:
+        del table[key]
