@@ -475,7 +475,8 @@ class DrawGeometry:
                                depth_clamp=depth_clamp, depth_format=dfmt, flat=flat,
                                vary=vary, scissor=scissor,
                                smooth=[i for i, f in enumerate(flats) if not f],
-                               pixel_center=center, w_plane=w_plane, viewport=viewport)
+                               pixel_center=center, w_plane=w_plane, viewport=viewport,
+                               with_zp=False, with_zq=center == 0.0)
         if f64:
             tris.h = homogeneous_planes(clip64, tris.parent, width, height, _offset(p), dfmt,
                                         viewport)
@@ -496,9 +497,14 @@ class DrawGeometry:
 
     def _upload(self, tris, vary_buf) -> Geo:
         buf = self.pipe._buffer
+        # zp and zq are only set up where read (``_set_up``: zq for multisampled passes, whose
+        # raster kernel reads zq.z; no kernel reads zp): a placeholder buffer otherwise
+        none = self.pipe._dummy
         bufs = {"a": buf(tris.a), "b": buf(tris.b), "c": buf(tris.c), "z": buf(tris.z),
-                "w": buf(tris.w), "coef": buf(tris.coef), "zp": buf(tris.zp),
-                "zq": buf(tris.zq), "flat": buf(tris.flat), "vtx": buf(tris.vtx),
+                "w": buf(tris.w), "coef": buf(tris.coef),
+                "zp": none if tris.zp is None else buf(tris.zp),
+                "zq": none if tris.zq is None else buf(tris.zq),
+                "flat": buf(tris.flat), "vtx": buf(tris.vtx),
                 "scissor": buf(tris.scissor), "bbox": buf(tris.bbox), "vary": vary_buf}
         if tris.h is not None:       # the float64 evaluation's planes and parent triangles
             bufs["h"] = buf(np.ascontiguousarray(tris.h))

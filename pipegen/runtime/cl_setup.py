@@ -56,6 +56,7 @@ rows (vertex k of every triangle in row k); ``depth_plane``, ``attribute_planes`
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from typing import Optional
 
@@ -75,8 +76,10 @@ class Triangles:
     w: np.ndarray        # (N, 4) float32: plane of 1/w: a0, dadx, dady (llvmpipe's), 0
     coef: np.ndarray     # (N, K, 3, 4) float32: a0, dadx, dady of the K smooth varyings
                          #   premultiplied by 1/w (llvmpipe's perspective planes)
-    zp: np.ndarray       # (N, 4) float64: exact plane x0, y0, z0 + offset, dz/dx (reference)
-    zq: np.ndarray       # (N, 4) float64: dz/dy, offset, a0 for pixel centre 0 (MSAA), 0
+    zp: Optional[np.ndarray]   # (N, 4) float64: exact plane x0, y0, z0 + offset, dz/dx
+                               #   (reference; None when set up ``with_zp=False``)
+    zq: Optional[np.ndarray]   # (N, 4) float64: dz/dy, offset, a0 for pixel centre 0 (MSAA), 0
+                               #   (None when set up ``with_zq=False``)
     flat: np.ndarray     # (N, 4) uint32: front bit, object id, normal group, light
     vtx: np.ndarray      # (N, 4) int32: vertex indices into the (extended) varyings
     scissor: np.ndarray  # (N, 4) int32: x0, y0, x1, y1 (exclusive); whole viewport if none
@@ -107,31 +110,77 @@ def _fma32_exact(a, b, c) -> np.ndarray:
         return s.astype(np.float32)
 
 
+def _flat_at(x: np.ndarray, shape: tuple, idx: np.ndarray) -> np.ndarray:
+    """``np.broadcast_to(x, shape).reshape(-1)[idx]`` without materialising the broadcast."""
+    if x.shape == shape:
+        return x.reshape(-1)[idx]
+    if x.size == 1:
+        return np.full(len(idx), x.reshape(-1)[0], x.dtype)
+    return np.broadcast_to(x, shape)[np.unravel_index(idx, shape)]
+
+
+_LOW_WORD = 0 if sys.byteorder == "little" else 1
+
+
 def fma32(a, b, c) -> np.ndarray:
     """Correctly rounded float32 ``a * b + c`` (vectorised).  The product of two float32 is
     exact in float64, so rounding the float64 sum to float32 is correct unless that sum was
     itself rounded and landed exactly on a float32 rounding boundary (a tie, which the
     float64 rounding may have decided), or lies in the float32 subnormal range: those few
-    take the exact path (the sum rounded to odd in float64, from its TwoSum error term)."""
-    a, b, c = np.broadcast_arrays(*(np.asarray(v, np.float32) for v in (a, b, c)))
+    take the exact path (the sum rounded to odd in float64, from its TwoSum error term).
+    When ``b`` is a power of two (the depth range's 1/2) the float32 product is already exact
+    wherever it is a finite normal number, and then the fma is the float32 sum."""
+    a, b, c = (np.asarray(v, np.float32) for v in (a, b, c))
+    shape = np.broadcast_shapes(a.shape, b.shape, c.shape)
+    if b.size == 1 and a.shape == shape:
+        bv = float(b.reshape(-1)[0])
+        if bv != 0 and np.isfinite(bv) and np.frexp(bv)[0] in (0.5, -0.5):
+            with np.errstate(invalid="ignore", over="ignore", under="ignore"):
+                q = a * b.reshape(())
+                out = q + c
+                # exact product: finite and normal (float32's normal range starts at 2^-126)
+                np.abs(q, out=q)
+                bad = ~((q >= np.float32(2.0 ** -126)) & (q <= np.finfo(np.float32).max))
+            if bad.any():
+                idx = np.flatnonzero(bad.reshape(-1))
+                out.reshape(-1)[idx] = _fma32_general(
+                    a.reshape(-1)[idx], b.reshape(()), _flat_at(c, shape, idx))
+            return out
+    return _fma32_general(a, b, c)
+
+
+def _fma32_general(a, b, c) -> np.ndarray:
+    """``fma32`` through the float64 sum (see there).  The suspects are found on 32-bit words
+    (the low word of the float64 sum holds the 29 bits below float32's; ``|out|``'s bits
+    minus those of 2^-125 wrap around below it, and NaN lies above +inf), with as few
+    full-size temporaries as possible: their fresh pages cost more than the arithmetic."""
+    shape = np.broadcast_shapes(a.shape, b.shape, c.shape)
     with np.errstate(invalid="ignore", over="ignore"):
-        p = a.astype(np.float64) * b
-        s = p + c
+        s = np.multiply(a, b, dtype=np.float64)            # exact
+        if s.shape == shape:
+            s += c
+        else:
+            s = s + c
         out = s.astype(np.float32)
-    bits = s.view(np.int64)
-    suspect = ((bits & 0x1FFFFFFF) == 0x10000000) | ~(np.abs(s) >= 2.0 ** -125)
+    flat_s, flat_o = s.reshape(-1), out.reshape(-1)
+    t = np.bitwise_and(flat_s.view(np.uint32)[_LOW_WORD::2], np.uint32(0x1FFFFFFF))
+    suspect = t == np.uint32(0x10000000)
+    np.bitwise_and(flat_o.view(np.uint32), np.uint32(0x7FFFFFFF), out=t)
+    t -= np.uint32(0x01000000)                             # 2^-125
+    suspect |= t > np.uint32(0x7F800000 - 0x01000000)
     if suspect.any():
-        idx = np.flatnonzero(suspect.reshape(-1))
-        ps, cs, ss = p.reshape(-1)[idx], c.reshape(-1)[idx].astype(np.float64), s.reshape(-1)[idx]
+        idx = np.flatnonzero(suspect)
+        a_, b_, c_ = (_flat_at(v, shape, idx) for v in (a, b, c))
+        ss = flat_s[idx]
         with np.errstate(invalid="ignore", over="ignore"):
+            ps = np.multiply(a_, b_, dtype=np.float64)
+            cs = c_.astype(np.float64)
             # Fast2Sum: the rounding error of s is exactly (s - big) - small
             big_p = np.abs(ps) >= np.abs(cs)
             err = np.where(big_p, (ss - ps) - cs, (ss - cs) - ps)
-        idx = idx[(err != 0) | ~(np.abs(ss) >= 2.0 ** -125)]
-        if len(idx):
-            flat = out.reshape(-1)
-            flat[idx] = _fma32_exact(a.reshape(-1)[idx], b.reshape(-1)[idx], c.reshape(-1)[idx])
-            out = flat.reshape(out.shape)
+            redo = (err != 0) | ~(np.abs(ss) >= 2.0 ** -125)
+        if redo.any():
+            flat_o[idx[redo]] = _fma32_exact(a_[redo], b_[redo], c_[redo])
     return out
 
 
@@ -175,6 +224,16 @@ class _Edges:
             dady = da20 * self.dx01o[ex] - da01 * self.dx20o[ex]
             return (a0 - (dadx * (self.x0 - half)[ex] + dady * (self.y0 - half)[ex]),
                     dadx, dady)
+
+    def planes_cm(self, a0, a1, a2, center):
+        """``planes`` of channel-major values already in llvmpipe's vertex order: a0, a1, a2
+        (C, n) (the same arithmetic, broadcast over the channels)."""
+        half = np.float32(center)
+        with np.errstate(invalid="ignore", over="ignore", under="ignore"):
+            da01, da20 = a0 - a1, a2 - a0
+            dadx = da01 * self.dy20o - da20 * self.dy01o
+            dady = da20 * self.dx01o - da01 * self.dx20o
+            return a0 - (dadx * (self.x0 - half) + dady * (self.y0 - half)), dadx, dady
 
     def depth(self, zw, polygon_offset=None, depth_format=None, center=0.5):
         """(a0, dadx, dady, offset, a0 for pixel centre 0) of the window-z plane (zw: (3, n))."""
@@ -279,17 +338,29 @@ _PLANE_AXIS = (0, 0, 1, 1, 2, 2)
 _PLANE_SIGN = (-1, 1, -1, 1, 1, -1)
 
 
-def _clip_mask(clip: np.ndarray, depth_clamp: bool) -> np.ndarray:
-    """Per-vertex outside bits (uint8) as draw's LLVM vertex path tests them (float32)."""
-    x, y, z, w = (np.ascontiguousarray(clip[:, k]) for k in range(4))
+def _clip_mask(clip: np.ndarray, depth_clamp: bool, cols: Optional[np.ndarray] = None
+               ) -> np.ndarray:
+    """Per-vertex outside bits (uint8) as draw's LLVM vertex path tests them (float32).
+    ``cols``: ``clip`` transposed, (4, V), if the caller has it."""
+    x, y, z, w = np.ascontiguousarray(np.asarray(clip, np.float32).T) if cols is None else cols
     zero = np.float32(0.0)
+    m = np.greater(x, w).view(np.uint8)
+    # the other planes into one scratch sum and flag array (fewer fresh pages)
+    s = np.empty_like(x)
+    flag = np.empty(len(x), bool)
+    f8 = flag.view(np.uint8)
+    tests = [(x, None, 1), (y, w, 2), (y, None, 3)]       # (coordinate, w or None, bit)
+    if not depth_clamp:      # depth clamp disables depth clipping (draw->clip_z)
+        tests += [(z, None, 4), (z, w, 5)]
     with np.errstate(invalid="ignore", over="ignore"):
-        bits = [x > w, zero > x + w, y > w, zero > y + w]
-        if not depth_clamp:      # depth clamp disables depth clipping (draw->clip_z)
-            bits += [zero > z + w, z > w]
-    m = bits[0].view(np.uint8).copy()
-    for k, b in enumerate(bits[1:], 1):
-        m |= b.view(np.uint8) << np.uint8(k)
+        for c, w_or_none, k in tests:
+            if w_or_none is None:        # zero > c + w
+                np.add(c, w, out=s)
+                np.less(s, zero, out=flag)
+            else:                        # c > w
+                np.greater(c, w, out=flag)
+            np.left_shift(f8, np.uint8(k), out=f8)
+            m |= f8
     return m
 
 
@@ -304,8 +375,12 @@ def _clip_polygons(P, A, n, mask):
     polygons: P (M, K, 4) float32 clip positions, A (M, K, F) float32 attributes, n (M,)
     vertex counts, mask (M,) the planes to clip against (union of the vertices' bits).
     Returns (P, A, n, src) after clipping; src (M, K) is the input slot a vertex came from
-    (its original vertex when >= 0), -1 for vertices made by the clipper; n = 0: dropped."""
+    (its original vertex when >= 0), -1 for vertices made by the clipper; n = 0: dropped.
+    Positions and attributes travel together as (M, K, 4 + F) rows (the same interpolation
+    of every channel; a batch is usually a handful of polygons, so the cost is numpy calls
+    per plane, not arithmetic)."""
     M, K = P.shape[:2]
+    V = np.concatenate([np.asarray(P, np.float32), np.asarray(A, np.float32)], axis=2)
     src = np.where(np.arange(K)[None, :] < n[:, None], np.arange(K)[None, :], -1)
     alive = np.ones(M, bool)
     f32 = np.float32
@@ -313,16 +388,17 @@ def _clip_polygons(P, A, n, mask):
         sel = np.flatnonzero(alive & ((mask >> k) & 1 == 1) & (n >= 3))
         if len(sel) == 0:
             continue
-        Ps, As, ns, ss = P[sel], A[sel], n[sel], src[sel]
-        K = Ps.shape[1]
+        Vs, ns, ss = V[sel], n[sel], src[sel]
+        m, K = Vs.shape[:2]
         j = np.arange(K)[None, :]
+        rows = np.arange(m)[:, None]
         valid = j < ns[:, None]
         with np.errstate(invalid="ignore", over="ignore"):
-            dp = _plane_dist(Ps, k)
+            dp = _plane_dist(Vs, k)
         bad = (~np.isfinite(dp) & valid).any(axis=1)       # draw discards NaN/inf distances
         cur = np.where(valid, (j + 1) % np.maximum(ns, 1)[:, None], 0)
         dprev = dp
-        dcur = np.take_along_axis(dp, cur, 1)
+        dcur = dp[rows, cur]
         inside = dprev >= 0
         emit_prev = inside & valid
         cross = np.where(inside, dcur < 0, ~(dcur < 0)) & valid
@@ -333,61 +409,60 @@ def _clip_polygons(P, A, n, mask):
             denom = dcur - dprev
             from_cur = np.where(dcur < 0, -dcur < dprev, ~(-dprev < dcur))
             t = np.where(from_cur, dcur / denom, -dprev / denom).astype(f32)
-        Pc = np.take_along_axis(Ps, cur[..., None], 1)
-        Ac = np.take_along_axis(As, cur[..., None], 1)
+        Vc = Vs[rows, cur]
         fc = from_cur[..., None]
-        o_P, i_P = np.where(fc, Pc, Ps), np.where(fc, Ps, Pc)
-        o_A, i_A = np.where(fc, Ac, As), np.where(fc, As, Ac)
+        o_V, i_V = np.where(fc, Vc, Vs), np.where(fc, Vs, Vc)
         with np.errstate(invalid="ignore", over="ignore"):
-            newP = o_P + t[..., None] * (i_P - o_P)          # LINTERP(t, out, in)
-            newA = o_A + t[..., None] * (i_A - o_A)
+            newV = o_V + t[..., None] * (i_V - o_V)          # LINTERP(t, out, in)
         # scatter: per edge [prev if inside] then [new if crossing]
         cnt = emit_prev.astype(np.int64) + cross
         pos = np.cumsum(cnt, axis=1) - cnt
         n_out = cnt.sum(axis=1)
         K2 = max(int(n_out.max()), 1)
-        oP = np.zeros((len(sel), K2, 4), f32)
-        oA = np.zeros((len(sel), K2, As.shape[2]), f32)
-        oS = np.full((len(sel), K2), -1, np.int64)
+        oV = np.zeros((m, K2, V.shape[2]), f32)
+        oS = np.full((m, K2), -1, np.int64)
         r, c = np.nonzero(emit_prev)
-        oP[r, pos[r, c]], oA[r, pos[r, c]], oS[r, pos[r, c]] = Ps[r, c], As[r, c], ss[r, c]
+        oV[r, pos[r, c]], oS[r, pos[r, c]] = Vs[r, c], ss[r, c]
         r, c = np.nonzero(cross)
-        q = pos[r, c] + emit_prev[r, c]
-        oP[r, q], oA[r, q] = newP[r, c], newA[r, c]
+        oV[r, pos[r, c] + emit_prev[r, c]] = newV[r, c]
         # write back (grow the batch arrays when a plane added vertices)
-        if K2 > P.shape[1]:
-            pad = K2 - P.shape[1]
-            P = np.concatenate([P, np.zeros((M, pad, 4), f32)], axis=1)
-            A = np.concatenate([A, np.zeros((M, pad, A.shape[2]), f32)], axis=1)
+        if K2 > V.shape[1]:
+            pad = K2 - V.shape[1]
+            V = np.concatenate([V, np.zeros((M, pad, V.shape[2]), f32)], axis=1)
             src = np.concatenate([src, np.full((M, pad), -1, np.int64)], axis=1)
-        P[sel, :K2], A[sel, :K2], src[sel, :K2] = oP, oA, oS
-        P[sel, K2:], src[sel, K2:] = 0, -1
+        V[sel, :K2], src[sel, :K2] = oV, oS
+        V[sel, K2:], src[sel, K2:] = 0, -1
         n[sel] = n_out
         alive[sel[bad]] = False
     n = np.where(alive & (n >= 3), n, 0)
-    return P, A, n, src
+    return V[..., :4], V[..., 4:], n, src
 
 
-def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False):
+def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False,
+                   cols: Optional[np.ndarray] = None):
     """Clip (T*3, 4) clip-space vertices like llvmpipe's draw module (float32, viewport x/y
     planes, near/far unless ``depth_clamp``).  Returns (clip (V', 4) float32, vary (S, V', 4),
     tri (N, 3) vertex indices, parent (N,) input triangle of each output triangle); vertices
     from index len(clip) on were made by the clipper.  A clipped polygon p0..pn-1 is emitted as the
     fan (p[i-1], p[i], p0), i = 2..n-1 (draw's emit_poly with the last vertex provoking), in
-    the submission slot of its triangle."""
+    the submission slot of its triangle.  ``cols``: ``clip`` transposed, (4, 3T), if the
+    caller has it."""
     clip = np.asarray(clip, np.float32)
     T = len(clip) // 3
-    tri = np.arange(T * 3, dtype=np.int64).reshape(T, 3)
     if T == 0:
-        return clip, vary, tri, np.zeros(0, np.int64)
-    vm = _clip_mask(clip[:T * 3], depth_clamp).reshape(T, 3)
+        return clip, vary, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+    if cols is not None and cols.shape[1] != T * 3:
+        cols = cols[:, :T * 3]
+    vm = _clip_mask(clip[:T * 3], depth_clamp, cols).reshape(T, 3)
     union = vm[:, 0] | vm[:, 1] | vm[:, 2]
     inter = vm[:, 0] & vm[:, 1] & vm[:, 2]
     keep = union == 0
     crosses = (union != 0) & (inter == 0)
+    corner = np.arange(3, dtype=np.int64)
     if not crosses.any():
         idx = np.flatnonzero(keep)
-        return clip, vary, tri[idx], idx
+        return clip, vary, idx[:, None] * 3 + corner, idx
+    tri = np.arange(T * 3, dtype=np.int64).reshape(T, 3)
     S = 0 if vary is None else vary.shape[0]
     ct = np.flatnonzero(crosses)
     M = len(ct)
@@ -412,16 +487,20 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
     par = np.repeat(np.arange(M), nf)
     i = np.arange(int(nf.sum())) - np.repeat(np.cumsum(nf) - nf, nf) + 2
     fan = np.stack([vid[par, i - 1], vid[par, i], vid[par, 0]], axis=1)
-    kept = np.flatnonzero(keep)
-    all_tri = np.concatenate([tri[kept], fan.reshape(-1, 3)])
-    parent = np.concatenate([kept, ct[par]])
-    order = np.argsort(parent, kind="stable")
+    # submission order: each input triangle's output (itself, or its fan) in its slot, placed
+    # directly (what a stable sort of the outputs by parent gives)
+    per = keep.astype(np.int64)
+    per[ct] = nf
+    parent = np.repeat(np.arange(T, dtype=np.int64), per)
+    all_tri = parent[:, None] * 3 + corner          # right for the kept ones
+    start = np.cumsum(per) - per
+    all_tri[start[ct[par]] + (i - 2)] = fan
     clip_out = np.concatenate([clip, P[made]])
     vary_out = vary
     if S:
         extra = np.transpose(A[made].reshape(-1, S, 4), (1, 0, 2))
         vary_out = np.concatenate([np.asarray(vary, np.float32), extra], axis=1)
-    return clip_out, vary_out, all_tri[order], parent[order]
+    return clip_out, vary_out, all_tri, parent
 
 
 def _window_rows(clip: np.ndarray, width: int, height: int, n_orig: int,
@@ -451,6 +530,49 @@ def window_coords(clip: np.ndarray, width: int, height: int, n_orig: int) -> np.
     return np.ascontiguousarray(_window_rows(clip, width, height, n_orig).T)
 
 
+def _exact_z_planes(xw, yw, zw, offset, a0_ms, with_zp: bool, with_zq: bool):
+    """``Triangles.zp`` and ``zq`` (each None unless asked for) from the per-vertex rows (3, n)
+    of the unsnapped window positions, the polygon offset and a0 for pixel centre 0."""
+    if not (with_zp or with_zq):
+        return None, None
+    n, f64 = len(offset), np.float64
+    # float64 differences of the float32 positions (cast exactly first), and the products in
+    # the operand order of ``dz1 * (fy * inv) + dz2 * (-ey * inv)`` (dz/dx) and
+    # ``dz1 * (-fx * inv) + dz2 * (ex * inv)`` (dz/dy), in place
+    ex, ey = np.subtract(xw[1], xw[0], dtype=f64), np.subtract(yw[1], yw[0], dtype=f64)
+    fx, fy = np.subtract(xw[2], xw[0], dtype=f64), np.subtract(yw[2], yw[0], dtype=f64)
+    dz1, dz2 = np.subtract(zw[1], zw[0], dtype=f64), np.subtract(zw[2], zw[0], dtype=f64)
+    inv = np.multiply(ex, fy)
+    inv -= np.multiply(ey, fx)                      # det
+    zero = inv == 0
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        np.divide(1.0, inv, out=inv)
+        inv[zero] = 0.0
+        t, u = np.empty(n, f64), np.empty(n, f64)
+        tri_zp = tri_zq = None
+        if with_zp:
+            tri_zp = np.empty((n, 4), f64)
+            tri_zp[:, 0], tri_zp[:, 1] = xw[0], yw[0]
+            np.add(zw[0], offset, out=tri_zp[:, 2], dtype=f64)
+            np.multiply(fy, inv, out=t)
+            np.multiply(dz1, t, out=t)
+            np.negative(ey, out=u)
+            np.multiply(u, inv, out=u)
+            np.multiply(dz2, u, out=u)
+            np.add(t, u, out=tri_zp[:, 3])
+        if with_zq:
+            tri_zq = np.zeros((n, 4), f64)
+            np.negative(fx, out=t)
+            np.multiply(t, inv, out=t)
+            np.multiply(dz1, t, out=t)
+            np.multiply(ex, inv, out=u)
+            np.multiply(dz2, u, out=u)
+            np.add(t, u, out=tri_zq[:, 0])
+            tri_zq[:, 1] = offset
+            tri_zq[:, 2] = a0_ms
+    return tri_zp, tri_zq
+
+
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "none",
                     polygon_offset=None, depth_clamp: bool = False,
                     depth_format: Optional[str] = None, flat: Optional[np.ndarray] = None,
@@ -458,7 +580,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
                     scissor: Optional[np.ndarray] = None,
                     samples: Optional[int] = None, smooth: Optional[list] = None,
                     pixel_center: float = 0.5, w_plane: bool = True,
-                    viewport=None) -> Triangles:
+                    viewport=None, with_zp: bool = True, with_zq: bool = True) -> Triangles:
     """Clip, project, snap, cull and build edge equations for a non-indexed triangle list.
 
     ``clip``: (3T, 4) clip-space positions; ``flat``: (T, 4) uint32 per input triangle (y, z,
@@ -470,12 +592,36 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     centre folded into the planes' a0 (0.5; 0 for multisampled passes, which evaluate the
     planes at the pixel centre instead, as llvmpipe); ``w_plane``: set up the 1/w plane even
     without smooth varyings (for ``frag_coord.w``; False leaves ``w`` zero); ``viewport``:
-    (x, y, w, h) inside the target, default the whole target (shadow-map tiles).
+    (x, y, w, h) inside the target, default the whole target (shadow-map tiles);
+    ``with_zp``, ``with_zq``: compute ``zp`` and ``zq`` (else None; the raster kernel never
+    reads ``zp`` and reads ``zq`` only when multisampled).
     """
-    clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp)
+    f32 = np.float32
+    clip = np.asarray(clip, f32)
+    n_orig = len(clip)
+    cols = np.ascontiguousarray(clip.T)                 # (4, V): x, y, z, w rows
+    clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp, cols)
+    if len(clip_v) > n_orig:                            # the clipper's new vertices
+        cols = np.concatenate([cols, clip_v[n_orig:].T], axis=1)
     W, H = int(width), int(height)
-    # per-vertex rows (3, N) of 1/w and window x, y, z (vertex k of each triangle in row k)
-    iw, xw, yw, zw = _window_rows(clip_v, W, H, len(clip), viewport)[:, tri.T]
+    vx, vy, vw, vh = viewport if viewport is not None else (0, 0, W, H)
+    scale = (f32(vw * 0.5), f32(vh * 0.5), f32(0.5))
+    trans = (f32(vx + vw * 0.5), f32(vy + vh * 0.5), f32(0.5))
+    # The values of _window_rows, computed where needed: window x and y of every vertex
+    # (culling needs them all), gathered per triangle as (3, N) rows (vertex k of every
+    # triangle in row k); 1/w and z only for the triangles culling keeps.  Every step is
+    # elementwise, so computing a value per triangle corner instead of per vertex, or for a
+    # subset, gives the same bits.  (np.take: fancy indexing along axis 1 is several times
+    # slower.)
+    vid = np.ascontiguousarray(tri.T)                                # (3, N) vertex indices
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        oow = f32(1.0) / cols[3]
+        xy = np.empty((2, len(oow)), f32)
+        for k in range(2):
+            p = cols[k] * oow
+            xy[k, :n_orig] = fma32(p[:n_orig], scale[k], trans[k])
+            xy[k, n_orig:] = p[n_orig:] * scale[k] + trans[k]
+    xw, yw = np.take(xy, vid, axis=1)
     X = np.rint(xw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     Y = np.rint(yw.astype(np.float64) * SUBPIXEL).astype(np.int64)
     area = (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0])
@@ -494,7 +640,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     y0 = -((lo - np.minimum(np.minimum(Y[0], Y[1]), Y[2])) >> 8)
     y1 = (np.maximum(np.maximum(Y[0], Y[1]), Y[2]) - hi) >> 8
     if scissor is not None:
-        s = np.asarray(scissor, np.int64)[parent]
+        s = np.take(np.asarray(scissor, np.int64), parent, axis=0)
         sc = np.stack([np.maximum(s[:, 0], 0), np.maximum(s[:, 1], 0),
                        np.minimum(s[:, 2], W), np.minimum(s[:, 3], H)], axis=1)
         np.maximum(x0, sc[:, 0], out=x0)
@@ -510,11 +656,18 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     keep &= (x0 <= x1) & (y0 <= y1)
     if not keep.all():
         idx = np.flatnonzero(keep)
-        X, Y, iw, xw, yw, zw = (v[:, idx] for v in (X, Y, iw, xw, yw, zw))
-        area, tri, parent, x0, y0, x1, y1 = (v[idx] for v in (area, tri, parent, x0, y0, x1, y1))
+        X, Y, xw, yw, vid = (np.take(v, idx, axis=1) for v in (X, Y, xw, yw, vid))
+        area, parent, x0, y0, x1, y1 = (np.take(v, idx) for v in (area, parent, x0, y0, x1, y1))
         if sc is not None:
-            sc = sc[idx]
+            sc = np.take(sc, idx, axis=0)
     n = len(area)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        iw = np.take(oow, vid)
+        pz = np.take(cols[2], vid) * iw
+        zw = fma32(pz, scale[2], trans[2])
+        if len(oow) > n_orig:          # clipper-made vertices: rounded step by step
+            made = vid >= n_orig
+            zw[made] = pz[made] * scale[2] + trans[2]
     s = np.sign(area)
     tri_a = np.zeros((n, 4), np.int32)
     tri_b = np.zeros((n, 4), np.int32)
@@ -531,24 +684,33 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     tri_a[:, 3] = bits
     edges = _Edges(xw, yw, area)
     # 1/w plane (linear) and the smooth varyings' planes premultiplied by 1/w (perspective),
-    # set up together: (3, n, 1 + 4K) attributes, 1/w first
+    # set up together: (1 + 4K, 3, n) attributes, 1/w first, gathered straight in llvmpipe's
+    # vertex order (the values _Edges.order would pick)
     tri_w = np.zeros((n, 4), np.float32)
     S = 0 if vary_v is None else vary_v.shape[0]
     smooth = list(range(S)) if smooth is None else [int(k) for k in smooth]
-    tri_coef = np.zeros((n, len(smooth), 3, 4), np.float32)
+    K = len(smooth)
+    tri_coef = np.zeros((n, K, 3, 4), np.float32)
     if (smooth or w_plane) and n:
-        attrs = [iw[:, :, None]]
+        sw = edges.swap
+        vidl = np.stack([np.where(sw, vid[1], vid[0]), np.where(sw, vid[0], vid[1]),
+                         vid[2]])
+        # channel-major: numpy's inner loops then run over the triangles, not over 1 + 4K
+        # channels (the same elementwise arithmetic as _Edges.planes, several times faster)
+        attrs = np.empty((1 + 4 * K, 3, n), f32)
+        iwl = attrs[0]
+        np.take(oow, vidl, out=iwl)
         if smooth:
-            va = np.asarray(vary_v, np.float32)[smooth][:, tri.T]          # (K, 3, n, 4)
-            va = np.transpose(va, (1, 2, 0, 3)).reshape(3, n, -1)          # (3, n, K*4)
+            vary32 = np.asarray(vary_v, np.float32)
             with np.errstate(invalid="ignore", over="ignore", under="ignore"):
-                attrs.append(va * iw[:, :, None])
-        planes = np.stack(edges.planes(np.concatenate(attrs, axis=2), pixel_center),
-                          axis=1)                                          # (n, 3, 1 + 4K)
-        tri_w[:, :3] = planes[:, :, 0]
-        if smooth:
-            tri_coef = np.ascontiguousarray(
-                np.transpose(planes[:, :, 1:].reshape(n, 3, len(smooth), 4), (0, 2, 1, 3)))
+                for j, slot in enumerate(smooth):
+                    np.multiply(np.take(vary32[slot], vidl, axis=0).transpose(2, 0, 1), iwl,
+                                out=attrs[1 + 4 * j:5 + 4 * j])
+        planes = edges.planes_cm(attrs[:, 0], attrs[:, 1], attrs[:, 2], pixel_center)
+        for r, plane in enumerate(planes):                       # 3 x (1 + 4K, n)
+            tri_w[:, r] = plane[0]
+            if smooth:
+                tri_coef[:, :, r, :] = plane[1:].reshape(K, 4, n).transpose(2, 0, 1)
     # window z: llvmpipe's float32 plane (a0 at the window origin, see depth_plane)
     za0, zdx, zdy, offset, a0_ms = edges.depth(zw, polygon_offset, depth_format)
     tri_z = np.empty((n, 4), np.float32)
@@ -556,26 +718,13 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     # zp: the exact plane in float64 (x0, y0, z0 + offset, dz/dx; for reference and tests);
     # zq: dz/dy, the polygon offset, and a0 with pixel centre 0 (multisampling; read by the
     # raster kernel only when PG_SAMPLES > 1)
-    xd, yd, z64 = xw.astype(np.float64), yw.astype(np.float64), zw.astype(np.float64)
-    ex, ey = xd[1] - xd[0], yd[1] - yd[0]
-    fx, fy = xd[2] - xd[0], yd[2] - yd[0]
-    det = ex * fy - ey * fx
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(det != 0, 1.0 / det, 0.0)
-    dz1, dz2 = z64[1] - z64[0], z64[2] - z64[0]
-    tri_zp = np.empty((n, 4), np.float64)
-    tri_zq = np.zeros((n, 4), np.float64)
-    tri_zp[:, 0], tri_zp[:, 1], tri_zp[:, 2] = xd[0], yd[0], z64[0] + offset
-    tri_zp[:, 3] = dz1 * (fy * inv) + dz2 * (-ey * inv)
-    tri_zq[:, 0] = dz1 * (-fx * inv) + dz2 * (ex * inv)
-    tri_zq[:, 1] = offset
-    tri_zq[:, 2] = a0_ms
+    tri_zp, tri_zq = _exact_z_planes(xw, yw, zw, offset, a0_ms, with_zp, with_zq)
     tri_flat = np.zeros((n, 4), np.uint32)
     if flat is not None:
-        tri_flat[:] = np.asarray(flat, np.uint32)[parent]
+        tri_flat[:] = np.take(np.asarray(flat, np.uint32), parent, axis=0)
     tri_flat[:, 0] = area > 0
     tri_vtx = np.zeros((n, 4), np.int32)
-    tri_vtx[:, :3] = tri
+    tri_vtx[:, :3] = vid.T
     tri_sc = np.empty((n, 4), np.int32)
     if sc is None:
         tri_sc[:] = (0, 0, W, H)
@@ -611,11 +760,18 @@ def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
         rep = np.arange(n, dtype=np.int64)
         tx, ty = tx0, ty0
     else:
-        rep = np.repeat(np.arange(n, dtype=np.int64), counts)
-        starts = np.cumsum(counts) - counts
-        off = np.arange(total, dtype=np.int64) - np.repeat(starts, counts)
-        tx = tx0[rep] + off % wx[rep]
-        ty = ty0[rep] + off // wx[rep]
+        # each box's tile rows, then each row's tiles (row-major per triangle); two repeats
+        # instead of dividing every pair's offset by its box width
+        def runs(lengths):      # (run index, position within the run) of consecutive runs
+            m = int(lengths.sum())
+            run = np.repeat(np.arange(len(lengths), dtype=np.int64), lengths)
+            return run, np.arange(m, dtype=np.int64) - np.repeat(np.cumsum(lengths) - lengths,
+                                                                 lengths)
+        row_tri, dy = runs(ty1 - ty0 + 1)
+        row_of, dx = runs(wx[row_tri])
+        rep = row_tri[row_of]
+        tx = tx0[rep] + dx
+        ty = (ty0[row_tri] + dy)[row_of]
         big = counts[rep] > edge_test_tiles
         if big.any():
             sel = np.flatnonzero(big)
@@ -643,7 +799,9 @@ def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
 def bins_from_pairs(tri: np.ndarray, tile_id: np.ndarray, ntiles: int):
     """CSR tile lists (tile_start (ntiles+1,) int32, tile_tris (M,) int32) from (triangle,
     tile) pairs in triangle order: per tile, its triangles in submission order."""
-    order = np.argsort(tile_id, kind="stable")
+    # stable sort by tile; on 16-bit keys numpy's stable sort is a radix sort
+    key = tile_id.astype(np.uint16) if ntiles <= 1 << 16 else tile_id
+    order = np.argsort(key, kind="stable")
     tile_tris = tri[order].astype(np.int32)
     tile_start = np.zeros(ntiles + 1, np.int32)
     np.cumsum(np.bincount(tile_id, minlength=ntiles), out=tile_start[1:])
