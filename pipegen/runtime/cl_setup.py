@@ -235,8 +235,9 @@ class _Edges:
             dady = da20 * self.dx01o - da01 * self.dx20o
             return a0 - (dadx * (self.x0 - half) + dady * (self.y0 - half)), dadx, dady
 
-    def depth(self, zw, polygon_offset=None, depth_format=None, center=0.5):
-        """(a0, dadx, dady, offset, a0 for pixel centre 0) of the window-z plane (zw: (3, n))."""
+    def depth(self, zw, polygon_offset=None, depth_format=None, center=0.5, ms_a0=True):
+        """(a0, dadx, dady, offset, a0 for pixel centre 0) of the window-z plane (zw: (3, n));
+        the last None unless ``ms_a0``."""
         f32 = np.float32
         z0, z1, z2 = self.order(zw)
         n = len(z0)
@@ -246,7 +247,7 @@ class _Edges:
             dadx = dz01 * self.dy20o - dz20 * self.dy01o
             dady = dz20 * self.dx01o - dz01 * self.dx20o
             a0 = z0 - (dadx * (self.x0 - half) + dady * (self.y0 - half))
-            a0_ms = z0 - (dadx * self.x0 + dady * self.y0)
+            a0_ms = z0 - (dadx * self.x0 + dady * self.y0) if ms_a0 else None
             off = np.zeros(n, f32)
             if polygon_offset is not None and n:
                 factor, units = float(polygon_offset[0]), float(polygon_offset[1])
@@ -364,6 +365,21 @@ def _clip_mask(clip: np.ndarray, depth_clamp: bool, cols: Optional[np.ndarray] =
     return m
 
 
+def _outside(cols: np.ndarray, depth_clamp: bool) -> np.ndarray:
+    """Per vertex: is any bit of ``_clip_mask`` set?  ``c > w`` or ``0 > c + w`` is exactly
+    ``|c| > w`` (the float32 sum has the sign of the exact one and is 0 only when that is;
+    NaN fails both), so three comparisons instead of six plus the sums."""
+    x, y, z, w = cols
+    s = np.abs(x)
+    out = np.greater(s, w)
+    flag = np.empty(len(w), bool)
+    for c in (y,) if depth_clamp else (y, z):
+        np.abs(c, out=s)
+        np.greater(s, w, out=flag)
+        out |= flag
+    return out
+
+
 def _plane_dist(P: np.ndarray, k: int) -> np.ndarray:
     """draw's dot4(clip_pos, plane) for plane k: ``w - c`` or ``c + w`` in float32."""
     c, w = P[..., _PLANE_AXIS[k]], P[..., 3]
@@ -438,6 +454,58 @@ def _clip_polygons(P, A, n, mask):
     return V[..., :4], V[..., 4:], n, src
 
 
+def _clip_polygons_few(P, A, n, mask):
+    """``_clip_polygons`` one polygon at a time with float32 scalars: the same operations
+    (plane distance, the crossing test, ``t`` from the nearer vertex, LINTERP per channel)
+    for the usual handful of polygons, where the batch version's cost is its numpy calls per
+    plane.  Same return values (the slot count K may differ; slots past n are unused)."""
+    M = P.shape[0]
+    rows = np.concatenate([np.asarray(P, np.float32), np.asarray(A, np.float32)], axis=2)
+    polys, srcs, ns = [], [], np.zeros(M, np.int64)
+    zero = np.float32(0.0)
+    for m in range(M):
+        verts = [rows[m, j] for j in range(int(n[m]))]
+        src = list(range(len(verts)))
+        for k in range(6):
+            if not (int(mask[m]) >> k) & 1 or len(verts) < 3:
+                continue
+            axis, sign = _PLANE_AXIS[k], _PLANE_SIGN[k]
+            with np.errstate(invalid="ignore", over="ignore"):
+                dist = [(v[3] - v[axis]) if sign < 0 else (v[axis] + v[3]) for v in verts]
+            if not all(np.isfinite(d) for d in dist):     # draw discards NaN/inf distances
+                verts = []
+                break
+            out_v, out_s = [], []
+            for j, (v, dprev) in enumerate(zip(verts, dist)):
+                cur = (j + 1) % len(verts)
+                dcur = dist[cur]
+                inside = dprev >= zero
+                if inside:
+                    out_v.append(v)
+                    out_s.append(src[j])
+                if inside == (dcur < zero):
+                    with np.errstate(divide="ignore", invalid="ignore", over="ignore",
+                                     under="ignore"):
+                        denom = dcur - dprev
+                        from_cur = (-dcur < dprev) if dcur < zero else not (-dprev < dcur)
+                        t = (dcur / denom) if from_cur else (-dprev / denom)
+                        o, i = (verts[cur], v) if from_cur else (v, verts[cur])
+                        out_v.append(o + t * (i - o))          # LINTERP(t, out, in)
+                    out_s.append(-1)
+            verts, src = out_v, out_s
+        ns[m] = len(verts) if len(verts) >= 3 else 0
+        polys.append(verts)
+        srcs.append(src)
+    K = max([len(v) for v in polys] + [1])
+    V = np.zeros((M, K, rows.shape[2]), np.float32)
+    src_out = np.full((M, K), -1, np.int64)
+    for m, (verts, src) in enumerate(zip(polys, srcs)):
+        if verts:
+            V[m, :len(verts)] = verts
+            src_out[m, :len(src)] = src
+    return V[..., :4], V[..., 4:], ns, src_out
+
+
 def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False,
                    cols: Optional[np.ndarray] = None):
     """Clip (T*3, 4) clip-space vertices like llvmpipe's draw module (float32, viewport x/y
@@ -451,14 +519,21 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
     T = len(clip) // 3
     if T == 0:
         return clip, vary, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
-    if cols is not None and cols.shape[1] != T * 3:
-        cols = cols[:, :T * 3]
-    vm = _clip_mask(clip[:T * 3], depth_clamp, cols).reshape(T, 3)
-    union = vm[:, 0] | vm[:, 1] | vm[:, 2]
-    inter = vm[:, 0] & vm[:, 1] & vm[:, 2]
-    keep = union == 0
-    crosses = (union != 0) & (inter == 0)
+    cols = np.ascontiguousarray(clip[:T * 3].T) if cols is None else cols[:, :T * 3]
     corner = np.arange(3, dtype=np.int64)
+    # the clip mask of the vertices of triangles with a vertex outside some plane (the
+    # others have none: all inside, kept as they are)
+    out = _outside(cols, depth_clamp).reshape(T, 3)
+    cand = np.flatnonzero(out[:, 0] | out[:, 1] | out[:, 2])
+    keep = np.ones(T, bool)
+    keep[cand] = False
+    union = np.zeros(T, np.uint8)
+    crosses = np.zeros(T, bool)
+    if len(cand):
+        vm = _clip_mask(None, depth_clamp, cols[:, (cand[:, None] * 3 + corner).reshape(-1)])
+        vm = vm.reshape(-1, 3)
+        union[cand] = vm[:, 0] | vm[:, 1] | vm[:, 2]
+        crosses[cand] = (vm[:, 0] & vm[:, 1] & vm[:, 2]) == 0
     if not crosses.any():
         idx = np.flatnonzero(keep)
         return clip, vary, idx[:, None] * 3 + corner, idx
@@ -472,7 +547,8 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
         A = A.reshape(M, 3, S * 4)
     else:
         A = np.zeros((M, 3, 0), np.float32)
-    P, A, n, src = _clip_polygons(P, A, np.full(M, 3, np.int64), union[ct].astype(np.int64))
+    clip_polys = _clip_polygons_few if M <= 6 else _clip_polygons
+    P, A, n, src = clip_polys(P, A, np.full(M, 3, np.int64), union[ct].astype(np.int64))
     # vertex table: original vertices keep their index, clipper-made ones are appended
     K = P.shape[1]
     slot = np.arange(K)[None, :]
@@ -669,18 +745,26 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
             made = vid >= n_orig
             zw[made] = pz[made] * scale[2] + trans[2]
     s = np.sign(area)
-    tri_a = np.zeros((n, 4), np.int32)
+    tri_a = np.empty((n, 4), np.int32)
     tri_b = np.zeros((n, 4), np.int32)
     tri_c = np.zeros((n, 4), np.int64)
-    bits = np.zeros(n, np.int64)
-    # edge k opposite vertex k, from vertex i1 = k+1 to i2 = k+2 (mod 3)
+    bits = np.zeros(n, np.uint8)
+    A, B, t = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n, np.int64)
+    flag, f2 = np.empty(n, bool), np.empty(n, bool)
+    # edge k opposite vertex k, from vertex i1 = k+1 to i2 = k+2 (mod 3): A = -(Y2 - Y1) s,
+    # B = (X2 - X1) s, C = -(A X1 + B Y1) (in place; int64 wraps the same either way)
     for k, (i1, i2) in enumerate(((1, 2), (2, 0), (0, 1))):
-        A = -(Y[i2] - Y[i1]) * s
-        B = (X[i2] - X[i1]) * s
+        np.multiply(np.subtract(Y[i1], Y[i2], out=A), s, out=A)
+        np.multiply(np.subtract(X[i2], X[i1], out=B), s, out=B)
         tri_a[:, k] = A
         tri_b[:, k] = B
-        tri_c[:, k] = -(A * X[i1] + B * Y[i1])
-        bits |= ((A > 0) | ((A == 0) & (B > 0))).astype(np.int64) << k
+        np.multiply(A, X[i1], out=t)
+        t += np.multiply(B, Y[i1], out=tri_c[:, k])
+        np.negative(t, out=tri_c[:, k])
+        # inclusive edge: A > 0, or A == 0 and B > 0
+        np.greater(A, 0, out=flag)
+        flag |= np.logical_and(np.equal(A, 0, out=f2), np.greater(B, 0), out=f2)
+        bits |= flag.view(np.uint8) << np.uint8(k)
     tri_a[:, 3] = bits
     edges = _Edges(xw, yw, area)
     # 1/w plane (linear) and the smooth varyings' planes premultiplied by 1/w (perspective),
@@ -693,14 +777,17 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     tri_coef = np.zeros((n, K, 3, 4), np.float32)
     if (smooth or w_plane) and n:
         sw = edges.swap
-        vidl = np.stack([np.where(sw, vid[1], vid[0]), np.where(sw, vid[0], vid[1]),
-                         vid[2]])
         # channel-major: numpy's inner loops then run over the triangles, not over 1 + 4K
         # channels (the same elementwise arithmetic as _Edges.planes, several times faster)
         attrs = np.empty((1 + 4 * K, 3, n), f32)
         iwl = attrs[0]
-        np.take(oow, vidl, out=iwl)
+        iwl[:] = iw
+        np.copyto(iwl[0], iw[1], where=sw)
+        np.copyto(iwl[1], iw[0], where=sw)
         if smooth:
+            vidl = vid.copy()
+            np.copyto(vidl[0], vid[1], where=sw)
+            np.copyto(vidl[1], vid[0], where=sw)
             vary32 = np.asarray(vary_v, np.float32)
             with np.errstate(invalid="ignore", over="ignore", under="ignore"):
                 for j, slot in enumerate(smooth):
@@ -712,7 +799,8 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
             if smooth:
                 tri_coef[:, :, r, :] = plane[1:].reshape(K, 4, n).transpose(2, 0, 1)
     # window z: llvmpipe's float32 plane (a0 at the window origin, see depth_plane)
-    za0, zdx, zdy, offset, a0_ms = edges.depth(zw, polygon_offset, depth_format)
+    za0, zdx, zdy, offset, a0_ms = edges.depth(zw, polygon_offset, depth_format,
+                                               ms_a0=with_zq)
     tri_z = np.empty((n, 4), np.float32)
     tri_z[:, 0], tri_z[:, 1], tri_z[:, 2], tri_z[:, 3] = za0, zdx, zdy, offset
     # zp: the exact plane in float64 (x0, y0, z0 + offset, dz/dx; for reference and tests);
