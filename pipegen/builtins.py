@@ -13,9 +13,9 @@
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
 from typing import Optional, Sequence
 
+from .records import record
 from . import ir
 from .formats import Format
 
@@ -26,7 +26,7 @@ from .formats import Format
 _GENERIC = {"genType": ir.Scalar.FLOAT, "genIType": ir.Scalar.INT, "genUType": ir.Scalar.UINT}
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Overload:
     """One signature. Parameter/return spellings are type names or a generic ``gen*Type``;
     every generic in one overload stands for the same type (sizes 1–4)."""
@@ -152,7 +152,7 @@ class Where(enum.Enum):
     LIGHT = "light draws and repeat per light"  # the light being drawn
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class StageInput:
     name: str
     type: ir.Type

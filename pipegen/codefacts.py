@@ -6,9 +6,9 @@ compiler passes; kept out of ``backends/`` so that the compiler core does not de
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, Iterator
 
+from .records import record
 from . import ir, irwalk
 
 
@@ -20,7 +20,7 @@ from . import ir, irwalk
 # for each backend; the walks were most of its time.
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class CodeFacts:
     """What one statement list holds (nested statements included, called functions not)."""
     calls: tuple[str, ...]          # user functions called (not builtins), first call first

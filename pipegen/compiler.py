@@ -15,10 +15,11 @@ imports a runtime only when asked to render.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import field
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable, Optional
 
+from .records import record
 from . import ir, lower, syntax, verify
 from .diagnostics import PipegenError
 from .backends import registry
@@ -37,7 +38,7 @@ PHASES: tuple[Phase, ...] = (
 )
 
 
-@dataclass
+@record
 class Compiled:
     """A compiled technique: the optimised IR plus everything emitted from it (lazily)."""
 

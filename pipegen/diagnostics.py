@@ -6,11 +6,12 @@ plain ``assert``s.  The CLI prints ``err.render()`` and exits with status 1.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Optional
 
+from .records import record
 
-@dataclass(frozen=True)
+
+@record(frozen=True)
 class Span:
     file: str
     line: int          # 1-based

@@ -16,7 +16,8 @@ turns codes into the floats a shader would read.
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+
+from .records import record
 
 # numpy is imported by the functions that compute with arrays, not here: compiling a technique
 # reads formats but never needs numpy (tests/test_compile_imports.py).
@@ -31,7 +32,7 @@ class Kind(enum.Enum):
     DEPTH_STENCIL = "depth_stencil"  # packed depth + 8-bit stencil (d24s8)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Tolerance:
     """How far two backends may disagree on one channel of one pixel.
 
@@ -65,7 +66,7 @@ class Encode(enum.Enum):
     UNORM16 = "unorm16"
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Format:
     """One render-target format: everything a backend, the oracle or the comparator needs.
 

@@ -26,9 +26,10 @@ from __future__ import annotations
 import functools
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Callable, Optional
 
+from .records import record
 from . import formats, ir
 from .diagnostics import PipegenError, Span
 from .formats import Format, Kind
@@ -45,7 +46,7 @@ _TINY = "0.000000000001"   # 1e-12
 _TINY_F = 1e-12
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class PackingSpec:
     """What the front end needs from a packing scheme (see docs/internals.md)."""
 
@@ -1095,7 +1096,7 @@ def normal_storage(fmt: Format | str) -> str:
     raise KeyError(fmt.name)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class NormalError:
     """Angular error (degrees) of encode → store in ``storage`` → decode over one domain."""
     scheme: str
@@ -1266,7 +1267,7 @@ def normal_error(scheme: str, format_name: str, samples: Optional[int] = None,
 # =============================================================================================
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class CapacityRow:
     lights_per_fragment: int
     scene_lights: int            # 2^index_bits - 1 (index 0 = no light)

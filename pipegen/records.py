@@ -1,47 +1,69 @@
 """``record``: ``dataclasses.dataclass`` for the many small node classes of the IR and the
 syntax tree, cheaper to define.
 
-Python 3.11's ``dataclass`` writes ``__eq__``, ``__hash__`` and ``__repr__`` as source text for
-every class and compiles each with ``exec``; for the ~100 classes of ``ir.py`` and ``ast.py``
-that was 15 ms of every ``pipegen compile`` (measured: defining both modules 38 -> 23 ms),
-about a twentieth of the whole command.  A ``record`` class is a dataclass without those three
-generated methods (``dataclass`` still writes ``__init__`` and, when frozen, the attribute
-guards) that shares one implementation of each instead, driven by an ``operator.attrgetter``
-of its fields made once per class, so comparing and hashing run at C speed as before.
+Python 3.11's ``dataclass`` writes ``__init__``, ``__eq__``, ``__hash__``, ``__repr__`` and, for
+frozen classes, ``__setattr__`` and ``__delattr__`` as source text for every class and compiles
+each with ``exec``: for the ~100 classes of ``ir.py`` and ``ast.py`` that was about a sixth of
+every ``pipegen compile`` (callgrind: 1309 M instructions in all; defining the two modules 160 M
+of them).  A ``record`` is a dataclass for which ``dataclass`` only collects the fields (the
+``fields``, ``replace``, ``__match_args__`` and pickling machinery work as for any dataclass)
+and that shares one implementation of the rest:
 
-Same semantics as ``dataclass(eq=True)``: equal when of the same class and the fields that
-take part in comparison (``compare=True``) are equal; frozen records hash those fields,
-mutable ones are unhashable; the same ``repr`` text (``ClassName(field=value, ...)`` of the
-``repr=True`` fields; the specialisation cache keys on it).  Python 3.13 compiles a
-dataclass's methods in one ``exec``; this module can go when pipegen requires it.
+- equality, hashing and ``repr`` by an ``operator.attrgetter`` of the fields made once per
+  class, so they run at C speed as the generated methods did;
+- the frozen guard: one ``__setattr__``/``__delattr__`` raising ``FrozenInstanceError``;
+- ``__init__`` is compiled the first time the class is instantiated (most classes never are in
+  one compile: the syntax trees come unpickled from the cache, without ``__init__``).
+
+Same semantics as ``dataclass(eq=True)`` with the features the IR uses (defaults,
+``default_factory``, ``kw_only``, ``compare=False``, ``repr=False``, ``__post_init__``): equal
+when of the same class and the compared fields are equal; frozen records hash those fields,
+mutable ones are unhashable; the same ``repr`` text (the specialisation cache keys on it).
+Python 3.13 compiles a dataclass's methods in one ``exec``; this module can go when pipegen
+requires it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, FrozenInstanceError, dataclass, fields
 from operator import attrgetter
 
 
 def record(cls=None, /, *, frozen: bool = False):
     """Class decorator: ``@record`` or ``@record(frozen=True)``, as ``@dataclass``."""
     def wrap(c):
-        if not c.__dict__.get("__doc__"):
-            # dataclass would build the docstring from inspect.signature (slow); the same
-            # text from the fields after the class is made
-            c.__doc__ = "-"
-            c = dataclass(c, eq=False, repr=False, frozen=frozen)
-            c.__doc__ = f"{c.__name__}({', '.join(f.name for f in fields(c))})"
-        else:
-            c = dataclass(c, eq=False, repr=False, frozen=frozen)
+        doc = c.__dict__.get("__doc__")
+        # without a docstring dataclass would build one from inspect.signature (slow)
+        c.__doc__ = doc or "-"
+        c = dataclass(c, init=False, eq=False, repr=False)
+        names = [f.name for f in fields(c)]
+        _check_order(c)
+        if not doc:
+            c.__doc__ = f"{c.__name__}({', '.join(names)})"
         compared = [f.name for f in fields(c) if f.compare]
         # one field: the value itself; none: every instance of the class is equal
         c._record_key = attrgetter(*compared) if compared else attrgetter("__class__")
         c._record_shown = tuple(f.name for f in fields(c) if f.repr)
+        # methods the class body defines are kept, as dataclass keeps them
+        own = {k: v for k, v in c.__dict__.items() if k in _METHODS}
+        if own.get("__hash__", 0) is None and "__eq__" in own:
+            del own["__hash__"]      # Python's implicit None for a class defining __eq__
+        c.__init__ = _first_init
         c.__eq__ = _eq
-        c.__hash__ = _hash if frozen else None
         c.__repr__ = _repr
+        if frozen:
+            c.__hash__ = _hash
+            c.__setattr__ = _frozen
+            c.__delattr__ = _frozen
+        else:
+            c.__hash__ = None
+        for k, v in own.items():
+            setattr(c, k, v)
         return c
     return wrap if cls is None else wrap(cls)
+
+
+_METHODS = ("__init__", "__eq__", "__hash__", "__repr__")
 
 
 def _eq(self, other):
@@ -58,3 +80,59 @@ def _hash(self):
 def _repr(self):
     shown = ", ".join(f"{name}={getattr(self, name)!r}" for name in self._record_shown)
     return f"{self.__class__.__qualname__}({shown})"
+
+
+def _frozen(self, name, *value):
+    raise FrozenInstanceError(f"cannot assign to field {name!r}")
+
+
+def _first_init(self, *args, **kwargs):
+    """Compile the class's ``__init__``, install it and run it."""
+    cls = type(self)
+    init = cls.__init__ = _make_init(cls)
+    init(self, *args, **kwargs)
+
+
+def _check_order(cls) -> None:
+    """What dataclass checks when it writes ``__init__``, checked at definition all the same."""
+    seen_default = None
+    for f in fields(cls):
+        if not f.init:
+            raise TypeError(f"record {cls.__qualname__}: init=False fields are not supported")
+        if f.kw_only:
+            continue
+        if f.default is not MISSING or f.default_factory is not MISSING:
+            seen_default = f.name
+        elif seen_default:
+            raise TypeError(f"non-default argument {f.name!r} follows default argument "
+                            f"{seen_default!r} in {cls.__qualname__}")
+
+
+_FACTORY = object()      # "no argument given" for a field with a default_factory
+
+
+def _make_init(cls):
+    """``__init__`` as dataclass writes it: parameters in field order (``kw_only`` ones after
+    a ``*``), defaults, factories, attributes set with ``object.__setattr__`` (frozen or not),
+    then ``__post_init__``."""
+    env = {"_set": object.__setattr__, "_FACTORY": _FACTORY}
+    positional, keyword, body = [], [], []
+    for f in fields(cls):
+        if f.default is not MISSING:
+            env[f"_d_{f.name}"] = f.default
+            param, value = f"{f.name}=_d_{f.name}", f.name
+        elif f.default_factory is not MISSING:
+            env[f"_f_{f.name}"] = f.default_factory
+            param = f"{f.name}=_FACTORY"
+            value = f"_f_{f.name}() if {f.name} is _FACTORY else {f.name}"
+        else:
+            param, value = f.name, f.name
+        (keyword if f.kw_only else positional).append(param)
+        body.append(f"    _set(self, {f.name!r}, {value})")
+    if hasattr(cls, "__post_init__"):
+        body.append("    self.__post_init__()")
+    params = ", ".join(["self"] + positional + (["*"] + keyword if keyword else []))
+    exec(f"def __init__({params}):\n" + ("\n".join(body) or "    pass"), env)
+    init = env["__init__"]
+    init.__qualname__ = f"{cls.__qualname__}.__init__"
+    return init

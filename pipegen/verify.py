@@ -13,9 +13,10 @@ function and the offending node.  (Explicit raises rather than ``assert`` statem
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Optional
 
+from .records import record
 from . import ir
 from .builtins import (BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, LIGHT_TYPES, STAGE_INPUTS, Where,
                        binary_type, construct_error, resolve_builtin, target_read_type,
@@ -42,7 +43,7 @@ def _unique(names: list[str], where: str, what: str) -> None:
         seen.add(n)
 
 
-@dataclass
+@record
 class _Needs:
     """What a function needs from the pass that calls it (transitively)."""
 

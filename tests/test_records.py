@@ -67,3 +67,50 @@ def test_repr_is_dataclass_repr():
 def test_dataclass_tools_still_work():
     assert replace(Frozen(1, (2,)), a=5) == Frozen(5, (2,))
     assert Frozen.__doc__ == "Frozen(a, b, span)"
+
+
+@record
+class WithFactory:
+    items: list = field(default_factory=list)
+    label: str = "x"
+    span: str = field(default="", kw_only=True, compare=False)
+
+    def __post_init__(self):
+        self.items.append(len(self.items))
+
+
+def test_init_as_dataclass_writes_it():
+    a, b = WithFactory(), WithFactory()
+    assert a.items == [0] and a.items is not b.items          # a new list each time
+    assert WithFactory([5], "y", span="s") == WithFactory([5], "y")
+    assert WithFactory([5], "y").items == [5, 1]               # __post_init__ ran
+    with pytest.raises(TypeError):
+        WithFactory([], "y", "positional span")                # kw_only
+    with pytest.raises(TypeError):
+        Frozen()                                               # a required field missing
+
+
+def test_field_order_is_checked_at_definition():
+    with pytest.raises(TypeError, match="non-default argument 'b'"):
+        @record
+        class Bad:
+            a: int = 0
+            b: int
+
+
+@record(frozen=True)
+class OwnMethods:
+    file: str
+    line: int
+
+    def __eq__(self, other):
+        return isinstance(other, OwnMethods) and self.line == other.line
+
+    def __repr__(self):
+        return f"at {self.line}"
+
+
+def test_methods_the_class_defines_are_kept():
+    assert OwnMethods("a", 1) == OwnMethods("b", 1)
+    assert repr(OwnMethods("a", 1)) == "at 1"
+    assert hash(OwnMethods("a", 1)) == hash(("a", 1))          # the record's hash

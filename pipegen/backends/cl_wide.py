@@ -48,9 +48,9 @@ scalar interpolation, calls ``pg_fragment_w`` and blends lane by lane, in pixel 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
 from typing import Optional
 
+from ..records import record
 from .. import ir
 from ..builtins import BIT_CAST_BUILTINS
 from ..ir import Scalar, Type
@@ -92,7 +92,7 @@ class _RetMode(Exception):
     """A return under a varying condition: render the function with a return mask."""
 
 
-@dataclass
+@record
 class Val:
     comps: list            # C expressions, one per component (a matrix: one, the matrix)
     type: Type

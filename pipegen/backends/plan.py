@@ -16,9 +16,10 @@ The second half of this module holds the IR queries every code generator needs p
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from typing import Any, Mapping, Optional, Union
 
+from ..records import record
 from .. import formats as F
 from .. import ir
 # the code queries, here for the emitters (they live in the backend-neutral core)
@@ -29,13 +30,13 @@ from ..codefacts import (CodeFacts, code_exprs, code_facts, may_discard,  # noqa
 # ---- the typed plan ------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class LightTablePlan:
     capacity: int
     fields: tuple[tuple[str, str], ...]      # (name, type) in table-column order
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class TargetPlan:
     name: str
     format: F.Format
@@ -48,7 +49,7 @@ class TargetPlan:
         return self.size.resolve(out_w, out_h)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class GLPassCode:
     """GLSL of one pass: ``fragment`` is None for depth/stencil-only passes."""
     vertex: str
@@ -56,7 +57,7 @@ class GLPassCode:
     attributes: tuple[str, ...] = ()
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class CLPassCode:
     """OpenCL C of one pass: ``kernel`` the whole program; ``fragment`` the fragment function
     alone (None: no body) with the stage ``inputs`` it reads, whether it may ``discard`` and
@@ -71,7 +72,7 @@ class CLPassCode:
 PassCode = Union[GLPassCode, CLPassCode, None]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class PassPlan:
     name: str
     draw: ir.Draw
@@ -95,7 +96,7 @@ class PassPlan:
         return self.state.cull is ir.CullMode.AUTO
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Plan:
     technique: str
     title: str

@@ -10,9 +10,9 @@ compiler core never imports moderngl or pyopencl (``pipegen compile`` works on a
 from __future__ import annotations
 
 import importlib
-from dataclasses import dataclass
 from typing import Callable
 
+from ..records import record
 from .plan import CLPassCode, GLPassCode, PassPlan, Plan
 
 
@@ -26,7 +26,7 @@ def _cl_files(stem: str, p: PassPlan) -> dict[str, str]:
     return {f"{stem}.cl": p.code.kernel}
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Backend:
     name: str                     # as the command line and ``Compiled.plan`` spell it
     title: str                    # as reports and tables print it

@@ -4,20 +4,21 @@ declarations of the technique and its included files by kind, number the repeat 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Optional
 
+from ..records import record
 from .. import ast, sources, syntax
 from .names import Loader, _err
 
-@dataclass
+@record
 class _PassItem:
     decl: ast.PassDecl
     group: Optional[int]          # repeat group from a `repeat per light { … }` block
     block_types: tuple = ()       # the block's light types (`repeat per light spot { … }`)
 
 
-@dataclass
+@record
 class _Decls:
     technique: Optional[ast.TechniqueDecl] = None
     params: list[ast.ParamDecl] = field(default_factory=list)

@@ -5,9 +5,10 @@ runs (``_Context``) and its locals (``_Local``), reserved names and shader types
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Callable, Iterable, Optional
 
+from ..records import record
 from .. import ast, ir
 from ..builtins import BUILTINS, STAGE_INPUTS, TARGET_FUNCTIONS, TYPE_NAMES
 from ..diagnostics import PipegenError, Span
@@ -37,13 +38,13 @@ def _listing(names: Iterable[str]) -> str:
     return ", ".join(names) if names else "(none)"
 
 
-@dataclass
+@record
 class _Global:
     kind: str                     # "parameter", "target", "packing", "function"
     span: Span
 
 
-@dataclass
+@record
 class _Signature:
     name: str
     params: list[tuple[str, ir.Type]]
@@ -52,7 +53,7 @@ class _Signature:
     pack: Optional[str] = None    # the packing that generated it
 
 
-@dataclass
+@record
 class _Uses:
     """What a body needs from the pass that runs it (functions record, passes check)."""
 
@@ -127,7 +128,7 @@ def _shader_type(name: ast.Name, allow_void: bool = False) -> ir.Type:
     return t
 
 
-@dataclass
+@record
 class _Context:
     """Where a body runs.  A pass body checks its needs on the spot; a function body records
     them (``_Uses``) and every pass that calls it checks them at the call."""
@@ -162,7 +163,7 @@ class _Context:
         return f"pass '{self.pass_name}' ({kind})"
 
 
-@dataclass
+@record
 class _Local:
     type: ir.Type
     span: Span
