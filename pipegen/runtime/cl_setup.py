@@ -193,18 +193,21 @@ class _Edges:
 
     def __init__(self, xw, yw, area):
         f32 = np.float32
-        self.swap = np.asarray(area) > 0
-        sw = self.swap
-        x0, x1 = np.where(sw, xw[1], xw[0]), np.where(sw, xw[0], xw[1])
-        y0, y1 = np.where(sw, yw[1], yw[0]), np.where(sw, yw[0], yw[1])
+        self.swap = sw = np.asarray(area) > 0
+        # (in place where a temporary would do: fewer fresh arrays, the same operations)
+        x0, x1, y0, y1 = (np.array(r, f32) for r in (xw[0], xw[1], yw[0], yw[1]))
+        for dst, other in ((x0, xw[1]), (x1, xw[0]), (y0, yw[1]), (y1, yw[0])):
+            np.copyto(dst, other, where=sw)
         x2, y2 = xw[2], yw[2]
         self.x0, self.y0 = x0, y0
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-            self.dx01, self.dy01 = x0 - x1, y0 - y1
+            self.dx01, self.dy01 = np.subtract(x0, x1, out=x1), np.subtract(y0, y1, out=y1)
             self.dx20, self.dy20 = x2 - x0, y2 - y0
-            self.ooa = f32(1.0) / (self.dx01 * self.dy20 - self.dy01 * self.dx20)
-            self.dx01o, self.dy01o = self.dx01 * self.ooa, self.dy01 * self.ooa
-            self.dx20o, self.dy20o = self.dx20 * self.ooa, self.dy20 * self.ooa
+            ooa = self.dx01 * self.dy20
+            ooa -= self.dy01 * self.dx20
+            self.ooa = np.divide(f32(1.0), ooa, out=ooa)
+            self.dx01o, self.dy01o = self.dx01 * ooa, self.dy01 * ooa
+            self.dx20o, self.dy20o = self.dx20 * ooa, self.dy20 * ooa
 
     def order(self, v):
         """(3, n, ...) per-vertex values -> (v0, v1, v2) in llvmpipe's order."""
@@ -506,21 +509,27 @@ def _clip_polygons_few(P, A, n, mask):
     return V[..., :4], V[..., 4:], ns, src_out
 
 
-def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False,
-                   cols: Optional[np.ndarray] = None):
+def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False):
     """Clip (T*3, 4) clip-space vertices like llvmpipe's draw module (float32, viewport x/y
     planes, near/far unless ``depth_clamp``).  Returns (clip (V', 4) float32, vary (S, V', 4),
     tri (N, 3) vertex indices, parent (N,) input triangle of each output triangle); vertices
     from index len(clip) on were made by the clipper.  A clipped polygon p0..pn-1 is emitted as the
     fan (p[i-1], p[i], p0), i = 2..n-1 (draw's emit_poly with the last vertex provoking), in
-    the submission slot of its triangle.  ``cols``: ``clip`` transposed, (4, 3T), if the
-    caller has it."""
+    the submission slot of its triangle."""
+    clip_v, vary_v, vid, parent = _clip_triangles(clip, vary, depth_clamp)
+    return clip_v, vary_v, np.ascontiguousarray(vid.T), parent
+
+
+def _clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool,
+                    cols: Optional[np.ndarray] = None):
+    """``clip_triangles`` with the vertex indices as (3, N) rows (vertex k of every triangle
+    in row k); ``cols``: ``clip`` transposed, (4, V), if the caller has it."""
     clip = np.asarray(clip, np.float32)
     T = len(clip) // 3
     if T == 0:
-        return clip, vary, np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+        return clip, vary, np.zeros((3, 0), np.int64), np.zeros(0, np.int64)
     cols = np.ascontiguousarray(clip[:T * 3].T) if cols is None else cols[:, :T * 3]
-    corner = np.arange(3, dtype=np.int64)
+    corner = np.arange(3, dtype=np.int64)[:, None]
     # the clip mask of the vertices of triangles with a vertex outside some plane (the
     # others have none: all inside, kept as they are)
     out = _outside(cols, depth_clamp).reshape(T, 3)
@@ -530,20 +539,20 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
     union = np.zeros(T, np.uint8)
     crosses = np.zeros(T, bool)
     if len(cand):
-        vm = _clip_mask(None, depth_clamp, cols[:, (cand[:, None] * 3 + corner).reshape(-1)])
+        vm = _clip_mask(None, depth_clamp, cols[:, (cand * 3 + corner).T.reshape(-1)])
         vm = vm.reshape(-1, 3)
         union[cand] = vm[:, 0] | vm[:, 1] | vm[:, 2]
         crosses[cand] = (vm[:, 0] & vm[:, 1] & vm[:, 2]) == 0
     if not crosses.any():
         idx = np.flatnonzero(keep)
-        return clip, vary, idx[:, None] * 3 + corner, idx
-    tri = np.arange(T * 3, dtype=np.int64).reshape(T, 3)
+        return clip, vary, idx * 3 + corner, idx
     S = 0 if vary is None else vary.shape[0]
     ct = np.flatnonzero(crosses)
     M = len(ct)
-    P = clip[tri[ct]].copy()                                   # (M, 3, 4)
+    tri_ct = ct[:, None] * 3 + corner.T                        # (M, 3) their vertices
+    P = clip[tri_ct]                                           # (M, 3, 4)
     if S:
-        A = np.transpose(np.asarray(vary, np.float32)[:, tri[ct]], (1, 2, 0, 3))
+        A = np.transpose(np.asarray(vary, np.float32)[:, tri_ct], (1, 2, 0, 3))
         A = A.reshape(M, 3, S * 4)
     else:
         A = np.zeros((M, 3, 0), np.float32)
@@ -556,27 +565,26 @@ def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bo
     made = valid & (src < 0)
     new_id = np.full((M, K), -1, np.int64)
     new_id[made] = len(clip) + np.arange(int(made.sum()))
-    orig_id = np.take_along_axis(tri[ct], np.maximum(src, 0), 1)
-    vid = np.where(src >= 0, orig_id, new_id)
+    orig_id = np.take_along_axis(tri_ct, np.maximum(src, 0), 1)
+    pvid = np.where(src >= 0, orig_id, new_id)
     # fans (p[i-1], p[i], p0)
     nf = np.maximum(n - 2, 0)
     par = np.repeat(np.arange(M), nf)
     i = np.arange(int(nf.sum())) - np.repeat(np.cumsum(nf) - nf, nf) + 2
-    fan = np.stack([vid[par, i - 1], vid[par, i], vid[par, 0]], axis=1)
     # submission order: each input triangle's output (itself, or its fan) in its slot, placed
     # directly (what a stable sort of the outputs by parent gives)
     per = keep.astype(np.int64)
     per[ct] = nf
     parent = np.repeat(np.arange(T, dtype=np.int64), per)
-    all_tri = parent[:, None] * 3 + corner          # right for the kept ones
-    start = np.cumsum(per) - per
-    all_tri[start[ct[par]] + (i - 2)] = fan
+    vid = parent * 3 + corner                       # right for the kept ones
+    at = (np.cumsum(per) - per)[ct[par]] + (i - 2)
+    vid[0, at], vid[1, at], vid[2, at] = pvid[par, i - 1], pvid[par, i], pvid[par, 0]
     clip_out = np.concatenate([clip, P[made]])
     vary_out = vary
     if S:
         extra = np.transpose(A[made].reshape(-1, S, 4), (1, 0, 2))
         vary_out = np.concatenate([np.asarray(vary, np.float32), extra], axis=1)
-    return clip_out, vary_out, all_tri, parent
+    return clip_out, vary_out, vid, parent
 
 
 def _window_rows(clip: np.ndarray, width: int, height: int, n_orig: int,
@@ -649,6 +657,12 @@ def _exact_z_planes(xw, yw, zw, offset, a0_ms, with_zp: bool, with_zq: bool):
     return tri_zp, tri_zq
 
 
+def _snap(v: np.ndarray) -> np.ndarray:
+    """Window coordinates to 1/SUBPIXEL units: ``rint(v * SUBPIXEL)`` in float64 (exact)."""
+    t = np.multiply(v, SUBPIXEL, dtype=np.float64)
+    return np.rint(t, out=t).astype(np.int64)
+
+
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "none",
                     polygon_offset=None, depth_clamp: bool = False,
                     depth_format: Optional[str] = None, flat: Optional[np.ndarray] = None,
@@ -676,7 +690,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     clip = np.asarray(clip, f32)
     n_orig = len(clip)
     cols = np.ascontiguousarray(clip.T)                 # (4, V): x, y, z, w rows
-    clip_v, vary_v, tri, parent = clip_triangles(clip, vary, depth_clamp, cols)
+    clip_v, vary_v, vid, parent = _clip_triangles(clip, vary, depth_clamp, cols)
     if len(clip_v) > n_orig:                            # the clipper's new vertices
         cols = np.concatenate([cols, clip_v[n_orig:].T], axis=1)
     W, H = int(width), int(height)
@@ -689,7 +703,6 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     # elementwise, so computing a value per triangle corner instead of per vertex, or for a
     # subset, gives the same bits.  (np.take: fancy indexing along axis 1 is several times
     # slower.)
-    vid = np.ascontiguousarray(tri.T)                                # (3, N) vertex indices
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         oow = f32(1.0) / cols[3]
         xy = np.empty((2, len(oow)), f32)
@@ -698,8 +711,7 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
             xy[k, :n_orig] = fma32(p[:n_orig], scale[k], trans[k])
             xy[k, n_orig:] = p[n_orig:] * scale[k] + trans[k]
     xw, yw = np.take(xy, vid, axis=1)
-    X = np.rint(xw.astype(np.float64) * SUBPIXEL).astype(np.int64)
-    Y = np.rint(yw.astype(np.float64) * SUBPIXEL).astype(np.int64)
+    X, Y = (_snap(r) for r in (xw, yw))
     area = (X[1] - X[0]) * (Y[2] - Y[0]) - (X[2] - X[0]) * (Y[1] - Y[0])
     keep = area != 0
     if cull == "back":
