@@ -195,9 +195,8 @@ class _Edges:
         f32 = np.float32
         self.swap = sw = np.asarray(area) > 0
         # (in place where a temporary would do: fewer fresh arrays, the same operations)
-        x0, x1, y0, y1 = (np.array(r, f32) for r in (xw[0], xw[1], yw[0], yw[1]))
-        for dst, other in ((x0, xw[1]), (x1, xw[0]), (y0, yw[1]), (y1, yw[0])):
-            np.copyto(dst, other, where=sw)
+        x0, x1 = np.where(sw, xw[1], xw[0]), np.where(sw, xw[0], xw[1])
+        y0, y1 = np.where(sw, yw[1], yw[0]), np.where(sw, yw[0], yw[1])
         x2, y2 = xw[2], yw[2]
         self.x0, self.y0 = x0, y0
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
@@ -793,13 +792,10 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
         # channels (the same elementwise arithmetic as _Edges.planes, several times faster)
         attrs = np.empty((1 + 4 * K, 3, n), f32)
         iwl = attrs[0]
-        iwl[:] = iw
-        np.copyto(iwl[0], iw[1], where=sw)
-        np.copyto(iwl[1], iw[0], where=sw)
+        iwl[0], iwl[1], iwl[2] = np.where(sw, iw[1], iw[0]), np.where(sw, iw[0], iw[1]), iw[2]
         if smooth:
-            vidl = vid.copy()
-            np.copyto(vidl[0], vid[1], where=sw)
-            np.copyto(vidl[1], vid[0], where=sw)
+            vidl = np.stack([np.where(sw, vid[1], vid[0]), np.where(sw, vid[0], vid[1]),
+                             vid[2]])
             vary32 = np.asarray(vary_v, np.float32)
             with np.errstate(invalid="ignore", over="ignore", under="ignore"):
                 for j, slot in enumerate(smooth):
