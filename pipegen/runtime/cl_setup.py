@@ -146,7 +146,47 @@ def fma32(a, b, c) -> np.ndarray:
                 out.reshape(-1)[idx] = _fma32_general(
                     a.reshape(-1)[idx], b.reshape(()), _flat_at(c, shape, idx))
             return out
+        window = _exact_exponents(bv, float(c.reshape(-1)[0])) if c.size == 1 else None
+        if window is not None:
+            # the viewport transform's case: the float64 sum is exact for every a whose
+            # exponent lies in the window, and then its float32 rounding is the fma
+            elo, ehi = window
+            with np.errstate(invalid="ignore", over="ignore"):
+                s = np.multiply(a, b, dtype=np.float64)
+                s += c
+                out = s.astype(np.float32)
+            u = np.bitwise_and(a.reshape(-1).view(np.uint32), np.uint32(0x7F800000))
+            u -= np.uint32(elo << 23)                  # below the window: wraps around
+            bad = u > np.uint32((ehi - elo) << 23)
+            if bad.any():
+                idx = np.flatnonzero(bad)
+                out.reshape(-1)[idx] = _fma32_general(a.reshape(-1)[idx], b.reshape(()),
+                                                      c.reshape(()))
+            return out
     return _fma32_general(a, b, c)
+
+
+def _exact_exponents(b: float, c: float) -> Optional[tuple]:
+    """The biased float32 exponents [lo, hi] of the a for which the float64 ``a * b + c``
+    (float32 a, b, c; a normal) is exact, or None when that window is too narrow to be worth
+    testing.  The product is exact (48 bits); the sum is when all its bits fit in 53: with
+    e() the exponent and l() the lowest set bit, the sum stays below 2^(e(c) + 3) when
+    e(a) <= e(c) - e(b), and its lowest bit is at least min(l(a) + l(b), l(c)), l(a) >=
+    e(a) - 23; so e(a) >= e(c) - 27 - l(b) suffices (l(c) >= e(c) - 23 always)."""
+    def exps(v):                     # (exponent, lowest set bit) of a normal float32
+        bits = int(np.float32(v).view(np.uint32)) & 0x7FFFFFFF
+        e = (bits >> 23) - 127
+        if not 1 <= bits >> 23 <= 254:
+            return None
+        mant = (bits & 0x7FFFFF) | 0x800000
+        return e, e - 23 + ((mant & -mant).bit_length() - 1)
+    eb, ec = exps(b), exps(c)
+    if eb is None or ec is None:
+        return None
+    hi = ec[0] - eb[0]
+    lo = ec[0] - 27 - eb[1]
+    lo, hi = max(lo + 127, 1), min(hi + 127, 254)
+    return (lo, hi) if hi - lo >= 4 else None
 
 
 def _fma32_general(a, b, c) -> np.ndarray:
