@@ -381,10 +381,10 @@ _PLANE_AXIS = (0, 0, 1, 1, 2, 2)
 _PLANE_SIGN = (-1, 1, -1, 1, 1, -1)
 
 
-def _clip_mask(clip: np.ndarray, depth_clamp: bool, cols: Optional[np.ndarray] = None
-               ) -> np.ndarray:
-    """Per-vertex outside bits (uint8) as draw's LLVM vertex path tests them (float32).
-    ``cols``: ``clip`` transposed, (4, V), if the caller has it."""
+def _clip_mask(clip: Optional[np.ndarray], depth_clamp: bool,
+               cols: Optional[np.ndarray] = None) -> np.ndarray:
+    """Per-vertex outside bits (uint8) as draw's LLVM vertex path tests them (float32), of
+    ``clip`` (V, 4) or, given instead, its transpose ``cols`` (4, V)."""
     x, y, z, w = np.ascontiguousarray(np.asarray(clip, np.float32).T) if cols is None else cols
     zero = np.float32(0.0)
     m = np.greater(x, w).view(np.uint8)
@@ -855,9 +855,10 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     # zq: dz/dy, the polygon offset, and a0 with pixel centre 0 (multisampling; read by the
     # raster kernel only when PG_SAMPLES > 1)
     tri_zp, tri_zq = _exact_z_planes(xw, yw, zw, offset, a0_ms, with_zp, with_zq)
-    tri_flat = np.zeros((n, 4), np.uint32)
     if flat is not None:
-        tri_flat[:] = np.take(np.asarray(flat, np.uint32), parent, axis=0)
+        tri_flat = np.take(np.asarray(flat, np.uint32), parent, axis=0)
+    else:
+        tri_flat = np.zeros((n, 4), np.uint32)
     tri_flat[:, 0] = area > 0
     tri_vtx = np.zeros((n, 4), np.int32)
     tri_vtx[:, :3] = vid.T
