@@ -36,20 +36,24 @@ def _children(node) -> Iterator[tuple[str, object]]:
 
 
 def rewrite_expr(e: Optional[ir.Expr], fn: ExprFn) -> Optional[ir.Expr]:
+    # the compiler's hottest loop (every pass rewrites every expression): fields read
+    # directly, no generator
     if e is None:
         return None
-    changes = {}
-    for name, value in _children(e):
-        if is_expr(value):
+    changes = None
+    for name in _field_names(type(e)):
+        value = getattr(e, name)
+        if isinstance(value, _EXPR_TYPES):
             new = rewrite_expr(value, fn)
             if new is not value:
+                changes = changes or {}
                 changes[name] = new
-        elif isinstance(value, tuple) and value and all(is_expr(v) for v in value):
-            new_t = tuple(rewrite_expr(v, fn) for v in value)
+        elif isinstance(value, tuple) and value and all(isinstance(v, _EXPR_TYPES) for v in value):
+            new_t = tuple([rewrite_expr(v, fn) for v in value])
             if any(a is not b for a, b in zip(new_t, value)):
+                changes = changes or {}
                 changes[name] = new_t
-    node = dataclasses.replace(e, **changes) if changes else e
-    return fn(node)
+    return fn(dataclasses.replace(e, **changes) if changes else e)
 
 
 def rewrite_stmts(stmts: Iterable[ir.Stmt], expr_fn: ExprFn,
@@ -69,18 +73,23 @@ def rewrite_stmts(stmts: Iterable[ir.Stmt], expr_fn: ExprFn,
 
 def _rewrite_stmt(s: ir.Stmt, expr_fn: ExprFn, stmt_fn: Optional[StmtFn]) -> ir.Stmt:
     changes = {}
-    for name, value in _children(s):
-        if is_expr(value):
+    for name in _field_names(type(s)):
+        value = getattr(s, name)
+        if isinstance(value, _EXPR_TYPES):
             changes[name] = rewrite_expr(value, expr_fn)
-        elif isinstance(value, tuple) and value and not all(is_expr(v) for v in value) \
-                and all(_is_stmt(v) for v in value):
+        elif isinstance(value, tuple) and value \
+                and not all(isinstance(v, _EXPR_TYPES) for v in value) \
+                and all(isinstance(v, _STMT_TYPES) for v in value):
             changes[name] = rewrite_stmts(value, expr_fn, stmt_fn)
     return dataclasses.replace(s, **changes) if changes else s
 
 
+_STMT_TYPES = (ir.Declare, ir.Assign, ir.Output, ir.If, ir.For, ir.Break, ir.Continue, ir.Return,
+               ir.Discard, ir.ExprStmt)
+
+
 def _is_stmt(x: object) -> bool:
-    return isinstance(x, (ir.Declare, ir.Assign, ir.Output, ir.If, ir.For, ir.Break,
-                          ir.Continue, ir.Return, ir.Discard, ir.ExprStmt))
+    return isinstance(x, _STMT_TYPES)
 
 
 def walk_exprs(stmts: Iterable[ir.Stmt]) -> Iterator[ir.Expr]:
@@ -99,12 +108,13 @@ def walk_exprs(stmts: Iterable[ir.Stmt]) -> Iterator[ir.Expr]:
 
 def _walk_expr(e: ir.Expr) -> Iterator[ir.Expr]:
     yield e
-    for _, value in _children(e):
-        if is_expr(value):
+    for name in _field_names(type(e)):
+        value = getattr(e, name)
+        if isinstance(value, _EXPR_TYPES):
             yield from _walk_expr(value)
         elif isinstance(value, tuple):
             for v in value:
-                if is_expr(v):
+                if isinstance(v, _EXPR_TYPES):
                     yield from _walk_expr(v)
 
 
