@@ -728,10 +728,9 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
     f32 = np.float32
     clip = np.asarray(clip, f32)
     n_orig = len(clip)
-    cols = np.ascontiguousarray(clip.T)                 # (4, V): x, y, z, w rows
-    clip_v, vary_v, vid, parent = _clip_triangles(clip, vary, depth_clamp, cols)
-    if len(clip_v) > n_orig:                            # the clipper's new vertices
-        cols = np.concatenate([cols, clip_v[n_orig:].T], axis=1)
+    # x, y, z, w rows (strided views: a transposed copy costs more than it saves)
+    clip_v, vary_v, vid, parent = _clip_triangles(clip, vary, depth_clamp, clip.T)
+    cols = clip_v.T
     W, H = int(width), int(height)
     vx, vy, vw, vh = viewport if viewport is not None else (0, 0, W, H)
     scale = (f32(vw * 0.5), f32(vh * 0.5), f32(0.5))
