@@ -3,7 +3,7 @@
 Layout of the output folder:
     report.txt
     gl/<n>_<pass>.vert, gl/<n>_<pass>.frag, pipeline_gl.py
-    cl/<n>_<pass>.cl, pipeline_cl.py
+    cl/<n>_<pass>.cl, cl/prelude*.cl (what the pass programs ``#include``), pipeline_cl.py
     .pipegen-manifest.json (written by ``outdir.OutputDir``: what pipegen wrote there)
 """
 
@@ -25,6 +25,8 @@ def write_outputs(compiled, out: Path, backends: tuple[str, ...],
         backend = registry.get(name)
         plan = compiled.plan(name)
         (out / name).mkdir()
+        for file, text in backend.plan_files(plan).items():
+            (out / name / file).write_text(text)
         for i, p in enumerate(plan.passes, 1):
             for file, text in backend.pass_files(safe_name(f"{i:02d}_{p.name}"), p).items():
                 (out / name / file).write_text(text)

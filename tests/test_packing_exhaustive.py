@@ -827,7 +827,8 @@ def cl_unpack(tmp_path, technique, a, b, v):
     compile_file(ROOT / "pipelines" / f"{technique}.pipe").write(out_dir)
     source = next(p.read_text() for p in sorted((out_dir / "cl").glob("*.cl"))
                   if f"{a}(" in p.read_text() and f"{b}(" in p.read_text())
-    prog = build_program(source + CL_KERNEL % {"a": a, "b": b})
+    # the written program as it is: it includes the prelude file beside it
+    prog = build_program(source + CL_KERNEL % {"a": a, "b": b}, ("-I", str(out_dir / "cl")))
     ctx, queue = get_context()
     v = np.ascontiguousarray(v, F32)
     mf = cl.mem_flags

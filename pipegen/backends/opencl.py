@@ -865,6 +865,20 @@ def varying_slots(pass_: PassPlan) -> list[dict]:
     return out
 
 
+def prelude_file(precision: str = "f32", previous: bool = False) -> str:
+    """The file name ``pipegen compile`` writes a prelude to (``prelude_source``'s arguments;
+    the pass programs ``#include`` it, see ``CLPassCode.included``)."""
+    return "prelude" + ("_previous_frame" if previous else "") + \
+        ("" if precision == "f32" else f"_{precision}") + ".cl"
+
+
+def _pass_prelude(pass_: PassPlan, tile: int, precision: str) -> tuple[str, str]:
+    """(file name, text) of the prelude the program of ``pass_`` starts with."""
+    code = pass_.code if pass_.code is not None else CLPassCode("", None)
+    previous = bool(set(code.inputs) & set(PREVIOUS_FRAME_INPUTS))
+    return prelude_file(precision, previous), prelude_source(tile, precision, previous)
+
+
 def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int = TILE) -> str:
     """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument),
     in the plan's precision (``plan.precision``: "f32", or "f64" for the float64 evaluation:
@@ -899,7 +913,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     slots = {f: k for k, f in enumerate(fields)}
     # the previous frame's camera: in the frame struct of the programs that read it only
     # (the host's frame buffer always holds it, after the common fields)
-    prelude = prelude_source(tile, precision, previous=bool(inputs & set(PREVIOUS_FRAME_INPUTS)))
+    prelude = _pass_prelude(pass_, tile, precision)[1]
     samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
     varyings = varying_slots(pass_)
@@ -940,7 +954,9 @@ def emit_cl(tech: ir.Technique, precision: str = "f32") -> Plan:
     if precision != "f32":
         plan = replace(plan, precision=precision)
     return replace(plan, passes=tuple(
-        replace(p, code=replace(p.code, kernel=pass_program(plan, p))) for p in plan.passes))
+        replace(p, code=replace(p.code, kernel=pass_program(plan, p),
+                                prelude=_pass_prelude(p, TILE, plan.precision)))
+        for p in plan.passes))
 
 
 def emit_fragment(tech: ir.Technique, p: ir.Pass,

@@ -61,12 +61,30 @@ class GLPassCode:
 class CLPassCode:
     """OpenCL C of one pass: ``kernel`` the whole program; ``fragment`` the fragment function
     alone (None: no body) with the stage ``inputs`` it reads, whether it may ``discard`` and
-    the targets it ``sampled`` (bilinear) — enough to rebuild ``kernel`` with other options."""
+    the targets it ``sampled`` (bilinear) — enough to rebuild ``kernel`` with other options.
+    ``prelude``: (file name, text) of the prelude ``kernel`` contains, shared by the passes
+    of a plan: files and the plain-data spelling hold it once (``included``)."""
     kernel: str
     fragment: Optional[str]
     inputs: tuple[str, ...] = ()
     discard: bool = False
     sampled: tuple[str, ...] = ()
+    prelude: tuple[str, str] = ("", "")
+
+    @property
+    def included(self) -> str:
+        """``kernel`` with its prelude replaced by ``#include "<prelude file>"``."""
+        name, text = self.prelude
+        if not text or text not in self.kernel:
+            return self.kernel
+        return self.kernel.replace(text, f'#include "{name}"\n', 1)
+
+
+def cl_preludes(plan: Plan) -> dict[str, str]:
+    """{file name: text} of the preludes the plan's CL programs include."""
+    return {p.code.prelude[0]: p.code.prelude[1] for p in plan.passes
+            if isinstance(p.code, CLPassCode) and p.code.prelude[1]
+            and p.code.prelude[1] in p.code.kernel}
 
 
 PassCode = Union[GLPassCode, CLPassCode, None]
@@ -178,6 +196,9 @@ def plan_to_dict(plan: Plan) -> dict:
         "passes": [_pass_to_dict(p) for p in plan.passes],
         "light_sets": dict(plan.light_sets),
     }
+    preludes = cl_preludes(plan)
+    if preludes:         # the CL programs' shared preludes, once (``CLPassCode.included``)
+        out["cl_preludes"] = preludes
     if plan.scene is not None:
         f = plan.scene
         out["scene"] = {"light_types": list(f.light_types), "lights": f.lights,
@@ -226,7 +247,7 @@ def _pass_to_dict(p: PassPlan) -> dict:
         out["cl"] = {"fragment": p.code.fragment, "inputs": list(p.code.inputs),
                      "discard": p.code.discard, "sampled": list(p.code.sampled)}
         out["sampled"] = list(p.sampled)
-        out["kernel"] = p.code.kernel
+        out["kernel"] = p.code.included
     return out
 
 
@@ -275,7 +296,8 @@ def plan_from_dict(d: Union[Mapping, Plan]) -> Plan:
                               tuple((str(n), str(t)) for n, t in lights.get("fields") or [])),
         output=d.get("output", ""),
         targets=tuple(_target_from_dict(t) for t in d.get("targets") or []),
-        passes=tuple(_pass_from_dict(p) for p in d.get("passes") or []),
+        passes=tuple(_pass_from_dict(p, d.get("cl_preludes") or {})
+                     for p in d.get("passes") or []),
         light_sets={k: int(v) for k, v in (d.get("light_sets") or {}).items()},
         scene=_facts_from_dict(d.get("scene")),
         precision=str(d.get("precision") or "f32"))
@@ -313,13 +335,19 @@ def draw_from_dict(d: Optional[Mapping]) -> ir.Draw:
                    int(d.get("shadow_tiles") or 0))
 
 
-def _pass_from_dict(p: Mapping) -> PassPlan:
+def _pass_from_dict(p: Mapping, preludes: Mapping[str, str]) -> PassPlan:
     writes = tuple(p.get("writes") or ())
     code: PassCode = None
     if "kernel" in p or "cl" in p:
         cl = p.get("cl") or {}
-        code = CLPassCode(p.get("kernel") or "", cl.get("fragment"), tuple(cl.get("inputs") or ()),
-                          bool(cl.get("discard")), tuple(cl.get("sampled") or ()))
+        kernel, prelude = p.get("kernel") or "", ("", "")
+        for name, text in preludes.items():      # the include line ``included`` wrote
+            line = f'#include "{name}"\n'
+            if line in kernel:
+                kernel, prelude = kernel.replace(line, text, 1), (name, text)
+                break
+        code = CLPassCode(kernel, cl.get("fragment"), tuple(cl.get("inputs") or ()),
+                          bool(cl.get("discard")), tuple(cl.get("sampled") or ()), prelude)
     elif "vertex" in p:
         code = GLPassCode(p["vertex"], p.get("fragment") or None,
                           tuple(p.get("attributes") or ()))

@@ -13,7 +13,7 @@ import importlib
 from typing import Callable
 
 from ..records import record
-from .plan import CLPassCode, GLPassCode, PassPlan, Plan
+from .plan import CLPassCode, GLPassCode, PassPlan, Plan, cl_preludes
 
 
 def _gl_files(stem: str, p: PassPlan) -> dict[str, str]:
@@ -23,7 +23,11 @@ def _gl_files(stem: str, p: PassPlan) -> dict[str, str]:
 
 def _cl_files(stem: str, p: PassPlan) -> dict[str, str]:
     assert isinstance(p.code, CLPassCode)
-    return {f"{stem}.cl": p.code.kernel}
+    return {f"{stem}.cl": p.code.included}
+
+
+def _no_files(plan: Plan) -> dict[str, str]:
+    return {}
 
 
 @record(frozen=True)
@@ -35,6 +39,8 @@ class Backend:
     runtime: str                  # "module:class", ``(plan, size) -> pipeline``
     module_template: str          # the generated pipeline module (templates/)
     pass_files: Callable[[str, PassPlan], dict[str, str]]   # per pass: {file name: text}
+    # per plan, beside the pass files: {file name: text} (the CL preludes the passes include)
+    plan_files: Callable[[Plan], dict[str, str]] = _no_files
     # the arithmetic precisions its emitter and runtime offer: "f32" (what the backend runs),
     # "f64" (the float64 evaluation of the technique, docs/internals.md)
     precisions: tuple[str, ...] = ("f32",)
@@ -84,7 +90,7 @@ BACKENDS: dict[str, Backend] = {b.name: b for b in (
     Backend("cl", "CL (PoCL)", "the OpenCL software reference on PoCL's CPU device",
             "pipegen.backends.opencl:emit_cl",
             "pipegen.runtime.cl_pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files,
-            precisions=("f32", "f64")),
+            plan_files=cl_preludes, precisions=("f32", "f64")),
 )}
 
 
