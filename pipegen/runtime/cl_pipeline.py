@@ -46,20 +46,6 @@ draws cut them from the (triangle, tile) pairs of all their lights).  Raster ker
 queued without waiting (the host sets up the next pass meanwhile); target and blend-count
 buffers are reused from frame to frame (cleared as before).
 
-``defer_raster`` (on when ``cl_geometry.DrawGeometry.launches_pending`` is true, i.e. the
-set-up calls ``launch_pending()`` once it has read back its vertex kernels' results and before
-its host work): a pass's raster kernel is kept pending, not enqueued, until then, or until
-the next pass's clears, raster kernel or a read-back need the queue (``_clear_for_pass``,
-``render``).  PoCL's CPU device runs queued kernels one after the other, all work-groups of
-one before the next (measured: so even from a second queue), so the next pass's vertex kernel,
-and the host's blocking read of its clip positions, waited for the raster kernel queued
-before it, and the host's set-up of that pass could only start when the device had finished.
-Deferred, the vertex kernel runs first and the raster kernel runs during the set-up.  Only
-the vertex kernel moves ahead, and it reads no target and no buffer a raster kernel writes;
-clears, raster kernels and read-backs keep their order (a pass's clears now come after its
-set-up, which reads no target), so no result changes.  Off otherwise: without the call the
-raster kernel would wait for the whole next set-up.
-
 The float64 evaluation (a plan emitted with ``precision="f64"``, ``Compiled.pipeline("cl",
 precision="f64")``): the same schedule, coverage and primitive order, the technique's
 arithmetic in double and every target stored unquantised (``cl_targets``); ``render``
@@ -148,10 +134,6 @@ class CLPipeline:
         self._dummy = self._buffer(np.zeros(4, np.int32))
         self._zeros4 = self._buffer(np.zeros((1, 4), np.float32))
         self._events: list = []
-        self._pending = None       # a raster kernel not yet enqueued: (kernel, args, size, timing)
-        # keep a pass's raster kernel pending until the next pass's vertex kernel has run
-        # (the module docstring)
-        self.defer_raster = bool(getattr(DrawGeometry, "launches_pending", False))
         self._kernels: dict = {}
         self._int2s: dict = {}
         for k in range(len(plan.passes)):
@@ -165,7 +147,6 @@ class CLPipeline:
         self.geometry = None
         self._kernels = {}
         self._events = []
-        self._pending = None
         for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf"):
             if hasattr(self, name):
                 setattr(self, name, None)
@@ -278,15 +259,12 @@ class CLPipeline:
         self._frame_buf = self._buffer(self._frame_np)
         self._frame64_buf = self._buffer(self._frame64_np) if self.f64 else None
         captures: list[dict] = []
-        self._pending = None
         for k, light in draws.schedule(self.plan, self._selection):
             self._run_pass(k, light)
             if capture_passes:
-                self.launch_pending()
                 captures.append({"pass": self.plan.passes[k].name, "light": light,
                                  "targets": self.store.read_all(),
                                  "blend_counts": self.store.read_blend_counts()})
-        self.launch_pending()
         result = self.store.read_all()
         self.last_blend_counts = self.store.read_blend_counts()
         self.queue.finish()
@@ -315,7 +293,10 @@ class CLPipeline:
                                               if table.size else np.zeros((1, 4), np.float64))
 
     def _run_pass(self, k: int, light: Optional[int]) -> None:
+        import pyopencl as cl
         p = self.plan.passes[k]
+        for name, c in p.clears:
+            self.store.clear_for_pass(name, c)
         width, height = self._pass_size(p)
         timing = {"pass": p.name, "light": light}
         self.last_timings.append(timing)
@@ -323,14 +304,12 @@ class CLPipeline:
         if p.draw.kind is ir.DrawKind.LIGHTS:
             lights = self._selection.instance(p, light)
             if not lights:
-                self._clear_for_pass(p)
                 return
         frame_buf, frame64_buf, shadow = self._frame_buf, self._frame64_buf, None
         if p.draw.shadow:           # one light's tile, seen from the light
             shadow = self._shadow_view(p, light, width, height)
             frame_buf, frame64_buf = shadow.frame_buf, shadow.frame64_buf
         drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow)
-        self._clear_for_pass(p)      # launches the last pass's raster kernel if still pending
         if drawn is None:
             return
         geo, tb = drawn
@@ -365,30 +344,16 @@ class CLPipeline:
             if p.draw.kind is ir.DrawKind.SCENE:
                 attrs = self.geometry.attributes(p.draw)[1]
             args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
-        self._pending = (self._kernel(k, "pg_raster"), args, tb.ntiles * self.tile, timing)
-        if not self.defer_raster:
-            self.launch_pending()
+        kern = self._kernel(k, "pg_raster")
+        kern.set_args(*args)
+        T = self.tile
+        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
+        self._events.append((timing, ev))
         for name in p.attached:
             if self._targets[name].samples > 1:
                 self._targets[name].dirty = True
         timing["triangles"] = tb.triangles
         timing["tile_entries"] = tb.entries
-
-    def _clear_for_pass(self, p: PassPlan) -> None:
-        self.launch_pending()
-        for name, c in p.clears:
-            self.store.clear_for_pass(name, c)
-
-    def launch_pending(self) -> None:
-        """Enqueue the raster kernel ``_run_pass`` left pending (``defer_raster``), if any."""
-        pending, self._pending = self._pending, None
-        if pending is None:
-            return
-        import pyopencl as cl
-        kern, args, gsize, timing = pending
-        kern.set_args(*args)
-        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (gsize,), (self.tile,))
-        self._events.append((timing, ev))
 
     def _shadow_view(self, p: PassPlan, light: int, width: int, height: int) -> ShadowView:
         """A shadow-map draw of ``light``: its tile and the frame structs with the light's view
