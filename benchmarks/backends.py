@@ -27,42 +27,26 @@ over the lights of a repeat group, medians over ``--frames`` frames), largest fi
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
-from common import ROOT, TECHNIQUES, compile_spec, median_time, scene_at
+from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, median_time, pass_profile, scene_at,
+                    set_threads)
 
 
 def gl_profile(pipe, scene, frames: int = 3) -> dict:
     """Per-pass host set-up and draw time (ms) of a ``GLPipeline`` (``--profile``)."""
-    import statistics
-    import time
-    pipe.frame(scene)
-    walls, per_frame = [], []
-    for _ in range(frames):
+    def start():
         pipe.profile = []
-        t0 = time.perf_counter()
-        pipe.frame(scene)
-        walls.append((time.perf_counter() - t0) * 1e3)
-        passes: dict = {}
-        for name, _light, setup, draw in pipe.profile:
-            row = passes.setdefault(name, {"pass": name, "runs": 0, "setup": 0.0, "draw": 0.0})
-            row["runs"] += 1
-            row["setup"] += setup * 1e3
-            row["draw"] += draw * 1e3
-        per_frame.append(passes)
+
+    prof = pass_profile(lambda: pipe.frame(scene),
+                        lambda: ((name, {"setup": setup * 1e3, "draw": draw * 1e3})
+                                 for name, _light, setup, draw in pipe.profile),
+                        frames, ("setup", "draw"), before=start)
     pipe.profile = None
-    rows = []
-    for name in per_frame[0]:
-        row = dict(per_frame[0][name])
-        for k in ("setup", "draw"):
-            row[k] = statistics.median(f[name][k] for f in per_frame)
-        rows.append(row)
-    rows.sort(key=lambda r: -(r["setup"] + r["draw"]))
-    return {"wall": statistics.median(walls), "plain": median_time(lambda: pipe.frame(scene),
-                                                                   frames),
-            "passes": rows}
+    prof["passes"].sort(key=lambda r: -(r["setup"] + r["draw"]))
+    return {"wall": prof["wall"], "plain": median_time(lambda: pipe.frame(scene), frames),
+            "passes": prof["passes"]}
 
 
 def format_gl_profile(name: str, prof: dict) -> str:
@@ -109,7 +93,7 @@ def plot_profiles(profiles: list[tuple[str, dict]], path: str) -> None:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scene", default=str(ROOT / "examples/scenes/many_lights.toml"))
+    ap.add_argument("--scene", default=str(DEFAULT_SCENE))
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--threads", default="2")
@@ -118,8 +102,7 @@ def main() -> int:
     ap.add_argument("--png", default=None, help="with --profile: the GL profile as a bar chart")
     ap.add_argument("techniques", nargs="*", default=TECHNIQUES)
     args = ap.parse_args()
-    os.environ["LP_NUM_THREADS"] = args.threads
-    os.environ["POCL_MAX_PTHREAD_COUNT"] = args.threads
+    set_threads(args.threads)
 
     scene = scene_at(args.scene, args.size)
     w, h = scene.width, scene.height

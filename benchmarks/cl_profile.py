@@ -31,48 +31,25 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, interleaved,  # noqa: E402
+                    pass_profile, scene_at, set_threads)
+
 STAGES = ("vertex", "setup", "bin", "raster")
 
 
 def profile(pipe, scene, frames: int = 3) -> dict:
     """Median per-pass stage times (ms) and wall time of ``frames`` renders after a warm-up."""
-    pipe.render(scene)
-    walls, per_frame = [], []
-    for _ in range(frames):
-        t0 = time.perf_counter()
-        pipe.render(scene)
-        walls.append((time.perf_counter() - t0) * 1e3)
-        passes: dict = {}
-        for t in pipe.last_timings:
-            row = passes.setdefault(t["pass"], {"pass": t["pass"], "runs": 0, "triangles": 0,
-                                                "tile_entries": 0, **{s: 0.0 for s in STAGES}})
-            row["runs"] += 1
-            for s in STAGES:
-                row[s] += t.get(s, 0.0)
-            row["triangles"] += t.get("triangles", 0)
-            row["tile_entries"] += t.get("tile_entries", 0)
-        per_frame.append(passes)
-    rows = []
-    for name in per_frame[0]:
-        row = dict(per_frame[0][name])
-        for s in STAGES:
-            row[s] = statistics.median(f[name][s] for f in per_frame)
-        rows.append(row)
-    return {"wall": statistics.median(walls), "passes": rows}
+    return pass_profile(lambda: pipe.render(scene),
+                        lambda: ((t["pass"], t) for t in pipe.last_timings),
+                        frames, STAGES, counts=("triangles", "tile_entries"))
 
 
 def compare(gl, cl, scene, frames: int = 5) -> dict:
     """Interleaved GL/CL frames: median wall and CPU ms of each (see the module docstring)."""
-    gl.render(scene)
-    cl.render(scene)
-    out: dict = {"gl": [], "cl": [], "gl_cpu": [], "cl_cpu": []}
-    for _ in range(frames):
-        for name, pipe in (("gl", gl), ("cl", cl)):
-            c0, t0 = time.process_time(), time.perf_counter()
-            pipe.render(scene)
-            out[name].append((time.perf_counter() - t0) * 1e3)
-            out[name + "_cpu"].append((time.process_time() - c0) * 1e3)
-    return {k: statistics.median(v) for k, v in out.items()}
+    times = interleaved({"gl": lambda: gl.render(scene), "cl": lambda: cl.render(scene)},
+                        frames, alternate=False, cpu=time.process_time)
+    return {k: statistics.median(t * 1e3 for t in v) for k, v in times.items()}
 
 
 def format_profile(name: str, prof: dict) -> str:
@@ -104,13 +81,8 @@ def main() -> int:
                     help="GL vs CL with interleaved frames (wall and CPU time ratios)")
     ap.add_argument("techniques", nargs="*")
     args = ap.parse_args()
-    os.environ["LP_NUM_THREADS"] = args.threads
-    os.environ["POCL_MAX_PTHREAD_COUNT"] = args.threads
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from common import ROOT, compile_spec, scene_at
-
-    from common import TECHNIQUES
-    scene = scene_at(args.scene or str(ROOT / "examples/scenes/many_lights.toml"), args.size)
+    set_threads(args.threads)
+    scene = scene_at(args.scene or str(DEFAULT_SCENE), args.size)
     print(f"load: {os.getloadavg()[0]:.2f}; {scene.width}x{scene.height}, "
           f"{len(scene.objects)} objects, {len(scene.lights)} lights", file=sys.stderr)
     if args.compare:

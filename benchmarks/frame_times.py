@@ -14,13 +14,13 @@ import os
 import sys
 from pathlib import Path
 
-from common import ROOT, TECHNIQUES, compile_spec, median_time, scene_at
+from common import DEFAULT_SCENE, TECHNIQUES, compile_spec, median_time, scene_at
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scene", default=str(ROOT / "examples/scenes/many_lights.toml"))
+    ap.add_argument("--scene", default=str(DEFAULT_SCENE))
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("techniques", nargs="*", default=TECHNIQUES)

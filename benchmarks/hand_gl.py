@@ -44,12 +44,11 @@ import resource
 import statistics
 import subprocess
 import sys
-import time
 from collections import Counter
 
 import numpy as np
 
-from common import ROOT, compile_spec, scene_at
+from common import ROOT, compile_spec, interleaved, scene_at
 
 SCENES = {"many_lights": "examples/scenes/many_lights.toml", "small": "examples/scenes/small.toml"}
 SCENE_ATTRIBUTES = [("a_position", 3), ("a_normal", 3), ("a_albedo", 3), ("a_material", 3),
@@ -418,23 +417,13 @@ def compare(tech: str, scene_name: str, size: str, frames: int) -> dict:
     with counting_gl_calls() as c_hand:
         hand.frame()
     # 3. interleaved frame times, the order alternating (pipegen first on even frames)
-    pipe.frame(scene)
-    hand.frame()
-    times = {"pipe": [], "hand": []}
-    cpu = {"pipe": 0.0, "hand": 0.0}
-    for i in range(frames):
-        order = [("pipe", lambda: pipe.frame(scene)), ("hand", hand.frame)]
-        for who, fn in (order if i % 2 == 0 else order[::-1]):
-            c0 = _cpu()
-            t0 = time.perf_counter()
-            fn()
-            times[who].append(time.perf_counter() - t0)
-            cpu[who] += _cpu() - c0
+    times = interleaved({"pipe": lambda: pipe.frame(scene), "hand": hand.frame}, frames,
+                        cpu=_cpu)
     pipe.release()
     tp, th = times["pipe"], times["hand"]
     return {"tech": tech, "scene": scene_name, "size": size, "pipe_s": statistics.median(tp),
             "hand_s": statistics.median(th), "min_ratio": min(tp) / min(th),
-            "cpu_ratio": cpu["pipe"] / max(cpu["hand"], 1e-9),
+            "cpu_ratio": sum(times["pipe_cpu"]) / max(sum(times["hand_cpu"]), 1e-9),
             "pipe_calls": sum(c_pipe.values()),
             "hand_calls": sum(c_hand.values()), "pipe_top": c_pipe.most_common(6)}
 

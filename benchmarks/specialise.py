@@ -20,12 +20,11 @@ set to ``--threads`` before either runtime loads.
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import sys
 import time
 
-from common import ROOT, parse_spec, scene_at
+from common import ROOT, interleaved, parse_spec, scene_at, set_threads, timed
 
 SCENES = ["small", "mixed_lights", "translucent_layers", "many_lights"]
 
@@ -34,29 +33,14 @@ def shipped() -> list[str]:
     return sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
 
 
-def timed(fn) -> float:
-    t0 = time.perf_counter()
-    fn()
-    return time.perf_counter() - t0
-
-
 STAT = statistics.median
 
 
 def paired(a, b, frames: int) -> tuple[float, float]:
     """Times of ``a`` and ``b`` (``STAT`` of ``frames`` each), one warm-up each, then
     alternating in ABBA order (neither always runs first)."""
-    a()
-    b()
-    ta, tb = [], []
-    for k in range(frames):
-        if k % 2 == 0:
-            ta.append(timed(a))
-            tb.append(timed(b))
-        else:
-            tb.append(timed(b))
-            ta.append(timed(a))
-    return STAT(ta), STAT(tb)
+    t = interleaved({"a": a, "b": b}, frames)
+    return STAT(t["a"]), STAT(t["b"])
 
 
 def progress(items):
@@ -118,8 +102,7 @@ def main() -> int:
     args = ap.parse_args()
     global STAT
     STAT = min if args.stat == "min" else statistics.median
-    os.environ["LP_NUM_THREADS"] = args.threads
-    os.environ["POCL_MAX_PTHREAD_COUNT"] = args.threads
+    set_threads(args.threads)
     from pipegen.diagnostics import PipegenError
 
     techniques = args.techniques or shipped()
