@@ -283,6 +283,34 @@ class Format:
             return np.maximum(v, -1.0) if self.is_signed else v
         return c.astype(np.float64)
 
+    # -- clears (both runtimes normalise a clear value here) ------------------------------
+    def clear_channels(self, color=None) -> np.ndarray:
+        """A clear colour -> float64 values of this format's channels: None -> zeros, a scalar
+        -> every channel, a shorter sequence padded with zeros, a longer one cut."""
+        import numpy as np
+        col = np.zeros(4) if color is None else np.asarray(color, np.float64)
+        if col.ndim == 0:
+            col = np.full(4, float(col))
+        return np.concatenate([col, np.zeros(4)])[:4][:self.channels]
+
+    @staticmethod
+    def clear_depth(depth=None) -> np.float64:
+        """A clear depth -> the float64 depth value (None -> 0.0), not yet quantised."""
+        import numpy as np
+        return np.float64(depth if depth is not None else 0.0)
+
+    def clear_stencil(self, stencil=None) -> int:
+        """A clear stencil -> the stencil code (None -> 0, cut to ``stencil_bits``)."""
+        return int(stencil or 0) & ((1 << self.stencil_bits) - 1)
+
+    def clear_codes(self, color=None, depth=None) -> np.ndarray:
+        """The codes of one pixel cleared to ``color`` (colour formats: ``(channels,)`` in
+        ``dtype``; uint formats take the values' integer parts) or ``depth`` (depth formats: a
+        0-d array, d24s8's depth code alone: ``clear_stencil`` gives the stencil)."""
+        if self.has_depth:
+            return self.quantize(self.clear_depth(depth))
+        return self.quantize(self.clear_channels(color))
+
     def tolerance(self, blended_passes: int = 0) -> Tolerance:
         """Cross-backend tolerance for this format (DESIGN.md §7).
 

@@ -148,45 +148,28 @@ class TargetStore:
 
     def _fill(self, t: Target, buf, sbuf, n: int, color, depth, stencil, depth_given: bool,
               stencil_given: bool) -> None:
+        """Fill ``n`` pixels of ``buf`` (and of the stencil buffer ``sbuf``) with the clear
+        value, normalised by ``Format.clear_*`` as the GL runtime's clears are."""
         import pyopencl as cl
         fmt = t.fmt
-        if self._doubles(fmt):
-            if fmt.has_depth:
-                if depth_given:
-                    v = value_range(fmt, depth if depth is not None else 0.0)
-                    cl.enqueue_fill_buffer(self.queue, buf, np.float64(v), 0, n * 8)
-                if fmt.kind is F.Kind.DEPTH_STENCIL and stencil_given:
-                    s = np.uint8(int(stencil or 0) & 0xFF)
-                    cl.enqueue_fill_buffer(self.queue, sbuf, s, 0, n)
-                return
-            col = np.zeros(4) if color is None else np.asarray(color, np.float64)
-            if col.ndim == 0:
-                col = np.full(4, float(col))
-            col = np.concatenate([col, np.zeros(4)])[:4]
-            pattern = value_range(fmt, col[:fmt.channels]).astype(np.float64)
-            cl.enqueue_fill_buffer(self.queue, buf, pattern.view(np.uint8), 0, n * pattern.nbytes)
-            return
-        if fmt.kind is F.Kind.DEPTH_STENCIL:
+        if fmt.has_depth:
             if depth_given:
-                code = np.uint32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
-                cl.enqueue_fill_buffer(self.queue, buf, code, 0, n * 4)
-            if stencil_given:
-                s = np.uint8(int(stencil or 0) & 0xFF)
+                if self._doubles(fmt):
+                    v = np.float64(value_range(fmt, fmt.clear_depth(depth)))
+                elif fmt.kind is F.Kind.DEPTH_STENCIL:
+                    v = np.uint32(fmt.clear_codes(depth=depth))
+                else:
+                    v = np.float32(fmt.clear_codes(depth=depth))
+                cl.enqueue_fill_buffer(self.queue, buf, v, 0, n * v.nbytes)
+            if fmt.kind is F.Kind.DEPTH_STENCIL and stencil_given:
+                s = np.uint8(fmt.clear_stencil(stencil))
                 cl.enqueue_fill_buffer(self.queue, sbuf, s, 0, n)
             return
-        if fmt.kind is F.Kind.DEPTH:
-            if depth_given:
-                v = np.float32(fmt.quantize(np.float64(depth if depth is not None else 0.0)))
-                cl.enqueue_fill_buffer(self.queue, buf, v, 0, n * 4)
+        if self._doubles(fmt):
+            pattern = value_range(fmt, fmt.clear_channels(color)).astype(np.float64)
+            cl.enqueue_fill_buffer(self.queue, buf, pattern.view(np.uint8), 0, n * pattern.nbytes)
             return
-        col = np.zeros(4) if color is None else np.asarray(color, np.float64)
-        if col.ndim == 0:
-            col = np.full(4, float(col))
-        col = np.concatenate([col, np.zeros(4)])[:4]
-        if fmt.kind is F.Kind.UINT:
-            codes = col[:fmt.channels].astype(np.uint64).astype(fmt.dtype)
-        else:
-            codes = fmt.quantize(col[:fmt.channels])
+        codes = fmt.clear_codes(color)
         pixel = fmt.pack(np.asarray(codes).reshape(1, 1, -1) if fmt.channels > 1
                          else np.asarray(codes).reshape(1, 1))
         pattern = np.ascontiguousarray(pixel).view(np.uint8).reshape(-1)

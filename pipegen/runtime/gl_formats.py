@@ -23,7 +23,7 @@ are split with ``Format.unpack``; depth-stencil formats yield their packed words
 Arrays are in GL memory order here (row 0 = window y 0, the *bottom* row); ``GLPipeline``
 flips them into image order.  Single-channel formats give ``(H, W)``, others ``(H, W, C)``.
 
-Clears go through ``glClearTexImage`` with the codes from ``Format.quantize``: they are exact,
+Clears go through ``glClearTexImage`` with the codes from ``Format.clear_codes``: they are exact,
 identical to what the numpy oracle and the CL backend compute, and unaffected by scissor, masks
 or the bound framebuffer (unlike ``glClear``).
 """
@@ -176,23 +176,14 @@ def split_depth_stencil(packed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def clear_codes(name: str, color: Optional[Sequence[float]] = None,
                 depth: Optional[float] = None, stencil: Optional[int] = None) -> np.ndarray:
-    """The GL transfer word(s) of one pixel cleared to the given value(s) (None -> zero)."""
-    g = gl_format(name)
-    fmt = g.fmt
+    """The GL transfer word(s) of one pixel cleared to the given value(s) (None -> zero; the
+    values are normalised and quantised by ``Format.clear_codes``/``clear_stencil``)."""
+    fmt = gl_format(name).fmt
+    codes = fmt.clear_codes(color, depth)
     if fmt.kind is F.Kind.DEPTH_STENCIL:
-        d = fmt.quantize(np.float64(depth if depth is not None else 0.0))
-        return pack_depth_stencil(np.array([d]), np.array([stencil or 0]))
+        return pack_depth_stencil(np.array([codes]), np.array([fmt.clear_stencil(stencil)]))
     if fmt.kind is F.Kind.DEPTH:
-        return np.array([fmt.quantize(np.float64(depth if depth is not None else 0.0))],
-                        np.float32)
-    col = np.zeros(4) if color is None else np.asarray(color, dtype=np.float64)
-    if col.ndim == 0:
-        col = np.full(4, float(col))
-    col = np.concatenate([col, np.zeros(4 - len(col))])[:4] if len(col) < 4 else col[:4]
-    if fmt.kind is F.Kind.UINT:
-        codes = np.asarray(col[: fmt.channels]).astype(np.uint64).astype(fmt.dtype)
-    else:
-        codes = fmt.quantize(col[: fmt.channels])
+        return np.array([codes], np.float32)
     return np.atleast_1d(_pack_transfer(name, codes))
 
 
