@@ -3,7 +3,8 @@
 ``rewrite_expr(e, fn)`` rebuilds an expression bottom-up, calling ``fn`` on every node after its
 children were rewritten (``fn`` returns the node itself to keep it).  ``rewrite_stmts`` does the
 same over statement lists with an optional statement hook that may return a list (to delete or
-splice statements).  ``walk_*`` visit without rebuilding.
+splice statements).  ``walk_*`` visit without rebuilding; ``child_exprs`` lists one node's
+expressions, for walkers that treat some statements their own way.
 """
 
 from __future__ import annotations
@@ -108,14 +109,22 @@ def walk_exprs(stmts: Iterable[ir.Stmt]) -> Iterator[ir.Expr]:
 
 def _walk_expr(e: ir.Expr) -> Iterator[ir.Expr]:
     yield e
-    for name in _field_names(type(e)):
-        value = getattr(e, name)
+    for c in child_exprs(e):
+        yield from _walk_expr(c)
+
+
+def child_exprs(node) -> Iterator[ir.Expr]:
+    """The expressions ``node``'s own fields hold: an expression's operands, a statement's
+    expressions (not those of its nested statements).  Read from the fields, so a walker
+    built on it sees a field added to the IR."""
+    for name in _field_names(type(node)):
+        value = getattr(node, name)
         if isinstance(value, _EXPR_TYPES):
-            yield from _walk_expr(value)
+            yield value
         elif isinstance(value, tuple):
             for v in value:
                 if isinstance(v, _EXPR_TYPES):
-                    yield from _walk_expr(v)
+                    yield v
 
 
 def walk_stmts(stmts: Iterable[ir.Stmt]) -> Iterator[ir.Stmt]:

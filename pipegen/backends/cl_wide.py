@@ -47,6 +47,7 @@ scalar interpolation, calls ``pg_fragment_w`` and blends lane by lane, in pixel 
 
 from __future__ import annotations
 
+import functools
 import os
 from typing import Optional
 
@@ -54,6 +55,7 @@ from ..records import record
 from .. import ir
 from ..builtins import BIT_CAST_BUILTINS
 from ..ir import Scalar, Type
+from ..irwalk import child_exprs
 from . import plan as planlib
 from .cstyle import _max0, _positive_const
 
@@ -65,12 +67,8 @@ WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by p
 # False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
 # before/after benchmarks); the emitted text then is the scalar path's alone
 ENABLED = os.environ.get("PIPEGEN_CL_WIDE", "1") != "0"
-MARK = "/* pg_fragment_w */"
+MARK = "/* pg_fragment_w */"     # the first line of the wide function's text (has_wide)
 
-# stage inputs that differ per pixel (the others are uniform over a triangle: frame values,
-# the flat material inputs, object id, facing, the light)
-VARYING_INPUTS = {"frag_coord": 4, "world_pos": 3, "view_pos": 3, "normal": 3,
-                  "view_normal": 3}
 # library functions whose float8 forms may differ from their scalar forms: lane by lane
 _LANEWISE = {"sin", "cos", "tan", "atan", "atan2", "ceil", "rint", "step"}
 
@@ -78,6 +76,16 @@ _LANEWISE = {"sin", "cos", "tan", "atan", "atan2", "ceil", "rint", "step"}
 _STATE = ("varying_locals", "env", "fixed", "mask", "dyn", "loop_masks", "loops",
           "masked_loops", "retmode", "main", "ret_type", "ret_varying", "returned_varying",
           "ntmp", "pre", "final_ret_varying", "dirty")
+
+
+@functools.cache
+def varying_inputs() -> frozenset[str]:
+    """The stage inputs that differ per pixel, the fields of ``pgw_in`` (cl_pass.cl.j2):
+    ``frag_coord`` and the scene varyings opencl.py interpolates.  The others are uniform
+    over a triangle: frame values, object id, facing, the light, and the flat varyings
+    (the provoking vertex's material)."""
+    from .opencl import FLAT_VARYINGS, SCENE_VARYINGS    # opencl.py imports this module
+    return frozenset({"frag_coord", *(n for n in SCENE_VARYINGS if n not in FLAT_VARYINGS)})
 
 
 class Unsupported(Exception):
@@ -494,7 +502,7 @@ class WideEmitter:
 
     def _var(self, e: ir.Var) -> Val:
         if e.kind == "input":
-            if e.name in VARYING_INPUTS:
+            if e.name in varying_inputs():
                 return Val([f"win->{e.name}[{k}]" for k in range(e.type.size)], e.type, True)
             s = self.lang.render_input(e.name, e.type)
             if e.type.is_matrix or e.type.size == 1:
@@ -925,6 +933,13 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
         return None
 
 
+def has_wide(fragment: Optional[str]) -> bool:
+    """Whether a pass's fragment text (``CLPassCode.fragment``) holds ``pg_fragment_w``, so
+    its program needs the wide helpers and batching.  Read from the text, which is what
+    the program compiles: a plan's plain-data spelling, old ones included, carries it."""
+    return bool(fragment) and MARK in fragment
+
+
 def _lanes(n: int) -> str:
     args = ", ".join("abc"[:n])
     per = ", ".join("f(" + ", ".join(f"({x}).s{k}" for x in "abc"[:n]) + ")" for k in range(W))
@@ -1015,7 +1030,7 @@ def cost(body, functions: dict) -> int:
         n = 1
         if isinstance(e, ir.Call) and not e.builtin:
             n += fcost(e.name)
-        for sub in _children(e):
+        for sub in child_exprs(e):
             n += expr(sub)
         return n
 
@@ -1029,7 +1044,7 @@ def cost(body, functions: dict) -> int:
             elif isinstance(s, ir.If):
                 n += expr(s.cond) + stmts(s.then) + stmts(s.other)
             else:
-                for e in _stmt_exprs(s):
+                for e in child_exprs(s):
                     n += expr(e)
         return n
 
@@ -1052,26 +1067,6 @@ def _gathers(body, functions: dict, memo: dict) -> int:
                 memo[name] = _gathers(functions[name].body, functions, memo)
             n += memo[name]
     return n
-
-
-def _children(e) -> list:
-    out = []
-    for name in ("operand", "left", "right", "cond", "then", "other", "base", "index", "coord",
-                 "uv"):
-        v = getattr(e, name, None)
-        if v is not None and not isinstance(v, (str, tuple)):
-            out.append(v)
-    out += list(getattr(e, "args", ()) or ())
-    return out
-
-
-def _stmt_exprs(s) -> list:
-    out = []
-    for name in ("init", "target", "value", "expr"):
-        v = getattr(s, name, None)
-        if v is not None and not isinstance(v, str):
-            out.append(v)
-    return out
 
 
 def _truncate(table: dict, n: int) -> None:

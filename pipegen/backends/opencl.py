@@ -918,7 +918,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     sx, sy = sample_positions(samples)
     varyings = varying_slots(pass_)
     # the wide fragment function (cl_wide.py: PG_W pixels per call), when the emitter made one
-    wide = not f64 and bool(code.fragment) and cl_wide.MARK in code.fragment
+    wide = not f64 and cl_wide.has_wide(code.fragment)
     if f64:
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
