@@ -101,8 +101,35 @@ FRAME64_DTYPE = np.dtype([("view", "<f8", (16,)), ("proj", "<f8", (16,)),
 assert FRAME64_DTYPE.itemsize == 896
 
 
-def _colmajor(m: np.ndarray) -> np.ndarray:
-    return np.asarray(m, np.float64).astype(np.float32).T.reshape(16)
+def _put_matrices(fr: np.ndarray, f8: Optional[np.ndarray], **mats) -> None:
+    """Write 4x4 matrices (row-major as numpy holds them) into the frame structs: ``fr``
+    (``FRAME_DTYPE``) as float32, ``f8`` (``FRAME64_DTYPE``, or None without the float64
+    evaluation) as float64, both column-major as the prelude's ``mat4`` reads them."""
+    for name, m in mats.items():
+        m = np.asarray(m, np.float64)
+        fr[name] = m.astype(np.float32).T.reshape(16)
+        if f8 is not None:
+            f8[name] = m.T.reshape(16)
+
+
+def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
+                   output_size: tuple[int, int], num_lights: int, light: int,
+                   light_fields: int, f64: bool) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """The ``pg_frame`` struct of a camera, and its ``pg_frame64`` with ``f64`` (else None):
+    ``inv_view``/``inv_proj`` are the inverses of ``view``/``proj``, ``prev_*`` the previous
+    frame's camera."""
+    fr = np.zeros((), FRAME_DTYPE)
+    f8 = np.zeros((), FRAME64_DTYPE) if f64 else None
+    _put_matrices(fr, f8, view=view, proj=proj, inv_view=np.linalg.inv(view),
+                  inv_proj=np.linalg.inv(proj), prev_view=prev_view, prev_proj=prev_proj)
+    for s, t in ((fr, np.float32), (f8, np.float64)):
+        if s is None:
+            continue
+        s["camera_pos"][:3] = np.asarray(camera_pos, t)
+        s["ambient"][:3] = np.asarray(ambient, t)
+        s["output_size"][:2] = output_size
+        s["num_lights"], s["light"], s["light_fields"] = num_lights, light, light_fields
+    return fr, f8
 
 
 class CLPipeline:
@@ -212,37 +239,18 @@ class CLPipeline:
         return self.targets_spec[name].resolve(out_w, out_h)
 
     def _frame(self, scene, light: int = 0) -> np.ndarray:
+        """The frame's ``pg_frame`` struct; sets ``_frame64_np`` (its ``pg_frame64``) with the
+        float64 evaluation."""
         out_w, out_h = self._out
         cam = scene.camera
         view = cam.view_matrix()
         proj = cam.projection(out_w / out_h)
-        fr = np.zeros((), FRAME_DTYPE)
-        fr["view"] = _colmajor(view)
-        fr["proj"] = _colmajor(proj)
-        fr["inv_view"] = _colmajor(np.linalg.inv(view))
-        fr["inv_proj"] = _colmajor(np.linalg.inv(proj))
         prev = getattr(scene, "prev_camera", cam)
-        prev_view, prev_proj = prev.view_matrix(), prev.projection(out_w / out_h)
-        fr["prev_view"] = _colmajor(prev_view)
-        fr["prev_proj"] = _colmajor(prev_proj)
-        fr["camera_pos"][:3] = np.asarray(cam.position, np.float32)
-        fr["ambient"][:3] = np.asarray(scene.ambient, np.float32)
-        fr["output_size"][:2] = (out_w, out_h)
-        fr["num_lights"] = len(scene.lights)
+        fr, f8 = _frame_structs(view, proj, prev.view_matrix(), prev.projection(out_w / out_h),
+                                cam.position, scene.ambient, (out_w, out_h), len(scene.lights),
+                                light, len(self.plan.lights.fields), self.f64)
         self._view, self._proj = view, proj
-        fr["light"] = light
-        fr["light_fields"] = len(self.plan.lights.fields)
-        if self.f64:
-            f8 = np.zeros((), FRAME64_DTYPE)
-            for name, m in (("view", view), ("proj", proj), ("inv_view", np.linalg.inv(view)),
-                            ("inv_proj", np.linalg.inv(proj)), ("prev_view", prev_view),
-                            ("prev_proj", prev_proj)):
-                f8[name] = np.asarray(m, np.float64).T.reshape(16)
-            f8["camera_pos"][:3] = np.asarray(cam.position, np.float64)
-            f8["ambient"][:3] = np.asarray(scene.ambient, np.float64)
-            f8["output_size"][:2] = (out_w, out_h)
-            for name in ("num_lights", "light", "light_fields"):
-                f8[name] = fr[name]
+        if f8 is not None:
             self._frame64_np = f8
         return fr
 
@@ -362,12 +370,8 @@ class CLPipeline:
         are uploaded)."""
         rect, view, proj = draws.shadow_view(self._scene, light, p.draw, width, height)
         fr = self._frame_np.copy()
-        fr["view"], fr["proj"] = _colmajor(view), _colmajor(proj)
-        f8 = None
-        if self.f64:
-            f8 = self._frame64_np.copy()
-            f8["view"] = np.asarray(view, np.float64).T.reshape(16)
-            f8["proj"] = np.asarray(proj, np.float64).T.reshape(16)
+        f8 = self._frame64_np.copy() if self.f64 else None
+        _put_matrices(fr, f8, view=view, proj=proj)
         return ShadowView(int(light), tuple(int(v) for v in rect), self._buffer(fr),
                           None if f8 is None else self._buffer(f8))
 
