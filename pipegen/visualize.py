@@ -418,7 +418,7 @@ def _channel(codes: np.ndarray, c: int) -> np.ndarray:
 def _cleared_depth(codes, fmt: Format, clears) -> np.ndarray:
     mask = np.zeros(codes.shape[:2], bool)
     for d in clears or (1.0,):
-        mask |= codes == fmt.quantize(np.float64(d))
+        mask |= codes == fmt.clear_codes(depth=d)
     return mask
 
 
@@ -426,7 +426,7 @@ def _cleared(codes, fmt: Format, clears, channels) -> np.ndarray:
     """Pixels whose ``channels`` all hold one of the clear values."""
     mask = np.zeros(codes.shape[:2], bool)
     for color in clears or ((0.0,) * 4,):
-        q = np.atleast_1d(fmt.quantize(np.asarray(color[:fmt.channels], dtype=np.float64)))
+        q = fmt.clear_codes(color)
         m = np.ones(codes.shape[:2], bool)
         for c in channels:
             m &= _channel(codes, c) == q[c]
