@@ -406,36 +406,21 @@ def cmd_check(args) -> int:
 
 
 def cmd_specialise(args) -> int:
-    from .graph import human_bytes, target_memory
     compiled = _compile(args)
     scene = _scene(args)
     special = _specialise(args, compiled, scene)
     spec = special.specialisation
-    general = spec.general
     w, h = scene.width, scene.height
     found = special.mismatches(scene)
     if found and args.strict:
         raise mismatch_error(special, found, _scene_label(args))
-    before_p = [p.name for p in general.passes]
-    after_p = [p.name for p in special.technique.passes]
-    before_t = [t.name for t in general.targets]
-    after_t = [t.name for t in special.technique.targets]
-    before_m, after_m = target_memory(general, w, h), target_memory(special.technique, w, h)
     lines = [f"{compiled.name} on {_scene_label(args)} ({len(scene.objects)} objects, "
              f"{len(scene.lights)} lights)", "", "scene features",
              *[f"  {x}" for x in spec.features.describe()], "",
              "not rendered for this scene" + (" (--strict makes this an error)" if found else ""),
              *([f"  {m.message}" for m in found]
                or ["  nothing: the technique renders everything this scene has"]), "",
-             f"specialised for: {spec.facts.describe()}",
-             *([f"  {c.describe()}" for c in spec.cuts] or ["  nothing to cut"]),
-             *[f"  parameter {k} = {v}" for k, v in spec.params], "",
-             f"passes   before ({len(before_p)}): {', '.join(before_p)}",
-             f"         after  ({len(after_p)}): {', '.join(after_p)}",
-             f"targets  before ({len(before_t)}): {', '.join(before_t)}",
-             f"         after  ({len(after_t)}): {', '.join(after_t)}",
-             f"target memory at {w}x{h}: {human_bytes(before_m)} -> {human_bytes(after_m)} "
-             f"({human_bytes(before_m - after_m)} saved)"]
+             *spec.report(w, h)]
     print("\n".join(lines))
     if not args.verify:
         return 0

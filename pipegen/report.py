@@ -30,11 +30,10 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
             lines += [f"    {n}" for n in p.notes]
     spec = getattr(compiled, "specialisation", None)
     if spec is not None:
-        general = spec.general
-        saved = _memory(general, w, h) - _memory(tech, w, h)
+        before, after = spec.memory(w, h)
         lines += ["", "scene specialisation", *[f"  {x}" for x in spec.features.describe()],
                   *[f"  {x}" for x in spec.summary()],
-                  f"  target memory saved at {w}x{h}: {_mib(saved)}"]
+                  f"  target memory saved at {w}x{h}: {_mib(before - after)}"]
     return "\n".join(lines) + "\n"
 
 
@@ -45,11 +44,6 @@ def _error_bound(p: ir.Packing) -> str:
     if p.scheme == "split16":
         return f"{p.error:.4g} (max |unpack(pack(x)) - x|, measured)"
     return "0 (exact)" if p.error == 0 else f"{p.error:.4g}"
-
-
-def _memory(tech: ir.Technique, w: int, h: int) -> int:
-    return sum(t.size.resolve(w, h)[0] * t.size.resolve(w, h)[1] * t.format.bytes_per_pixel
-               * t.samples for t in tech.targets)
 
 
 def target_table(tech: ir.Technique, w: int, h: int) -> list[str]:

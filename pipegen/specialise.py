@@ -25,6 +25,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from . import ir
+from .graph import human_bytes, target_memory
 from .verify import verify as verify_ir
 from .features import SceneFeatures, scene_features
 from .passes import (cull_empty_draws, cull_unread, opt_fold_constants, opt_unused_functions,
@@ -46,22 +47,55 @@ class Specialisation:
     facts: ir.SceneFacts
     cuts: tuple[ir.Cut, ...]
     general: ir.Technique            # the technique before specialisation
+    special: ir.Technique            # the technique after specialisation
     params: tuple[tuple[str, object], ...]   # parameters the specialisation set
     reused: bool = False             # this variant came from the cache
 
-    def summary(self) -> list[str]:
-        """What was cut and why, and the passes and targets before and after."""
-        tech_passes = [p.name for p in self.general.passes]
-        culled_passes = {c.name for c in self.cuts if c.kind == "pass"}
-        culled_targets = {c.name for c in self.cuts if c.kind == "target"}
+    # The pieces below are what ``pipegen specialise`` (``report``) and the compile report
+    # (``summary``) say about a specialisation; both are built from them.
+
+    def pass_names(self) -> tuple[list[str], list[str]]:
+        """The pass names before and after specialisation."""
+        return [p.name for p in self.general.passes], [p.name for p in self.special.passes]
+
+    def target_names(self) -> tuple[list[str], list[str]]:
+        """The target names before and after specialisation."""
+        return ([t.name for t in self.general.targets],
+                [t.name for t in self.special.targets])
+
+    def memory(self, w: int, h: int) -> tuple[int, int]:
+        """Bytes of all targets at output size ``w`` x ``h``, before and after."""
+        return target_memory(self.general, w, h), target_memory(self.special, w, h)
+
+    def cut_lines(self, params: bool = False) -> list[str]:
+        """The facts specialised for, then each cut with its reason (and, with ``params``,
+        the parameters the specialisation set)."""
         lines = [f"specialised for: {self.facts.describe()}"]
         lines += [f"  {c.describe()}" for c in self.cuts] or ["  nothing to cut"]
-        kept = [n for n in tech_passes if n not in culled_passes]
-        lines.append(f"passes: {len(tech_passes)} -> {len(kept)} ({', '.join(kept)})")
-        targets = [t for t in self.general.targets if t.name not in culled_targets]
-        lines.append(f"targets: {len(self.general.targets)} -> {len(targets)} "
-                     f"({', '.join(t.name for t in targets)})")
+        if params:
+            lines += [f"  parameter {k} = {v}" for k, v in self.params]
         return lines
+
+    def summary(self) -> list[str]:
+        """What was cut and why, and the passes and targets before and after, compactly (the
+        compile report)."""
+        (before_p, after_p), (before_t, after_t) = self.pass_names(), self.target_names()
+        return [*self.cut_lines(),
+                f"passes: {len(before_p)} -> {len(after_p)} ({', '.join(after_p)})",
+                f"targets: {len(before_t)} -> {len(after_t)} ({', '.join(after_t)})"]
+
+    def report(self, w: int, h: int) -> list[str]:
+        """What was cut and why, the parameters set, the passes and targets before and after
+        in full and the target memory at ``w`` x ``h`` (``pipegen specialise``)."""
+        (before_p, after_p), (before_t, after_t) = self.pass_names(), self.target_names()
+        before_m, after_m = self.memory(w, h)
+        return [*self.cut_lines(params=True), "",
+                f"passes   before ({len(before_p)}): {', '.join(before_p)}",
+                f"         after  ({len(after_p)}): {', '.join(after_p)}",
+                f"targets  before ({len(before_t)}): {', '.join(before_t)}",
+                f"         after  ({len(after_t)}): {', '.join(after_t)}",
+                f"target memory at {w}x{h}: {human_bytes(before_m)} -> {human_bytes(after_m)} "
+                f"({human_bytes(before_m - after_m)} saved)"]
 
 
 _CACHE: dict = {}
@@ -105,7 +139,8 @@ def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
         phases.append(name)
         if verify_each:
             verify_ir(tech)
-    spec = Specialisation(features, facts, tech.cuts, general, tuple(set_params.items()))
+    spec = Specialisation(features, facts, tech.cuts, general, tech,
+                          tuple(set_params.items()))
     out = Compiled(tech, dict(base.params), phases, specialisation=spec)
     _CACHE[key] = out
     return out
