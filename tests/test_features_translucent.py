@@ -22,6 +22,8 @@ from pipegen import features
 from pipegen.compiler import compile_file, compile_source
 from pipegen.scene import load_scene, parse_scene
 
+from scenes_for_tests import WALL, plane, planes_scene
+
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUE = ROOT / "pipelines/lidr_transparent.pipe"
 FRONT = "depth dsi lequal nowrite clamp inside always\n  cull auto"
@@ -111,34 +113,8 @@ def test_back_faces_do_not_warn_without_translucent_objects(name):
 
 
 # One translucent plane (z = 1) in front of an opaque wall (z = -2), camera on the z axis at 5.
-PLANE = """
-width = 48
-height = 32
-ambient = [0.1, 0.1, 0.1]
-
-[camera]
-position = [0, 0, 5]
-target = [0, 0, 0]
-fov_y_deg = 45
-near = 0.5
-far = 50
-
-[[objects]]
-name = "glass"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0, 0, 1]
-scale = 2
-material = { albedo = [0, 1, 0], alpha = 0.5, translucent = true }
-
-[[objects]]
-name = "wall"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0, 0, -2]
-scale = 8
-material = { albedo = [1, 1, 1] }
-"""
+GLASS = plane("glass", [0, 1, 0], translate=[0, 0, 1], scale=2, alpha=0.5)
+PLANE = planes_scene(GLASS, WALL, width=48, height=32, ambient=0.1)
 
 LIGHT = """
 [[lights]]
@@ -174,7 +150,7 @@ def test_only_lights_between_the_translucent_and_the_opaque_surface_are_missed()
 def test_translucent_over_the_sky_misses_every_light_reaching_it():
     """Without an opaque surface behind (sky: the depth buffer holds the clear value), back
     faces behind it never pass ``gequal``: every light reaching the glass is missed."""
-    src = PLANE.split("[[objects]]\nname = \"wall\"")[0]
+    src = planes_scene(GLASS, width=48, height=32, ambient=0.1)
     s = parse_scene(src + LIGHT.format(z=-0.5, r=3.0))
     assert features.translucent_missed_lights(s, [0]) == ([0], 1)
 

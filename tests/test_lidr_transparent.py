@@ -50,6 +50,8 @@ from pipegen.reference.translucent import reference_composite
 from pipegen.runtime import draws
 from pipegen.scene import load_scene, parse_scene
 
+from scenes_for_tests import WALL, plane, planes_scene
+
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUE = ROOT / "pipelines/lidr_transparent.pipe"
 SCENES = ["translucent_layers", "mixed_lights", "street_lamps"]
@@ -74,50 +76,11 @@ def compiled():
 
 # Three translucent planes listed near to far (scene order is the wrong blending order) over an
 # opaque wall; no lights: each surface is its ambient colour (0.5 * albedo).
-PLANES = """
-width = 64
-height = 48
-ambient = [0.5, 0.5, 0.5]
-
-[camera]
-position = [0, 0, 5]
-target = [0, 0, 0]
-fov_y_deg = 45
-near = 0.5
-far = 50
-
-[[objects]]
-name = "near"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0.4, 0.3, 1.5]
-scale = 1.6
-material = { albedo = [0, 1, 0], alpha = 0.5, translucent = true }
-
-[[objects]]
-name = "middle"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [-0.3, 0.0, 0.5]
-scale = 2
-material = { albedo = [1, 0, 0], alpha = 0.6, translucent = true }
-
-[[objects]]
-name = "far"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0.2, -0.3, -0.5]
-scale = 2.4
-material = { albedo = [0, 0, 1], alpha = 0.7, translucent = true }
-
-[[objects]]
-name = "wall"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0, 0, -2]
-scale = 8
-material = { albedo = [1, 1, 1] }
-"""
+PLANES = planes_scene(
+    plane("near", [0, 1, 0], translate=[0.4, 0.3, 1.5], scale=1.6, alpha=0.5),
+    plane("middle", [1, 0, 0], translate=[-0.3, 0.0, 0.5], scale=2, alpha=0.6),
+    plane("far", [0, 0, 1], translate=[0.2, -0.3, -0.5], scale=2.4, alpha=0.7),
+    WALL)
 
 BLEND = """technique blend_order "translucent planes blended {order}"
 target color : rgba8 clear (0, 0, 0, 1)

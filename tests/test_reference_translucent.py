@@ -14,65 +14,20 @@ from pipegen.reference.metrics import (dilate, error_image, error_map_png, refer
 from pipegen.reference.translucent import reference_composite, stippled_gbuffer
 from pipegen.scene import load_scene, parse_scene, stipple_map
 
+from scenes_for_tests import plane, planes_scene
+
 SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 
 # Camera on +z looking at the origin; planes rotated to face +z.  No lights: every surface is
 # lit by the ambient term alone (0.5 * albedo), so the composite is known exactly.
-PLANES = """
-width = 64
-height = 48
-ambient = [{amb}, {amb}, {amb}]
-
-[camera]
-position = [0, 0, 5]
-target = [0, 0, 0]
-fov_y_deg = 45
-near = 0.5
-far = 50
-
-[[objects]]
-name = "near"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0.5, 0.5, 1]
-scale = 1
-material = {{ albedo = [0, 1, 0], alpha = 0.25, translucent = true }}
-
-[[objects]]
-name = "opaque"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0, 0, -2]
-scale = 4
-material = {{ albedo = [0, 0, 1] }}
-
-[[objects]]
-name = "far"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-scale = 2
-material = {{ albedo = [1, 0, 0], alpha = 0.5, translucent = true }}
-
-[[objects]]
-name = "over sky"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [2.2, 0, 0]
-scale = 0.8
-material = {{ albedo = [1, 1, 1], alpha = 0.5, translucent = true }}
-
-[[objects]]
-name = "hidden"
-mesh = "plane"
-rotate_deg = [90, 0, 0]
-translate = [0, 0, -3]
-scale = 2
-material = {{ albedo = [1, 1, 0], alpha = 0.5, translucent = true }}
-"""
-
-
-def _planes(amb: float = 0.5):
-    return parse_scene(PLANES.format(amb=amb))
+def _planes(amb: float = 0.5, near_layer=None, far_layer=None):
+    return parse_scene(planes_scene(
+        plane("near", [0, 1, 0], translate=[0.5, 0.5, 1], scale=1, alpha=0.25, layer=near_layer),
+        plane("opaque", [0, 0, 1], translate=[0, 0, -2], scale=4),
+        plane("far", [1, 0, 0], scale=2, alpha=0.5, layer=far_layer),
+        plane("over sky", [1, 1, 1], translate=[2.2, 0, 0], scale=0.8, alpha=0.5),
+        plane("hidden", [1, 1, 0], translate=[0, 0, -3], scale=2, alpha=0.5),
+        ambient=amb))
 
 
 def test_composite_back_to_front_exact():
@@ -113,11 +68,7 @@ def test_composite_automatic_layers_and_conflicts():
     _, info = reference_composite(s)
     assert not info["conflict"].any()
     # the same layer on two overlapping planes is a conflict where both are visible
-    text = PLANES.format(amb=0.5).replace("alpha = 0.25, translucent = true }",
-                                          "alpha = 0.25, translucent = true }\nlayer = 2")
-    text = text.replace("alpha = 0.5, translucent = true }\n\n[[objects]]\nname = \"over sky\"",
-                        "alpha = 0.5, translucent = true }\nlayer = 2\n\n[[objects]]\nname = \"over sky\"")
-    s2 = parse_scene(text)
+    s2 = _planes(near_layer=2, far_layer=2)
     assert [o.layer for o in s2.objects if o.name in ("near", "far")] == [2, 2]
     _, info2 = reference_composite(s2)
     near, far = info2["surfaces"][:2]
