@@ -57,7 +57,7 @@ from ..builtins import BIT_CAST_BUILTINS
 from ..ir import Scalar, Type
 from ..irwalk import child_exprs
 from . import plan as planlib
-from .cstyle import _max0, _positive_const
+from .cstyle import guard_call_args, guard_construct_args, guard_shift_count
 
 W = 8                       # lanes: llvmpipe shades 8 pixels at once as well (the helpers
                             # below are written for 8)
@@ -531,7 +531,10 @@ class WideEmitter:
         lt, rt = e.left.type, e.right.type
         if lt.is_matrix or rt.is_matrix:
             return self._matrix_op(e)
-        a, b = self.expr(e.left), self.expr(e.right)
+        right = e.right
+        if op in ("<<", ">>") and not getattr(self, "_raw", 0):
+            right = guard_shift_count(right)      # cstyle's rule: the count masked to 0..31
+        a, b = self.expr(e.left), self.expr(right)
         vary = a.varying or b.varying
         if op in ("&&", "||", "^^"):
             if not vary:
@@ -548,9 +551,9 @@ class WideEmitter:
         n = max(len(a.comps), len(b.comps))
         ac = a.comps if len(a.comps) == n else a.comps * n
         bc = b.comps if len(b.comps) == n else b.comps * n
-        if op in ("<<", ">>") and not (isinstance(e.right, ir.Const) and not isinstance(
-                e.right.value, tuple) and 0 <= e.right.value < 32):
-            bc = [f"({c} & 31)" for c in bc]
+        if op in ("<<", ">>") and b.varying and not a.varying:
+            # OpenCL C: a scalar left operand takes a scalar count only
+            ac = [widen(c, e.type.scalar) for c in ac]
         if op in ("==", "!=") and lt.is_vector and not e.type.is_vector:
             parts = [f"({x} {op} {y})" for x, y in zip(ac, bc)]
             if vary:
@@ -625,11 +628,7 @@ class WideEmitter:
                 raise Unsupported("varying matrix")
             return Val([self.lang.render_construct(t, [self._cvec(v) for v in vals],
                                                    [a.type for a in e.args])], t, False)
-        args = e.args
-        if (t.scalar is Scalar.UINT and len(args) == 1 and args[0].type.scalar is Scalar.FLOAT
-                and not _positive_const(args[0])):
-            args = (_max0(args[0]),)
-        vals = [self.expr(a) for a in args]
+        vals = [self.expr(a) for a in guard_construct_args(t, e.args)]
         if any(v.type.is_matrix for v in vals):
             raise Unsupported("vector from a matrix")
         vary = any(v.varying for v in vals)
@@ -741,8 +740,8 @@ class WideEmitter:
         name = e.name
         if getattr(self, "_raw", 0):            # guard bodies: builtins as they are
             pass
-        elif name == "sqrt" or (name == "pow" and _positive_const(args[1])):
-            args = (_max0(args[0]),) + args[1:]
+        elif (guarded := guard_call_args(name, args)) is not None:   # cstyle's inline guards
+            args = guarded
         elif name in self.lang.guards:
             return self._guard(name, args, e.type)
         return self._builtin(name, [self.expr(a) for a in args], e.type)

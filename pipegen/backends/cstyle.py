@@ -97,6 +97,34 @@ def _max0(x: ir.Expr) -> ir.Call:
     return _call("max", [x, _f(0.0)], x.type)
 
 
+# The inline guards (no helper function), as IR rewrites: the scalar emitter below and the
+# OpenCL wide emitter (cl_wide.py) both apply these, so the rules live here only.
+def guard_shift_count(right: ir.Expr) -> ir.Expr:
+    """The count of ``a << b`` / ``a >> b``: masked to 0..31 (``b & 31``) unless a constant
+    already in range."""
+    if (isinstance(right, ir.Const) and not isinstance(right.value, tuple)
+            and 0 <= right.value < 32):
+        return right
+    return ir.Binary("&", right, ir.Const(Type(right.type.scalar), 31), right.type)
+
+
+def guard_call_args(name: str, args: Sequence[ir.Expr]) -> Optional[tuple]:
+    """The arguments of builtin ``name`` with its inline guard applied (``sqrt(max(x, 0))``,
+    ``pow(max(x, 0), y)`` for a constant y > 0), or None when it has none."""
+    if name == "sqrt" or (name == "pow" and _positive_const(args[1])):
+        return (_max0(args[0]),) + tuple(args[1:])
+    return None
+
+
+def guard_construct_args(t: Type, args: Sequence[ir.Expr]) -> tuple:
+    """The arguments of constructor ``t(args)`` with the ``uint(float)`` guard applied
+    (``uint(max(x, 0))`` unless x is a positive constant)."""
+    if (t.scalar is Scalar.UINT and len(args) == 1 and args[0].type.scalar is Scalar.FLOAT
+            and not _positive_const(args[0])):
+        return (_max0(args[0]),)
+    return tuple(args)
+
+
 class CStyleLanguage:
     # ---- data a dialect overrides ------------------------------------------------------------
     type_names: dict[Type, str] = {}          # missing types are spelled str(Type) (GLSL style)
@@ -203,10 +231,8 @@ class CStyleLanguage:
             text = self.render_vector_equality(op, self.expr(left), self.expr(right))
             if text is not None:
                 return text, ATOM
-        if op in ("<<", ">>") and not self._raw and not (
-                isinstance(right, ir.Const) and not isinstance(right.value, tuple)
-                and 0 <= right.value < 32):
-            right = ir.Binary("&", right, ir.Const(Type(right.type.scalar), 31), right.type)
+        if op in ("<<", ">>") and not self._raw:
+            right = guard_shift_count(right)
         if left.type.is_matrix or right.type.is_matrix:
             text = self.render_matrix_op(op, self.expr(left), self.expr(right), left.type,
                                          right.type, e.type)
@@ -237,8 +263,9 @@ class CStyleLanguage:
             return f"({self.expr(lowered)})", ATOM
         args = e.args
         if not self._raw:
-            if e.name == "sqrt" or (e.name == "pow" and _positive_const(args[1])):
-                args = (_max0(args[0]),) + args[1:]
+            guarded = guard_call_args(e.name, args)
+            if guarded is not None:
+                args = guarded
             elif e.name in self.guards:
                 name = self.helper(e.name, [a.type for a in args], e.type)
                 return f"{name}({', '.join(self.expr(a) for a in args)})", ATOM
@@ -246,10 +273,7 @@ class CStyleLanguage:
                                    [a.type for a in args], e.type), ATOM
 
     def _construct(self, e: ir.Construct) -> tuple[str, int]:
-        args = e.args
-        if (not self._raw and e.type.scalar is Scalar.UINT and len(args) == 1
-                and args[0].type.scalar is Scalar.FLOAT and not _positive_const(args[0])):
-            args = (_max0(args[0]),)
+        args = e.args if self._raw else guard_construct_args(e.type, e.args)
         return self.render_construct(e.type, [self.expr(a) for a in args],
                                      [a.type for a in args]), ATOM
 
