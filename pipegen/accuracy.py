@@ -73,9 +73,10 @@ def scene_reference(scene) -> SceneReference:
     """The scene as the shared lighting equation renders it in float64 (module docstring);
     the lights that cast shadows (``shadows = true``) shadow the opaque surface exactly
     (``reference.shadows.visibility``: ray casting, the hard shadows shadow maps approximate)."""
+    from .reference.shadows import ExactShadows
     from .reference.translucent import reference_composite
     casting = bool(shadow_lights(scene.lights))
-    rgb, info = reference_composite(scene, shadows="exact" if casting else None)
+    rgb, info = reference_composite(scene, shadows=ExactShadows() if casting else None)
     return SceneReference(rgb, info["silhouette"], bool(len(info["surfaces"])))
 
 

@@ -23,7 +23,7 @@ from pipegen.compiler import compile_file, compile_source
 from pipegen.diagnostics import PipegenError
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.metrics import error_image, rgb_error
-from pipegen.reference.shadows import shadow_factor, shadow_maps
+from pipegen.reference.shadows import ExactShadows, MappedShadows, shadow_factor, shadow_maps
 from pipegen.scene import load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -231,7 +231,7 @@ def test_image_against_the_float64_reference(renders, technique, taps, backend):
     s = scene()
     tiles, bias = c.plan(backend).params["shadow_tiles"], c.plan(backend).params["shadow_bias"]
     maps = shadow_maps(s, tiles, ATLAS, ATLAS)
-    ref, gb = reference_image(s, shadows=(maps, taps, bias))
+    ref, gb = reference_image(s, shadows=MappedShadows(maps, taps, bias))
     mask = ~gb.silhouette
     e = rgb_error(out["color"], ref, mask)
     over = int((error_image(out["color"], ref).max(axis=2)[mask] > 2).sum())
@@ -311,8 +311,8 @@ def test_exact_visibility_agrees_with_the_float64_shadow_maps_off_edges():
     # straight "up the sun" from a floor point behind the box is the box; far away is sky
     behind = centre + np.asarray(sun.direction) * (centre[1] / -sun.direction[1])
     assert visibility(s, sun, np.array([behind, [5.5, 0.0, 5.5]])).tolist() == [0.0, 1.0]
-    exact, gb = reference_image(s, shadows="exact")
-    mapped, _ = reference_image(s, shadows=(shadow_maps(s, 2, 2048, 2048), 1, 0.1))
+    exact, gb = reference_image(s, shadows=ExactShadows())
+    mapped, _ = reference_image(s, shadows=MappedShadows(shadow_maps(s, 2, 2048, 2048), 1, 0.1))
     d = np.abs(exact - mapped).max(axis=2) * 255
     assert np.mean(d <= 2) > 0.98, np.mean(d <= 2)       # shadow edges aside
     assert np.abs(exact - reference_image(s)[0]).max() * 255 > 100   # and there are shadows

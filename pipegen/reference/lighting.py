@@ -18,13 +18,17 @@ reference and the backends light the same scene.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Optional
+
 import numpy as np
 
 from .. import formats
 from ..meshes import light_volume
 from ..scene import Light, Scene
-from ..shadows import casts_shadows
 from .raster import GBuffer, rasterize
+
+if TYPE_CHECKING:
+    from .shadows import Shadows
 
 EPS_DIST = 1e-6
 EPS_NORM2 = 1e-12
@@ -74,13 +78,14 @@ def light_contribution(light: Light, P: np.ndarray, normal: np.ndarray, camera_p
     return color * att[:, None] * (albedo * ndl[:, None] + (specular * spec)[:, None])
 
 
-def shade(gbuffer: GBuffer, scene: Scene, shadows=None) -> np.ndarray:
+def shade(gbuffer: GBuffer, scene: Scene, shadows: Optional[Shadows] = None) -> np.ndarray:
     """float64 (H, W, 3) colour before clamping: ambient plus every light, sky = clear colour.
 
-    ``shadows``: ``(maps, pcf_taps, bias)`` with ``maps`` from ``reference.shadows.shadow_maps``:
-    the contribution of each light with a map is scaled by its ``shadow_factor``; ``"exact"``:
-    each shadow-casting light's by the exact visibility of the light (``shadows.visibility``,
-    ray casting: the hard shadows shadow maps approximate)."""
+    ``shadows`` (``reference.shadows``): ``MappedShadows(maps, pcf_taps, bias)``, with ``maps``
+    from ``shadow_maps``: the contribution of each light with a map is scaled by its
+    ``shadow_factor``; ``ExactShadows()``: each shadow-casting light's by the exact visibility
+    of the light (``visibility``, ray casting: the hard shadows shadow maps approximate);
+    None: no shadows."""
     out = np.zeros((gbuffer.height, gbuffer.width, 3))
     out[:] = scene.clear_color
     cov = gbuffer.coverage
@@ -97,19 +102,16 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows=None) -> np.ndarray:
             r = float(_f32(light.radius))
             sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
         term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
-        if isinstance(shadows, str) and casts_shadows(light):
-            from .shadows import visibility
-            term = term * visibility(scene, light, P[sel])[:, None]
-        elif shadows is not None and not isinstance(shadows, str) and i in shadows[0]:
-            from .shadows import shadow_factor
-            term = term * shadow_factor(shadows[0][i], P[sel], shadows[1], shadows[2])[:, None]
+        factor = None if shadows is None else shadows.factor(scene, i, light, P[sel])
+        if factor is not None:
+            term = term * factor[:, None]
         colour[sel] += term
     out[cov] = colour
     return out
 
 
 def reference_image(scene: Scene, material: tuple[str, ...] = ("opaque",),
-                    shadows=None) -> tuple[np.ndarray, GBuffer]:
+                    shadows: Optional[Shadows] = None) -> tuple[np.ndarray, GBuffer]:
     """(colour float64 (H, W, 3) before clamping, G-buffer) of the scene's opaque objects
     (``shadows``: as ``shade`` takes them)."""
     gb = rasterize(scene, material)

@@ -16,11 +16,17 @@ is the fraction of the PCF taps that see ``P`` lit:
 
 The light's parameters are read as the light table stores them (float32), like the rest of the
 reference; the map's depths are float64 (the runtimes store float32, ``d32f``).
+
+``lighting.shade(..., shadows=)`` takes one of two ``Shadows``: ``MappedShadows(maps, pcf_taps,
+bias)`` (each light with a map scaled by its ``shadow_factor``) or ``ExactShadows()`` (each
+shadow-casting light scaled by its exact ``visibility``: ray casting, the hard shadows shadow
+maps approximate).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -62,6 +68,35 @@ def shadow_maps(scene, tiles: int, width: int, height: int,
         out[i] = ShadowMap(i, k, (x, y, w, h), _f32(proj @ view), _f32(light.direction),
                            np.flipud(depth))
     return out
+
+
+class Shadows:
+    """How ``lighting.shade`` shadows the scene's lights: ``factor(scene, i, light, P)`` is the
+    fraction (n,) of light ``i`` reaching the points ``P`` (n, 3), or None: not shadowed."""
+
+    def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class MappedShadows(Shadows):
+    """Shadow maps with percentage-closer filtering (``shadow_factor``): the lights with a map
+    in ``maps`` (``shadow_maps``) are shadowed, the others are not."""
+    maps: dict[int, ShadowMap]
+    pcf_taps: int
+    bias: float
+
+    def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
+        smap = self.maps.get(i)
+        return None if smap is None else shadow_factor(smap, P, self.pcf_taps, self.bias)
+
+
+@dataclass(frozen=True)
+class ExactShadows(Shadows):
+    """Every shadow-casting light (``shadows = true``) by its exact ``visibility``."""
+
+    def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
+        return visibility(scene, light, P) if S.casts_shadows(light) else None
 
 
 def shadow_factor(smap: ShadowMap, P: np.ndarray, pcf_taps: int, bias: float) -> np.ndarray:

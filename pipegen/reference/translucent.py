@@ -28,12 +28,16 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
 from ..scene import STIPPLE_LAYERS, Scene, SceneObject, stipple_map
 from .lighting import shade
 from .raster import GBuffer, edge_mask, rasterize, rasterize_each
+
+if TYPE_CHECKING:
+    from .shadows import Shadows
 
 
 @dataclass
@@ -58,7 +62,8 @@ def translucent_surfaces(scene: Scene, opaque_depth: np.ndarray,
 
 
 def reference_composite(scene: Scene, clamp_layers: bool = True,
-                        cull: str = "back", shadows=None) -> tuple[np.ndarray, dict]:
+                        cull: str = "back", shadows: Optional[Shadows] = None
+                        ) -> tuple[np.ndarray, dict]:
     """(rgb float64 (H, W, 3) top row first, info) of the opaque scene with its translucent
     layers blended over it back to front (see the module docstring).
 
