@@ -9,7 +9,7 @@ with the wide one (forced: MIN_COST 0, WMIN 1).  NaNs compare equal whatever the
 payload (the compiler may commute a multiply, and x86 keeps the first operand's NaN: normalize
 of a NaN vector gives 0xffc00000 on one path and 0x7fc00000 on the other).  GL (llvmpipe, the
 reference) is compared where the CL arithmetic is defined to match it: shifts, int(float),
-normalize, sqrt and inversesqrt."""
+normalize, sqrt and inversesqrt, away from operands whose products are denormal (see TINY)."""
 
 from __future__ import annotations
 
@@ -180,11 +180,21 @@ def test_uvec_from_huge_floats(renders):
     assert not _differ(scalar["u2"], wide["u2"]).any()
 
 
+# Operands whose products are float32 denormals: whether llvmpipe flushes a denormal depends on
+# what GL work the process did before (measured: in a fresh process it flushes, as PoCL does;
+# after another technique's GL pipeline has rendered, it keeps them), so GL is compared only
+# away from them.
+TINY = {"1e-40", "-1e-40", "1.4e-45", "1.1754942e-38", "1.17549435e-38", "-1.17549435e-38",
+        "1e-20", "1e-19"}
+
+
 @pytest.mark.gl
 def test_gl_agrees_where_defined(renders):
     scalar, _, scene = renders
     gl = compile_source(TECH).pipeline("gl").render(scene)
-    for k in ("s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8", "u3", "u4", "f3"):
+    for k in ("s1", "s2", "s3", "s4", "s5", "s6", "s7", "s8", "u3", "u4"):
         assert not _differ(scalar[k], gl[k]).any(), k
-    d = _differ(scalar["f1"], gl["f1"])[..., :2]        # sqrt, inversesqrt
-    assert not d.any()
+    tiny = np.array([f in TINY for f in FLOATS])
+    away = ~(tiny[:, None] | tiny[None, :])              # rows: operand b, columns: a
+    assert not _differ(scalar["f3"], gl["f3"])[away].any()
+    assert not _differ(scalar["f1"], gl["f1"])[..., :2][away].any()   # sqrt, inversesqrt
