@@ -254,22 +254,16 @@ class _Edges:
         return np.where(sw, v[1], v[0]), np.where(sw, v[0], v[1]), v[2]
 
     def planes(self, v, center):
-        """(a0, dadx, dady) of (3, n, C) float32 vertex values (calc_coef4): ``dadx =
-        (a0-a1) dy20_ooa - (a2-a0) dy01_ooa``, ``dady = (a2-a0) dx01_ooa - (a0-a1) dx20_ooa``,
-        ``a0' = a0 - (dadx (x0 - c) + dady (y0 - c))``."""
-        a0, a1, a2 = self.order(v)
-        ex = (slice(None),) + (None,) * (v.ndim - 2)
-        half = np.float32(center)
-        with np.errstate(invalid="ignore", over="ignore", under="ignore"):
-            da01, da20 = a0 - a1, a2 - a0
-            dadx = da01 * self.dy20o[ex] - da20 * self.dy01o[ex]
-            dady = da20 * self.dx01o[ex] - da01 * self.dx20o[ex]
-            return (a0 - (dadx * (self.x0 - half)[ex] + dady * (self.y0 - half)[ex]),
-                    dadx, dady)
+        """(a0, dadx, dady) of (3, n, ...) float32 vertex values (calc_coef4): ``planes_cm``
+        with the per-triangle axis last, put back first."""
+        a0, a1, a2 = (np.moveaxis(a, 0, -1) for a in self.order(v))
+        return tuple(np.moveaxis(p, -1, 0) for p in self.planes_cm(a0, a1, a2, center))
 
     def planes_cm(self, a0, a1, a2, center):
-        """``planes`` of channel-major values already in llvmpipe's vertex order: a0, a1, a2
-        (C, n) (the same arithmetic, broadcast over the channels)."""
+        """(a0, dadx, dady) of values already in llvmpipe's vertex order, the triangles on the
+        last axis (channel-major: (C, n); calc_coef4, float32 unfused): ``dadx = (a0-a1)
+        dy20_ooa - (a2-a0) dy01_ooa``, ``dady = (a2-a0) dx01_ooa - (a0-a1) dx20_ooa``,
+        ``a0' = a0 - (dadx (x0 - c) + dady (y0 - c))``."""
         half = np.float32(center)
         with np.errstate(invalid="ignore", over="ignore", under="ignore"):
             da01, da20 = a0 - a1, a2 - a0
@@ -283,12 +277,9 @@ class _Edges:
         f32 = np.float32
         z0, z1, z2 = self.order(zw)
         n = len(z0)
-        half = f32(center)
+        a0, dadx, dady = self.planes_cm(z0, z1, z2, center)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
             dz01, dz20 = z0 - z1, z2 - z0
-            dadx = dz01 * self.dy20o - dz20 * self.dy01o
-            dady = dz20 * self.dx01o - dz01 * self.dx20o
-            a0 = z0 - (dadx * (self.x0 - half) + dady * (self.y0 - half))
             a0_ms = z0 - (dadx * self.x0 + dady * self.y0) if ms_a0 else None
             off = np.zeros(n, f32)
             if polygon_offset is not None and n:
