@@ -18,6 +18,19 @@ from PIL import Image, ImageDraw
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def paste_titled(sheet: Image.Image, rows: list, w: int, h: int) -> None:
+    """The figures' grid: ``rows`` of cells (uint8 image array, title) or None (left blank),
+    each w x h image 4 pixels from the next and under its title (16 pixels), rows 20 apart."""
+    draw = ImageDraw.Draw(sheet)
+    for r, row in enumerate(rows):
+        for c, cell in enumerate(row):
+            if cell is None:
+                continue
+            x, y = c * (w + 4), r * (h + 20)
+            sheet.paste(Image.fromarray(np.ascontiguousarray(cell[0])), (x, y + 16))
+            draw.text((x + 2, y + 2), cell[1], fill=(0, 0, 0))
+
+
 def main() -> int:
     from pipegen.compiler import compile_file
     from pipegen.reference.metrics import error_image, heat_map, rgb_error, to_top_down
@@ -47,14 +60,7 @@ def main() -> int:
     ]
     h, w = ref.shape[:2]
     sheet = Image.new("RGB", (3 * w + 8, 2 * (h + 18) + 2), (255, 255, 255))
-    draw = ImageDraw.Draw(sheet)
-    for r, row in enumerate(layout):
-        for c, cell in enumerate(row):
-            if cell is None:
-                continue
-            x, y = c * (w + 4), r * (h + 20)
-            sheet.paste(Image.fromarray(np.ascontiguousarray(cell[0])), (x, y + 16))
-            draw.text((x + 2, y + 2), cell[1], fill=(0, 0, 0))
+    paste_titled(sheet, layout, w, h)
     out = ROOT / "docs/images/inferred_dsf.png"
     sheet.save(out, optimize=True)
     print(out)

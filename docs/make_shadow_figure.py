@@ -18,6 +18,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "docs"))
+from make_figures import paste_titled  # noqa: E402  (the figures' shared grid)
 
 
 def _stretch(atlas: np.ndarray, tiles: int = 2) -> np.ndarray:
@@ -59,14 +61,10 @@ def main() -> int:
     a = np.asarray(Image.fromarray((_stretch(to_top_down(atlas)) * 255).astype(np.uint8)).resize(
         (2 * h + 20, 2 * h + 20), Image.BILINEAR))
     sheet = Image.new("RGB", (2 * (w + 4) + a.shape[1] + 4, 2 * (h + 20)), (255, 255, 255))
-    draw = ImageDraw.Draw(sheet)
-    for k, (img, title) in enumerate(cells):
-        x, y = (k % 2) * (w + 4), (k // 2) * (h + 20)
-        sheet.paste(Image.fromarray(np.ascontiguousarray(img)), (x, y + 16))
-        draw.text((x + 2, y + 2), title, fill=(0, 0, 0))
+    paste_titled(sheet, [cells[:2], cells[2:]], w, h)
     x = 2 * (w + 4)
     sheet.paste(Image.fromarray(a).convert("RGB"), (x, 16))
-    draw.text((x + 2, 2), "shadow_atlas (d32f, 2 x 2 tiles)", fill=(0, 0, 0))
+    ImageDraw.Draw(sheet).text((x + 2, 2), "shadow_atlas (d32f, 2 x 2 tiles)", fill=(0, 0, 0))
     out = ROOT / "docs/images/shadows.png"
     sheet.save(out, optimize=True)
     print(out)
