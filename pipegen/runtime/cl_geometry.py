@@ -261,15 +261,10 @@ class DrawGeometry:
                 cut = [np.searchsorted(tri, r) for r in ranges]
                 tri = np.concatenate([tri[a:b] for a, b in cut])
                 tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
-            if cull in (ir.CullMode.BACK, ir.CullMode.FRONT):
-                keep = geo.front[tri] == (cull is ir.CullMode.BACK)
-                tri, tile_id = tri[keep], tile_id[keep]
+            tri, tile_id = _culled_pairs(geo, tri, tile_id, cull)
             tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
             timing["bin"] = (time.perf_counter() - t0) * 1e3
-            n = sum(b - a for a, b in ranges)
-            if cull in (ir.CullMode.BACK, ir.CullMode.FRONT):
-                front = sum(int(np.count_nonzero(geo.front[a:b])) for a, b in ranges)
-                n = front if cull is ir.CullMode.BACK else n - front
+            n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
             tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, n)
         return (geo, tb) if tb.ntiles else None
 
@@ -290,9 +285,7 @@ class DrawGeometry:
         triangles in submission order, exactly as binning its own pairs gives them."""
         t0 = time.perf_counter()
         tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height)
-        if cull in (ir.CullMode.BACK, ir.CullMode.FRONT):
-            keep = geo.front[tri] == (cull is ir.CullMode.BACK)
-            tri, tile_id = tri[keep], tile_id[keep]
+        tri, tile_id = _culled_pairs(geo, tri, tile_id, cull)
         ntiles = tiles_x * tiles_y
         spans = np.array([geo.ranges[int(light)] for light in batch], np.int64).reshape(-1, 2)
         # the light of each pair (pairs are in triangle order, each light a range of them)
@@ -311,11 +304,7 @@ class DrawGeometry:
         np.cumsum(counts, axis=1, out=starts[:, 1:])
         first = np.concatenate([[0], np.cumsum(starts[:, -1])])
         occupied = counts > 0
-        drawn = spans[:, 1] - spans[:, 0]         # each light's triangles the cull mode keeps
-        if cull in (ir.CullMode.BACK, ir.CullMode.FRONT):
-            fronts = np.concatenate([[0], np.cumsum(geo.front)])
-            front = fronts[spans[:, 1]] - fronts[spans[:, 0]]
-            drawn = front if cull is ir.CullMode.BACK else drawn - front
+        drawn = _drawn(geo, spans, cull)
         for j, light in enumerate(batch):
             n = int(drawn[j])
             own = tile_tris[first[j]:first[j + 1]]
@@ -592,6 +581,25 @@ class DrawGeometry:
                                             self.pipe._proj, width, height)
             rects.append((x, y, x + w, y + h))
         return np.repeat(np.asarray(rects, np.int32).reshape(-1, 4), tris_per, axis=0)
+
+
+def _culled_pairs(geo: Geo, tri: np.ndarray, tile_id: np.ndarray, cull: ir.CullMode):
+    """The (triangle, tile) pairs of the faces a light draw's cull mode keeps (light volumes
+    are set up without culling)."""
+    if cull not in (ir.CullMode.BACK, ir.CullMode.FRONT):
+        return tri, tile_id
+    keep = geo.front[tri] == (cull is ir.CullMode.BACK)
+    return tri[keep], tile_id[keep]
+
+
+def _drawn(geo: Geo, spans: np.ndarray, cull: ir.CullMode) -> np.ndarray:
+    """Per (start, end) triangle range of ``geo``, how many triangles the cull mode keeps."""
+    drawn = spans[:, 1] - spans[:, 0]
+    if cull not in (ir.CullMode.BACK, ir.CullMode.FRONT):
+        return drawn
+    fronts = np.concatenate([[0], np.cumsum(geo.front)])
+    front = fronts[spans[:, 1]] - fronts[spans[:, 0]]
+    return front if cull is ir.CullMode.BACK else drawn - front
 
 
 def _offset(p: PassPlan):
