@@ -77,7 +77,12 @@ class CLPassCode:
         name, text = self.prelude
         if not text or text not in self.kernel:
             return self.kernel
-        return self.kernel.replace(text, f'#include "{name}"\n', 1)
+        return self.kernel.replace(text, include_line(name), 1)
+
+
+def include_line(prelude_file: str) -> str:
+    """The line that stands for a shared prelude in a written CL program."""
+    return f'#include "{prelude_file}"\n'
 
 
 def cl_preludes(plan: Plan) -> dict[str, str]:
@@ -342,7 +347,7 @@ def _pass_from_dict(p: Mapping, preludes: Mapping[str, str]) -> PassPlan:
         cl = p.get("cl") or {}
         kernel, prelude = p.get("kernel") or "", ("", "")
         for name, text in preludes.items():      # the include line ``included`` wrote
-            line = f'#include "{name}"\n'
+            line = include_line(name)
             if line in kernel:
                 kernel, prelude = kernel.replace(line, text, 1), (name, text)
                 break
