@@ -4,7 +4,6 @@ code they stand in for, bit for bit:
 - ``fma32``'s float32 path for a power-of-two ``b`` and its exact-window path for scalar
   ``b`` and ``c`` (the viewport transform) against the exact rounding (``_fma32_exact``);
 - ``_outside`` (``|c| > w``) against ``_clip_mask`` having any bit set;
-- ``_clip_polygons_few`` (one polygon at a time) against the batch ``_clip_polygons``;
 - ``setup_triangles(with_zp=False, with_zq=False)`` leaves every other field as it was.
 """
 
@@ -63,28 +62,6 @@ def test_outside_is_any_clip_bit():
         for clamp in (False, True):
             assert np.array_equal(CS._outside(np.ascontiguousarray(c.T), clamp),
                                   CS._clip_mask(c, clamp) != 0)
-
-
-def test_clipping_few_polygons_is_the_batch_clipping():
-    rng = np.random.default_rng(8)
-    for trial in range(400):
-        M, F = int(rng.integers(1, 12)), int(rng.choice([0, 4, 12]))
-        P = rng.normal(0, 1.5, (M, 3, 4)).astype(np.float32)
-        P[..., 3] = rng.uniform(-0.5, 2.0, (M, 3)).astype(np.float32)
-        if trial % 5 == 0:
-            P[..., 0] = P[..., 3] * rng.choice([1, -1, 0.5], (M, 3))
-        if trial % 7 == 0:
-            P[rng.integers(0, M), rng.integers(0, 3), rng.integers(0, 4)] = rng.choice(_SPECIAL)
-        A = rng.normal(0, 3, (M, 3, F)).astype(np.float32)
-        vm = CS._clip_mask(P.reshape(-1, 4), trial % 3 == 0).reshape(M, 3)
-        union = (vm[:, 0] | vm[:, 1] | vm[:, 2]).astype(np.int64)
-        batch = CS._clip_polygons(P.copy(), A.copy(), np.full(M, 3, np.int64), union)
-        few = CS._clip_polygons_few(P.copy(), A.copy(), np.full(M, 3, np.int64), union)
-        assert np.array_equal(batch[2], few[2]), trial
-        for m, k in enumerate(batch[2]):
-            for x, y in ((batch[0], few[0]), (batch[1], few[1])):
-                assert np.array_equal(_bits(x[m, :k]), _bits(y[m, :k])), trial
-            assert np.array_equal(batch[3][m, :k], few[3][m, :k]), trial
 
 
 def test_setup_without_exact_planes():

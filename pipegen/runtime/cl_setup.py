@@ -487,58 +487,6 @@ def _clip_polygons(P, A, n, mask):
     return V[..., :4], V[..., 4:], n, src
 
 
-def _clip_polygons_few(P, A, n, mask):
-    """``_clip_polygons`` one polygon at a time with float32 scalars: the same operations
-    (plane distance, the crossing test, ``t`` from the nearer vertex, LINTERP per channel)
-    for the usual handful of polygons, where the batch version's cost is its numpy calls per
-    plane.  Same return values (the slot count K may differ; slots past n are unused)."""
-    M = P.shape[0]
-    rows = np.concatenate([np.asarray(P, np.float32), np.asarray(A, np.float32)], axis=2)
-    polys, srcs, ns = [], [], np.zeros(M, np.int64)
-    zero = np.float32(0.0)
-    for m in range(M):
-        verts = [rows[m, j] for j in range(int(n[m]))]
-        src = list(range(len(verts)))
-        for k in range(6):
-            if not (int(mask[m]) >> k) & 1 or len(verts) < 3:
-                continue
-            axis, sign = _PLANE_AXIS[k], _PLANE_SIGN[k]
-            with np.errstate(invalid="ignore", over="ignore"):
-                dist = [(v[3] - v[axis]) if sign < 0 else (v[axis] + v[3]) for v in verts]
-            if not all(np.isfinite(d) for d in dist):     # draw discards NaN/inf distances
-                verts = []
-                break
-            out_v, out_s = [], []
-            for j, (v, dprev) in enumerate(zip(verts, dist)):
-                cur = (j + 1) % len(verts)
-                dcur = dist[cur]
-                inside = dprev >= zero
-                if inside:
-                    out_v.append(v)
-                    out_s.append(src[j])
-                if inside == (dcur < zero):
-                    with np.errstate(divide="ignore", invalid="ignore", over="ignore",
-                                     under="ignore"):
-                        denom = dcur - dprev
-                        from_cur = (-dcur < dprev) if dcur < zero else not (-dprev < dcur)
-                        t = (dcur / denom) if from_cur else (-dprev / denom)
-                        o, i = (verts[cur], v) if from_cur else (v, verts[cur])
-                        out_v.append(o + t * (i - o))          # LINTERP(t, out, in)
-                    out_s.append(-1)
-            verts, src = out_v, out_s
-        ns[m] = len(verts) if len(verts) >= 3 else 0
-        polys.append(verts)
-        srcs.append(src)
-    K = max([len(v) for v in polys] + [1])
-    V = np.zeros((M, K, rows.shape[2]), np.float32)
-    src_out = np.full((M, K), -1, np.int64)
-    for m, (verts, src) in enumerate(zip(polys, srcs)):
-        if verts:
-            V[m, :len(verts)] = verts
-            src_out[m, :len(src)] = src
-    return V[..., :4], V[..., 4:], ns, src_out
-
-
 def clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: bool = False):
     """Clip (T*3, 4) clip-space vertices like llvmpipe's draw module (float32, viewport x/y
     planes, near/far unless ``depth_clamp``).  Returns (clip (V', 4) float32, vary (S, V', 4),
@@ -586,8 +534,7 @@ def _clip_triangles(clip: np.ndarray, vary: Optional[np.ndarray], depth_clamp: b
         A = A.reshape(M, 3, S * 4)
     else:
         A = np.zeros((M, 3, 0), np.float32)
-    clip_polys = _clip_polygons_few if M <= 6 else _clip_polygons
-    P, A, n, src = clip_polys(P, A, np.full(M, 3, np.int64), union[ct].astype(np.int64))
+    P, A, n, src = _clip_polygons(P, A, np.full(M, 3, np.int64), union[ct].astype(np.int64))
     # vertex table: original vertices keep their index, clipper-made ones are appended
     K = P.shape[1]
     slot = np.arange(K)[None, :]
