@@ -931,10 +931,26 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
         writes=writes, depth=depth, stencil=stencil, reads=reads,
         fragment=code.fragment, discard=code.discard,
+        early_z=code.discard and not _writes_stencil(pass_, stencil, dynamic),
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=_inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, wide_helpers=cl_wide.wide_helpers() if wide else "", wide_w=cl_wide.W)
+
+
+def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
+    """Whether a pass may write its stencil attachment.  A pass whose fragment function may
+    discard tests depth and stencil before shading and writes depth after it (llvmpipe's
+    EARLY_DEPTH_TEST | LATE_DEPTH_WRITE, lp_state_fs.c) unless it writes stencil: a stencil op
+    runs on the test's outcome, which a later discard must undo.  Dynamic-state programs
+    (tests) take any state, so any stencil attachment counts."""
+    if not stencil:
+        return False
+    if dynamic:
+        return True
+    keep = ir.StencilOp.KEEP
+    return any(f.write_mask & 0xFF and (f.fail, f.zfail, f.zpass) != (keep, keep, keep)
+               for f in (pass_.state.stencil.front, pass_.state.stencil.back))
 
 
 # ---- emission from the IR -----------------------------------------------------------------------------
