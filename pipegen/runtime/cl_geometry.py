@@ -18,7 +18,7 @@ import numpy as np
 from .. import ir
 from ..backends import opencl as clgen
 from ..backends.plan import PassPlan
-from . import draws
+from . import cl_setup_device, draws
 from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
 
 if TYPE_CHECKING:
@@ -35,17 +35,24 @@ def f4(a: np.ndarray) -> np.ndarray:
 
 class Geo:
     """Set-up triangles of a draw, on the host (``tris``) and on the device (``bufs``, the
-    raster kernel's per-triangle arrays and the varyings); ``ranges``: light -> its
-    triangles ``[lo, hi)`` for a light draw; ``front``: the front-facing triangles."""
+    raster kernel's per-triangle arrays and the varyings; triangle i in row ``index[i]`` of
+    the buffers, or row i without an index); ``ranges``: light -> its triangles ``[lo, hi)``
+    for a light draw; ``front``: the front-facing triangles."""
 
-    def __init__(self, tris, bufs: dict):
+    def __init__(self, tris, bufs: dict, index: Optional[np.ndarray] = None):
         self.tris = tris
         self.bufs = bufs
+        self.index = index        # the buffers' row of each triangle (None: the same)
         self.ranges: dict = {}
         self.front = (tris.flat[:, 0] & 1).astype(bool)
         self.ncoef = tris.coef.shape[1]
         self.names: list = []        # scene draws: the varyings set up, in slot order
         self.flats: list = []
+
+
+class _Vertices:
+    """A draw's queued vertex work (``DrawGeometry._vertices``): the kernel events, the
+    non-blocking read-backs into ``clip``/``clip64``/``outs``, and what set-up needs besides."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,7 +71,7 @@ class Bins:
     work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
 
     def __init__(self, pipe: "CLPipeline", tile_start, tile_tris, tiles_x: int, triangles: int,
-                 active: Optional[np.ndarray] = None):
+                 active: Optional[np.ndarray] = None, index: Optional[np.ndarray] = None):
         if active is None:
             active = np.flatnonzero(np.diff(tile_start) > 0)
         active = active.astype(np.int32)
@@ -72,10 +79,12 @@ class Bins:
         self.tiles_x = tiles_x
         self.triangles = triangles
         self.entries = int(tile_start[-1])
-        self.host = (active, tile_start, tile_tris)      # what the buffers hold (tests)
+        self.host = (active, tile_start, tile_tris)      # triangle indices (tests)
         self.tile_list = pipe._buffer(active)
         self.tile_start = pipe._buffer(tile_start)
-        self.tile_tris = pipe._buffer(tile_tris)
+        # the raster kernel reads buffer rows: the geometry's ``index`` of each triangle
+        self.tile_tris = pipe._buffer(tile_tris if index is None or not len(index)
+                                      else np.take(index, tile_tris))
 
 
 def homogeneous_planes(clip64: np.ndarray, parent: np.ndarray, width: int, height: int,
@@ -160,12 +169,15 @@ class DrawGeometry:
     def __init__(self, pipe: "CLPipeline"):
         self.pipe = pipe
         self.frame: dict = {}          # per frame: set-ups, bins, (triangle, tile) pairs
+        self.pending: dict = {}        # per frame: queued vertex work (``prefetch``)
         self.static: dict = {}         # full-screen draws: the same every frame
         self.scene_attrs: dict = {}    # per material filter, for the current scene
         self.meshes: dict = {}         # unit light-volume meshes
+        self.device_setup = cl_setup_device.DeviceSetup(pipe.ctx, pipe.queue)
 
     def begin_frame(self) -> None:
         self.frame = {}
+        self.pending = {}
 
     def use_scene(self) -> None:
         self.scene_attrs = {}
@@ -265,7 +277,8 @@ class DrawGeometry:
             tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
             timing["bin"] = (time.perf_counter() - t0) * 1e3
             n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
-            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, n)
+            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, n,
+                                   index=geo.index)
         return (geo, tb) if tb.ntiles else None
 
     def _pairs(self, geo: Geo, width: int, height: int):
@@ -310,7 +323,7 @@ class DrawGeometry:
             own = tile_tris[first[j]:first[j + 1]]
             self.frame[("bins", id(geo.tris), (int(light),), cull.value, width, height)] = Bins(
                 self.pipe, starts[j], own if len(own) else np.zeros(1, np.int32), tiles_x, n,
-                np.flatnonzero(occupied[j]))
+                np.flatnonzero(occupied[j]), geo.index)
         timing["bin"] = (time.perf_counter() - t0) * 1e3
 
     def _bins(self, geo: Geo, cache: dict, width: int, height: int, timing: dict):
@@ -324,7 +337,8 @@ class DrawGeometry:
             tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height,
                                                               self.pipe.tile)
             timing["bin"] = (time.perf_counter() - t0) * 1e3
-            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, geo.tris.count)
+            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, geo.tris.count,
+                                   index=geo.index)
         return (geo, tb) if tb.ntiles else None
 
     def _raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
@@ -417,125 +431,203 @@ class DrawGeometry:
             if flat[n]:
                 vary[i] = tris.vary[pos[n]]
         coef = np.ascontiguousarray(tris.coef[:, [smooth_pos[n] for n in names if not flat[n]]])
+        if geo.index is not None and len(geo.index):     # in the buffers' rows
+            rows = np.zeros((int(geo.index.max()) + 1,) + coef.shape[1:], np.float32)
+            rows[geo.index] = coef
+            coef = rows
         cut = Geo(tris, dict(geo.bufs, vary=self.pipe._buffer(vary),
-                             coef=self.pipe._buffer(coef)))
+                             coef=self.pipe._buffer(coef)), geo.index)
         cut.ncoef = coef.shape[1]
         cut.names = list(names)
         return cut
 
-    def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
-                lights: Optional[tuple], shadow: Optional["ShadowView"] = None):
-        """Run the vertex kernel(s), read back clip positions and varyings, clip and set up
-        on the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
+    def prefetch(self, k: int, p: PassPlan, width: int, height: int,
+                 lights: Optional[list], shadow: Optional["ShadowView"] = None) -> None:
+        """Queue the vertex kernels (and non-blocking read-backs) of the set-up pass ``k``
+        will need, unless this frame has it already.  ``CLPipeline.render`` calls this for
+        every pass execution of the frame before queueing any raster kernel: on an in-order
+        queue a pass's vertex read-back would otherwise wait behind the raster kernels of
+        the passes before it, and the host would sit idle while the device rasterises
+        (deferred_calver at 640x360: 14 ms of a 73 ms frame).  Full-screen draws are kept
+        across frames and need none."""
+        kind = p.draw.kind
+        key = self._raster_key(p, width, height)
+        if kind is ir.DrawKind.LIGHTS:
+            batch = tuple(self.pipe._selection.of(p.draw))
+            if not set(lights) <= set(batch):
+                batch = tuple(lights)
+            key, lights = key + (batch,), batch
+        elif shadow is not None:
+            key = key + ("shadow", shadow.light)
+        elif kind is not ir.DrawKind.SCENE:
+            return
+        if key not in self.frame and key not in self.pending:
+            self.pending[key] = self._vertices(k, p, width, height, key, lights, shadow)
+
+    def _vertices(self, k: int, p: PassPlan, width: int, height: int, key: tuple,
+                  lights: Optional[tuple], shadow: Optional["ShadowView"]):
+        """Queue the vertex kernel(s) of a draw and the read-back of clip positions and
+        varyings (not waited for): a ``_Vertices``, or None when the draw has no vertex."""
         import pyopencl as cl
         pipe = self.pipe
         draw = p.draw
-        depth_clamp = p.state.depth.clamp
-        dfmt = p.depth_target and pipe.plan.target(p.depth_target).format.name
-        center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
-        names, flats, providers = [], [], [(k, [])]
+        v = _Vertices()
+        v.names, v.flats, providers = [], [], [(k, [])]
+        v.flat = v.scissor = None
         if shadow is not None:     # depth only: no varyings
-            names, flats, providers, w_plane = [], [], [(k, [])], False
-            cull = p.state.cull.value
+            v.w_plane = False
+            v.cull = p.state.cull.value
         elif draw.kind is ir.DrawKind.SCENE:
-            names, flats, providers, w_plane = self._scene_group(key)
+            v.names, v.flats, providers, v.w_plane = self._scene_group(key)
             providers = providers or [(k, [])]
-            cull = p.state.cull.value
+            v.cull = p.state.cull.value
         else:
             # light volumes and the full-screen triangle have no varyings; their 1/w plane
             # (frag_coord.w) is set up always, so that every pass drawing them shares one
             # set-up (light draws are culled per pass)
-            w_plane = True
-            cull = "none" if draw.kind is ir.DrawKind.LIGHTS else p.state.cull.value
+            v.w_plane = True
+            v.cull = "none" if draw.kind is ir.DrawKind.LIGHTS else p.state.cull.value
         mesh_verts = 1
         zeros = pipe._zeros4
         attrs = [zeros] * 4
-        inst = np.zeros(1, np.uint32)
-        flat = None
-        scissor = None
+        v.inst = np.zeros(1, np.uint32)
         if draw.kind is ir.DrawKind.SCENE:
             got = self.attributes(draw)
             if got is None:
-                self.frame[key] = None
                 return None
-            nverts, attrs, flat = got
+            nverts, attrs, v.flat = got
             if shadow is not None:      # the tile: its viewport, and a scissor on it
                 x, y, w, h = shadow.rect
-                scissor = np.tile(np.array([x, y, x + w, y + h], np.int32), (nverts // 3, 1))
+                v.scissor = np.tile(np.array([x, y, x + w, y + h], np.int32), (nverts // 3, 1))
         elif draw.kind is ir.DrawKind.LIGHTS:
             mesh_verts, mesh_buf = self.mesh((draw.volume or ir.Volume.SPHERE).value)
             nverts = mesh_verts * len(lights)
             attrs = [mesh_buf] + [zeros] * 3
-            inst = np.asarray(lights, np.uint32)
-            flat = np.zeros((nverts // 3, 4), np.uint32)
-            flat[:, 3] = np.repeat(inst, mesh_verts // 3)
+            v.inst = np.asarray(lights, np.uint32)
+            v.flat = np.zeros((nverts // 3, 4), np.uint32)
+            v.flat[:, 3] = np.repeat(v.inst, mesh_verts // 3)
             if draw.scissor:
-                scissor = self._light_scissors(inst, width, height, mesh_verts // 3)
+                v.scissor = self._light_scissors(v.inst, width, height, mesh_verts // 3)
         else:
             nverts = 3
-        inst_buf = pipe._buffer(inst)
-        f64 = pipe.f64
+        inst_buf = pipe._buffer(v.inst)
         frame_buf = pipe._frame_buf if shadow is None else shadow.frame_buf
         frame64_buf = pipe._frame64_buf if shadow is None else shadow.frame64_buf
-        viewport = None if shadow is None else shadow.rect
-        clip64 = None
-        clip = None
-        vary = np.empty((len(names), nverts, 4), np.float32) if names else None
-        vary_buf = None
-        vertex_ms = 0.0
-        for kp, have in providers:
+        v.nverts = nverts
+        v.clip = np.empty((nverts, 4), np.float32)
+        v.clip64 = np.empty((nverts, 4), np.float64) if pipe.f64 else None
+        v.vary = np.empty((len(v.names), nverts, 4), np.float32) if v.names else None
+        v.vary_buf = None
+        v.kernels, v.copies, v.outs, v.vbufs = [], [], [], []
+        clip_bufs = []
+        for i, (kp, have) in enumerate(providers):
             S = len(have)
             clip_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
+            clip_bufs.append(clip_buf)
             vbuf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
             kern = pipe._kernel(kp, "pg_vertex")
             extra = []
-            if f64:      # the float64 evaluation: clip positions in double too
+            if pipe.f64:      # the float64 evaluation: clip positions in double too
                 clip64_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 32)
                 extra = [frame64_buf, clip64_buf]
+            # one kernel object per pass is shared by every draw it provides for: it is
+            # enqueued (which takes the arguments) before the next draw sets them
             kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
                           frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
-            ev = cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,))
-            if clip is None:
-                clip = np.empty((nverts, 4), np.float32)
-                cl.enqueue_copy(pipe.queue, clip, clip_buf)
-                if f64:
-                    clip64 = np.empty((nverts, 4), np.float64)
-                    cl.enqueue_copy(pipe.queue, clip64, clip64_buf)
+            v.kernels.append(cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,)))
+            if i == 0:
+                v.copies.append(cl.enqueue_copy(pipe.queue, v.clip, clip_buf, is_blocking=False))
+                if pipe.f64:
+                    v.copies.append(cl.enqueue_copy(pipe.queue, v.clip64, clip64_buf,
+                                                    is_blocking=False))
             if S:
                 out = np.empty((S, nverts, 4), np.float32)
-                cl.enqueue_copy(pipe.queue, out, vbuf)
+                v.copies.append(cl.enqueue_copy(pipe.queue, out, vbuf, is_blocking=False))
+                v.outs.append((have, out))
+                v.vbufs.append(vbuf)
+                if have == v.names:
+                    v.vary_buf = vbuf
+        if v.vary_buf is None and v.names:
+            # several passes' vertex kernels made the varyings: gather them into one buffer on
+            # the device (slot-major, as the set-up and raster kernels read them)
+            v.vary_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE,
+                                   size=len(v.names) * nverts * 16)
+            done = set()
+            for (have, _), vbuf in zip(v.outs, v.vbufs):
                 for i, n in enumerate(have):
-                    if n in names:
-                        vary[names.index(n)] = out[i]
-                if have == names:
-                    vary_buf = vbuf
+                    if n in v.names and n not in done:
+                        done.add(n)
+                        cl.enqueue_copy(pipe.queue, v.vary_buf, vbuf, byte_count=nverts * 16,
+                                        src_offset=i * nverts * 16,
+                                        dst_offset=v.names.index(n) * nverts * 16)
+        v.job = None
+        if cl_setup_device.supports(_offset(p), pipe.f64) and (v.vary_buf or not v.names):
+            # set up on the device, queued behind the vertex kernel (one provider made every
+            # varying, or there are none)
+            center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
+            v.job = self.device_setup.enqueue(
+                clip_bufs[0], v.vary_buf, nverts // 3, nverts, width, height, cull=v.cull,
+                depth_clamp=p.state.depth.clamp, flat=v.flat, scissor=v.scissor,
+                smooth=tuple(i for i, f in enumerate(v.flats) if not f), pixel_center=center,
+                w_plane=v.w_plane, viewport=None if shadow is None else shadow.rect,
+                with_zq=center == 0.0)
+        return v
+
+    def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
+                lights: Optional[tuple], shadow: Optional["ShadowView"] = None):
+        """Wait for the draw's vertices (queued by ``prefetch``, or now), clip and set up on
+        the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
+        pipe = self.pipe
+        v = self.pending.pop(key, False)
+        if v is False:
+            v = self._vertices(k, p, width, height, key, lights, shadow)
+        if v is None:
+            self.frame[key] = None
+            return None
+        for ev in v.copies:
             ev.wait()
-            vertex_ms += (ev.profile.end - ev.profile.start) * 1e-6
-        timing["vertex"] = vertex_ms
+        for have, out in v.outs:
+            for i, n in enumerate(have):
+                if n in v.names:
+                    v.vary[v.names.index(n)] = out[i]
+        timing["vertex"] = sum((ev.profile.end - ev.profile.start) * 1e-6 for ev in v.kernels)
+        dfmt = p.depth_target and pipe.plan.target(p.depth_target).format.name
+        center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
+        viewport = None if shadow is None else shadow.rect
         t0 = time.perf_counter()
-        tris = setup_triangles(clip, width, height, cull=cull, polygon_offset=_offset(p),
-                               depth_clamp=depth_clamp, depth_format=dfmt, flat=flat,
-                               vary=vary, scissor=scissor,
-                               smooth=[i for i, f in enumerate(flats) if not f],
-                               pixel_center=center, w_plane=w_plane, viewport=viewport,
-                               with_zp=False, with_zq=center == 0.0)
-        if f64:
-            tris.h = homogeneous_planes(clip64, tris.parent, width, height, _offset(p), dfmt,
+        dev = None
+        if v.job is not None:
+            tris, dev, index = self.device_setup.finish(v.job, v.clip, v.vary)
+        else:
+            tris = setup_triangles(v.clip, width, height, cull=v.cull, polygon_offset=_offset(p),
+                                   depth_clamp=p.state.depth.clamp, depth_format=dfmt,
+                                   flat=v.flat, vary=v.vary, scissor=v.scissor,
+                                   smooth=[i for i, f in enumerate(v.flats) if not f],
+                                   pixel_center=center, w_plane=v.w_plane, viewport=viewport,
+                                   with_zp=False, with_zq=center == 0.0)
+        if pipe.f64:
+            tris.h = homogeneous_planes(v.clip64, tris.parent, width, height, _offset(p), dfmt,
                                         viewport)
         timing["setup"] = (time.perf_counter() - t0) * 1e3
         if tris.count == 0:
             self.frame[key] = None
             return None
-        if vary_buf is None or tris.vary.shape[1] != nverts:
+        vary_buf = v.vary_buf
+        if vary_buf is None or tris.vary.shape[1] != v.nverts:
             vary_buf = pipe._buffer(tris.vary) if tris.vary is not None else pipe._zeros4
-        geo = self.frame[key] = self._upload(tris, vary_buf)
-        geo.names, geo.flats = names, flats
-        if draw.kind is ir.DrawKind.LIGHTS:
+        if dev is None:
+            geo = self._upload(tris, vary_buf)
+        else:       # the device set-up's buffers, rows through ``index``
+            none = pipe._dummy
+            geo = Geo(tris, dict(dev, zp=none, zq=dev.get("zq", none), vary=vary_buf), index)
+        self.frame[key] = geo
+        geo.names, geo.flats = v.names, v.flats
+        if p.draw.kind is ir.DrawKind.LIGHTS:
             light_of = tris.flat[:, 3]
-            lo = np.searchsorted(light_of, inst, "left")
-            hi = np.searchsorted(light_of, inst, "right")
-            geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(inst, lo, hi)}
+            lo = np.searchsorted(light_of, v.inst, "left")
+            hi = np.searchsorted(light_of, v.inst, "right")
+            geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(v.inst, lo, hi)}
         return geo
 
     def _upload(self, tris, vary_buf) -> Geo:

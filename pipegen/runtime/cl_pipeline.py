@@ -164,6 +164,7 @@ class CLPipeline:
         self._kernels: dict = {}
         self._int2s: dict = {}
         self._last_args: dict = {}      # kernel -> the arguments it was last launched with
+        self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
         for k in range(len(plan.passes)):
             self._program(k)
 
@@ -268,7 +269,11 @@ class CLPipeline:
         self._frame_buf = self._buffer(self._frame_np)
         self._frame64_buf = self._buffer(self._frame64_np) if self.f64 else None
         captures: list[dict] = []
-        for k, light in draws.schedule(self.plan, self._selection):
+        runs = list(draws.schedule(self.plan, self._selection))
+        self._shadows = {}
+        for k, light in runs:      # every vertex kernel before the first raster kernel
+            self._prefetch(k, light)
+        for k, light in runs:
             self._run_pass(k, light)
             if capture_passes:
                 captures.append({"pass": self.plan.passes[k].name, "light": light,
@@ -300,6 +305,18 @@ class CLPipeline:
         if self.f64:     # the fragment function's light table in double
             self._lights64_buf = self._buffer(table.reshape(-1, 4).astype(np.float64)
                                               if table.size else np.zeros((1, 4), np.float64))
+
+    def _prefetch(self, k: int, light: Optional[int]) -> None:
+        """Queue the vertex work of a pass execution (``DrawGeometry.prefetch``)."""
+        p = self.plan.passes[k]
+        lights = None
+        if p.draw.kind is ir.DrawKind.LIGHTS:
+            lights = self._selection.instance(p, light)
+            if not lights:
+                return
+        width, height = self._pass_size(p)
+        shadow = self._shadow_view(p, light, width, height) if p.draw.shadow else None
+        self.geometry.prefetch(k, p, width, height, lights, shadow)
 
     def _run_pass(self, k: int, light: Optional[int]) -> None:
         import pyopencl as cl
@@ -367,13 +384,18 @@ class CLPipeline:
     def _shadow_view(self, p: PassPlan, light: int, width: int, height: int) -> ShadowView:
         """A shadow-map draw of ``light``: its tile and the frame structs with the light's view
         and projection in place of the camera's (``draws.shadow_view``; float32 as a camera's
-        are uploaded)."""
+        are uploaded); once per frame."""
+        got = self._shadows.get((id(p), light))
+        if got is not None:
+            return got
         rect, view, proj = draws.shadow_view(self._scene, light, p.draw, width, height)
         fr = self._frame_np.copy()
         f8 = self._frame64_np.copy() if self.f64 else None
         _put_matrices(fr, f8, view=view, proj=proj)
-        return ShadowView(int(light), tuple(int(v) for v in rect), self._buffer(fr),
-                          None if f8 is None else self._buffer(f8))
+        got = self._shadows[(id(p), light)] = ShadowView(
+            int(light), tuple(int(v) for v in rect), self._buffer(fr),
+            None if f8 is None else self._buffer(f8))
+        return got
 
     def _set_args(self, kern, args: list) -> None:
         """Set the kernel's arguments that differ from its previous launch.  A pass run once

@@ -14,6 +14,8 @@ pass's ``inside`` depth test when it has one (Calver's infinite far plane).
 
 from __future__ import annotations
 
+import functools
+
 from dataclasses import dataclass, field
 from typing import Iterator, Optional, Sequence
 
@@ -265,6 +267,21 @@ def _unit_mesh(volume: str) -> np.ndarray:
     return _UNIT_MESHES[volume]
 
 
+@functools.lru_cache(maxsize=None)
+def _unit_circumradius() -> float:
+    """The unit sphere mesh's farthest vertex from its centre (``volume_bound``; computed once:
+    ``cull auto`` asks for it per light and frame)."""
+    m = _unit_mesh("sphere")
+    return float(np.sqrt((m * m).sum(axis=1)).max())
+
+
+@functools.lru_cache(maxsize=None)
+def _unit_cone_rim() -> float:
+    """The unit cone mesh's rim radius (``volume_clearance``), computed once."""
+    m = _unit_mesh("cone")
+    return float(np.sqrt(m[:, 0] ** 2 + m[:, 1] ** 2).max())
+
+
 def _cos_clamped(cos_outer: float) -> float:
     """cos(outer) as the vertex stages clamp it before taking tan(outer)."""
     return min(max(float(cos_outer), 0.001), 1.0)
@@ -280,9 +297,9 @@ def volume_bound(volume: str, radius: float, cos_outer: float = -2.0) -> float:
       (``radius * tan(outer)``) and ``radius`` in z.
     """
     r = max(float(radius), 0.0)
-    m = _unit_mesh(volume)
     if volume == "sphere":
-        return r * float(np.sqrt((m * m).sum(axis=1)).max())
+        return r * _unit_circumradius()
+    m = _unit_mesh(volume)
     if volume == "cone":
         c = _cos_clamped(cos_outer)
         spread = r * np.sqrt(1.0 - c * c) / c
@@ -318,8 +335,7 @@ def volume_clearance(volume: str, position, radius: float, eye, cos_outer: float
         axis = d / n if n > 0 else np.array([0.0, 0.0, -1.0])
         h = float(v @ axis)
         q = float(np.linalg.norm(v - h * axis))
-        m = _unit_mesh("cone")
-        rim = float(np.sqrt(m[:, 0] ** 2 + m[:, 1] ** 2).max())
+        rim = _unit_cone_rim()
         c = _cos_clamped(cos_outer)
         half = float(np.arctan(rim * np.sqrt(1.0 - c * c) / c))
         return float(max(q * np.cos(half) - h * np.sin(half), h - r))

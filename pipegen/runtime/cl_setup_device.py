@@ -1,0 +1,231 @@
+"""Triangle set-up on the OpenCL device: ``cl_setup.setup_triangles`` as a kernel.
+
+The numpy set-up costs ~0.8 us a triangle in numpy passes over memory (a 7,000-triangle
+scene draw ~6 ms per frame, on the host's critical path: the device waits for it), while
+per triangle it is a few dozen float32 operations.  ``templates/cl_setup.cl.j2`` does them
+on the device, one work-item per input triangle, in the numpy set-up's order of operations
+(float32, unfused, the viewport's fused multiply-adds as ``fma32``): every triangle it keeps
+has the numpy set-up's values bit for bit (tests/test_cl_setup_device.py compares every
+field on scenes and random triangles).  Triangles that need clipping (a vertex outside a
+clip plane the others are not all outside of) or have a non-finite window position are left
+to the numpy set-up, which runs on just those and whose output is merged back in
+submission order; so are draws with a polygon offset, and the float64 evaluation's (its
+homogeneous planes come from the numpy set-up's parent triangles): ``supports``.
+
+``DeviceSetup(ctx, queue).enqueue(...)`` queues the kernel and the read-back of its results
+without waiting (``CLPipeline`` queues it with the vertex kernels, before any raster kernel);
+``finish(job, clip, vary)`` waits and returns the ``cl_setup.Triangles`` (host copies) with
+the device buffers the raster kernel reads as they are (no upload): rows per input
+triangle, dropped ones included, so tile lists index them through ``index``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from typing import Optional
+
+import numpy as np
+
+from ..backends import templating
+from . import cl_context
+from .cl_setup import SUBPIXEL, Triangles, setup_triangles
+
+__all__ = ["DeviceSetup", "supports"]
+
+_CULL = {"none": 0, "back": 1, "front": 2}
+# per kept triangle: (field, dtype, trailing shape) as the kernel writes them
+_FIELDS = (("a", np.int32, (4,)), ("b", np.int32, (4,)), ("c", np.int64, (4,)),
+           ("z", np.float32, (4,)), ("w", np.float32, (4,)), ("flat", np.uint32, (4,)),
+           ("vtx", np.int32, (4,)), ("scissor", np.int32, (4,)), ("bbox", np.int32, (4,)))
+
+
+def supports(polygon_offset, f64: bool) -> bool:
+    """Whether a draw's set-up can run on the device (else the numpy set-up does it all;
+    ``$PIPEGEN_CL_DEVICE_SETUP=0`` makes it do all of them, for comparisons)."""
+    return (polygon_offset is None and not f64
+            and os.environ.get("PIPEGEN_CL_DEVICE_SETUP", "1") != "0")
+
+
+@dataclasses.dataclass
+class _Job:
+    """A queued set-up: its host arrays (filled when the read-back events complete) and the
+    parameters the numpy set-up of the clipped triangles needs."""
+    events: list
+    buffers: list        # kept alive until the job is finished
+    bufs: dict           # the per-triangle fields' device buffers, by Triangles field name
+    status: np.ndarray
+    out: dict
+    params: dict
+
+
+class DeviceSetup:
+    def __init__(self, ctx, queue):
+        self.ctx, self.queue = ctx, queue
+        self._kernels: dict = {}
+
+    def _kernel(self, cull: str, depth_clamp: bool, samples: Optional[int], has_flat: bool,
+                has_scissor: bool, w_plane: bool, with_zq: bool, smooth: tuple):
+        import pyopencl as cl
+        key = (cull, depth_clamp, samples == 1, has_flat, has_scissor, w_plane, with_zq, smooth)
+        kern = self._kernels.get(key)
+        if kern is None:
+            lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
+            src = templating.render(
+                "cl_setup.cl.j2", cull=_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
+                box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor),
+                w_plane=int(w_plane), with_zq=int(with_zq), smooth=list(smooth))
+            kern = self._kernels[key] = cl.Kernel(cl_context.build_program(src), "pg_setup")
+        return kern
+
+    def enqueue(self, clip_buf, vary_buf, ntris: int, nverts: int, width: int, height: int, *,
+                cull: str = "none", depth_clamp: bool = False, flat: Optional[np.ndarray] = None,
+                scissor: Optional[np.ndarray] = None, samples: Optional[int] = None,
+                smooth: tuple = (), pixel_center: float = 0.5, w_plane: bool = True,
+                viewport=None, with_zq: bool = False) -> _Job:
+        """Queue the set-up of ``ntris`` triangles whose clip positions (``3 * ntris``
+        float4) are in ``clip_buf`` and varyings (slot-major, ``nverts`` per slot) in
+        ``vary_buf``; the keywords as ``setup_triangles`` takes them."""
+        import pyopencl as cl
+        f32 = np.float32
+        mf = cl.mem_flags
+        W, H = int(width), int(height)
+        vx, vy, vw, vh = viewport if viewport is not None else (0, 0, W, H)
+        smooth = tuple(int(s) for s in smooth)
+        K = len(smooth)
+        kern = self._kernel(cull, depth_clamp, samples, flat is not None, scissor is not None,
+                            w_plane, with_zq, smooth)
+        n = max(int(ntris), 1)
+
+        def buf(nbytes):
+            return cl.Buffer(self.ctx, mf.WRITE_ONLY, size=max(16, nbytes))
+
+        def upload(a):
+            return cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=np.ascontiguousarray(a))
+
+        status_buf = buf(n)
+        bufs = {name: buf(n * np.dtype(dt).itemsize * int(np.prod(shape)))
+                for name, dt, shape in _FIELDS}
+        coef_buf = buf(n * K * 3 * 16)
+        zq_buf = buf(n * 32 if with_zq else 16)
+        dummy = buf(16)
+        inputs = [upload(np.asarray(flat, np.uint32)) if flat is not None else dummy,
+                  upload(np.asarray(scissor, np.int32)) if scissor is not None else dummy]
+        kern.set_args(np.int32(ntris), np.int32(nverts), np.int32(W), np.int32(H),
+                      f32(vw * 0.5), f32(vh * 0.5), f32(vx + vw * 0.5), f32(vy + vh * 0.5),
+                      f32(pixel_center), clip_buf, vary_buf if vary_buf is not None else dummy,
+                      *inputs,
+                      status_buf, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"],
+                      coef_buf, bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"],
+                      zq_buf)
+        events = []
+        if ntris:
+            events.append(cl.enqueue_nd_range_kernel(self.queue, kern,
+                                                     (((ntris + 63) // 64) * 64,), (64,)))
+        status = np.zeros(ntris, np.uint8)
+        out = {name: np.empty((ntris,) + shape, dt) for name, dt, shape in _FIELDS}
+        out["coef"] = np.empty((ntris, K, 3, 4), f32)
+        if with_zq:
+            out["zq"] = np.empty((ntris, 4), np.float64)
+        if ntris:
+            events.append(cl.enqueue_copy(self.queue, status, status_buf, is_blocking=False))
+            for name, arr in out.items():
+                if arr.size:
+                    src = {"coef": coef_buf, "zq": zq_buf}.get(name) or bufs[name]
+                    events.append(cl.enqueue_copy(self.queue, arr, src, is_blocking=False))
+        params = dict(width=W, height=H, cull=cull, depth_clamp=depth_clamp, flat=flat,
+                      scissor=scissor, samples=samples, smooth=list(smooth),
+                      pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
+                      with_zq=with_zq)
+        keep = [status_buf, coef_buf, zq_buf, dummy, *inputs, *bufs.values()]
+        fields = dict(bufs, coef=coef_buf)
+        if with_zq:
+            fields["zq"] = zq_buf
+        return _Job(events, keep, fields, status, out, params)
+
+    def finish(self, job: _Job, clip: np.ndarray, vary: Optional[np.ndarray]):
+        """Wait for ``job``: ``(tris, bufs, index)``.  ``tris``: the ``Triangles`` (host
+        copies, in submission order; ``clip``, ``vary``: the host copies of the kernel's
+        inputs, for the triangles the numpy set-up takes); ``bufs``: the device buffers of
+        its per-triangle fields as the kernel left them, one row per input triangle, the
+        numpy set-up's triangles appended (``"_hold"``: host arrays still being written to them);
+        ``index``: the row of ``bufs`` of each triangle
+        of ``tris`` (int32), what tile lists must hold."""
+        import pyopencl as cl
+        for ev in job.events:
+            ev.wait()
+        status, out, prm = job.status, job.out, job.params
+        kept = np.flatnonzero(status == 1)
+        hard = np.flatnonzero(status == 2)
+        parts = {name: _rows(arr, kept) for name, arr in out.items()}
+        parent = kept.astype(np.int64)
+        index = kept.astype(np.int32)
+        bufs = dict(job.bufs)
+        vary_v, nverts = vary, len(clip)
+        if len(hard):
+            sub = _numpy_setup(hard, clip, vary, prm)
+            T, m = len(status), sub.count
+            order = np.argsort(np.concatenate([parent, sub.parent]), kind="stable")
+            parent = np.concatenate([parent, sub.parent])[order]
+            index = np.concatenate([index, np.arange(T, T + m, dtype=np.int32)])[order]
+            for name in parts:
+                extra = getattr(sub, name)
+                parts[name] = _rows(np.concatenate([parts[name], extra]), order)
+                row = extra.nbytes // m if m else 0
+                if row:    # the kernel's rows, then these: a buffer with room for both
+                    grown = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=(T + m) * row)
+                    cl.enqueue_copy(self.queue, grown, bufs[name], byte_count=T * row)
+                    host = np.ascontiguousarray(extra)
+                    # a non-blocking write reads it later: kept with the buffers
+                    bufs.setdefault("_hold", []).append(host)
+                    cl.enqueue_copy(self.queue, grown, host, dst_offset=T * row,
+                                    is_blocking=False)
+                    bufs[name] = grown
+            vary_v, nverts = sub.vary, sub.nverts
+        tris = Triangles(parts["a"], parts["b"], parts["c"], parts["z"], parts["w"],
+                         parts["coef"], None, parts.get("zq"), parts["flat"], parts["vtx"],
+                         parts["scissor"], parts["bbox"], vary_v, nverts, prm["samples"],
+                         parent)
+        return tris, bufs, index
+
+
+def _rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``a[idx]`` along the first axis, each row moved as one opaque item (several times
+    faster than fancy indexing rows of 4 numbers)."""
+    if a.ndim == 1 or not a.flags.c_contiguous or a.size == 0:
+        return a[idx]
+    row = np.dtype((np.void, a.itemsize * int(np.prod(a.shape[1:]))))
+    items = a.reshape(len(a), -1).view(row)[:, 0]
+    return np.take(items, idx).view(a.dtype).reshape((len(idx),) + a.shape[1:])
+
+
+def _numpy_setup(idx: np.ndarray, clip: np.ndarray, vary: Optional[np.ndarray],
+                 prm: dict) -> Triangles:
+    """The numpy set-up of input triangles ``idx`` (increasing) alone, in the whole draw's
+    terms: parents and vertex indices refer to the draw's triangles and vertices, the
+    clipper's new vertices appended after the draw's (``vary`` extended with them)."""
+    corner = np.arange(3, dtype=np.int64)
+    verts = (idx[:, None] * 3 + corner).reshape(-1)
+    sub_vary = None if vary is None else np.asarray(vary, np.float32)[:, verts]
+    flat, scissor = prm["flat"], prm["scissor"]
+    tris = setup_triangles(
+        np.asarray(clip, np.float32)[verts], prm["width"], prm["height"], cull=prm["cull"],
+        depth_clamp=prm["depth_clamp"], flat=None if flat is None else flat[idx],
+        vary=sub_vary, scissor=None if scissor is None else scissor[idx],
+        samples=prm["samples"], smooth=prm["smooth"], pixel_center=prm["pixel_center"],
+        w_plane=prm["w_plane"], viewport=prm["viewport"], with_zp=False,
+        with_zq=prm["with_zq"])
+    m = len(verts)
+    vtx = tris.vtx.astype(np.int64)
+    own = vtx < m                               # the draw's vertices; the rest were made here
+    vtx[:, :3] = np.where(own[:, :3], verts[np.minimum(vtx[:, :3], m - 1)],
+                          len(clip) + vtx[:, :3] - m)
+    tris.vtx = vtx.astype(np.int32)
+    tris.parent = idx[tris.parent]
+    if vary is not None and tris.vary is not None and tris.vary.shape[1] > m:
+        tris.vary = np.concatenate([np.asarray(vary, np.float32), tris.vary[:, m:]], axis=1)
+    else:
+        tris.vary = vary
+    tris.nverts = len(clip) + (tris.nverts - m)
+    return tris

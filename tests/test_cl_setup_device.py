@@ -1,0 +1,93 @@
+"""The device set-up (runtime/cl_setup_device.py, templates/cl_setup.cl.j2) against the numpy
+set-up it replaces (cl_setup.setup_triangles): every field of every triangle bit for bit,
+on random clip-space triangles (many cross the clip planes: those the numpy set-up does and
+the results are merged back in submission order), under each combination of the set-up's
+switches; and whole frames of shipped techniques rendered both ways."""
+
+import itertools
+import os
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.cl
+
+FIELDS = ("a", "b", "c", "z", "w", "coef", "flat", "vtx", "scissor", "bbox", "parent", "zq")
+
+
+def _triangles(rng, T):
+    """Small random triangles in clip space, some of them crossing clip planes or behind the
+    eye (w from 0.2 to 5, vertices within 1.1 w of the axis)."""
+    w = rng.uniform(0.2, 5.0, 3 * T).astype(np.float32)
+    xyz = rng.uniform(-1.1, 1.1, (3 * T, 3)).astype(np.float32) * w[:, None]
+    c = np.concatenate([xyz, w[:, None]], axis=1).astype(np.float32).reshape(T, 3, 4)
+    jitter = np.array([1, 1, 1, 0], np.float32)
+    for k in (1, 2):
+        c[:, k] = c[:, 0] + rng.normal(0, 0.05, (T, 4)).astype(np.float32) * jitter
+    return c.reshape(-1, 4)
+
+
+def _same(ref, got) -> bool:
+    if ref is None or got is None:
+        return ref is None and got is None
+    if ref.shape != got.shape or ref.dtype != got.dtype:
+        return False
+    return bool(np.array_equal(ref.view(np.uint8), got.view(np.uint8)))
+
+
+SWITCHES = list(itertools.product(["none", "back", "front"], [None, 1], [(), (0, 2)],
+                                  [0.5, 0.0], [False, True], [False, True]))
+
+
+@pytest.mark.parametrize("cull,samples,smooth,center,scissor,depth_clamp", SWITCHES)
+def test_device_setup_matches_numpy_setup(cull, samples, smooth, center, scissor, depth_clamp):
+    import pyopencl as cl
+    from pipegen.runtime import cl_context
+    from pipegen.runtime.cl_setup import setup_triangles
+    from pipegen.runtime.cl_setup_device import DeviceSetup
+    ctx, queue = cl_context.get_context()
+    rng = np.random.default_rng(len(SWITCHES) + SWITCHES.index(
+        (cull, samples, smooth, center, scissor, depth_clamp)))
+    T, S, W, H = 600, 3, 160, 90
+    clip = _triangles(rng, T)
+    vary = rng.normal(0, 3, (S, 3 * T, 4)).astype(np.float32)
+    flat = rng.integers(0, 1000, (T, 4)).astype(np.uint32)
+    rects = None
+    if scissor:
+        rects = rng.integers(-20, 120, (T, 4)).astype(np.int32)
+        rects[:, 2:] += rects[:, :2]
+    with_zq = center == 0.0
+    kw = dict(cull=cull, flat=flat, scissor=rects, samples=samples, smooth=list(smooth),
+              pixel_center=center, w_plane=True, with_zq=with_zq, depth_clamp=depth_clamp)
+    ref = setup_triangles(clip, W, H, vary=vary, with_zp=False, **kw)
+    mf = cl.mem_flags
+    clip_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=clip)
+    vary_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=vary)
+    setup = DeviceSetup(ctx, queue)
+    job = setup.enqueue(clip_buf, vary_buf, T, 3 * T, W, H, **dict(kw, smooth=smooth))
+    got, bufs, index = setup.finish(job, clip, vary)
+    assert (job.status == 2).any() and (job.status == 1).any()   # both paths taken
+    for f in FIELDS:
+        assert _same(getattr(ref, f), getattr(got, f)), f
+    assert ref.nverts == got.nverts and np.array_equal(ref.vary, got.vary)
+    # the device rows the tile lists will name hold the same triangles
+    dev = np.empty((int(index.max()) + 1, 4), np.int32)
+    cl.enqueue_copy(queue, dev, bufs["bbox"])
+    assert np.array_equal(dev[index], got.bbox)
+
+
+@pytest.mark.parametrize("technique", ["deferred", "light_prepass", "lidr_transparent"])
+def test_frames_with_and_without_device_setup_are_identical(technique, monkeypatch):
+    from pipegen.compiler import compile_file
+    from pipegen.scene import load_scene
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    # the ground plane crosses the near and side planes: both set-up paths run
+    scene = load_scene(os.path.join(root, "examples", "scenes", "many_lights.toml"))
+    scene = scene.with_size(96, 64)
+    compiled = compile_file(os.path.join(root, "pipelines", f"{technique}.pipe"))
+    device = compiled.pipeline("cl").render(scene)
+    monkeypatch.setenv("PIPEGEN_CL_DEVICE_SETUP", "0")
+    host = compiled.pipeline("cl").render(scene)
+    assert device.keys() == host.keys()
+    for name in device:
+        assert np.array_equal(device[name], host[name]), name
