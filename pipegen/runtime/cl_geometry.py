@@ -253,12 +253,10 @@ class DrawGeometry:
             key = ("auto", id(geo), tuple(lights))
             sub = cache.get(key)
             if sub is None:
-                tris = geo.tris
+                sel = None
                 if tuple(lights) != batch:        # these lights' triangles, in light order
-                    tris = select_triangles(tris, np.concatenate(
-                        [np.arange(a, b) for a, b in ranges]).astype(np.int64))
-                tris = self._cull_auto(tris, p, lights)
-                sub = cache[key] = self._upload(tris, geo.bufs["vary"])
+                    sel = np.concatenate([np.arange(a, b) for a, b in ranges]).astype(np.int64)
+                sub = cache[key] = self._cull_auto(geo, sel, p, lights)
             return self._bins(sub, cache, width, height, timing)
         cull = p.state.cull
         key = ("bins", id(geo.tris), tuple(lights), cull.value, width, height)
@@ -422,22 +420,33 @@ class DrawGeometry:
             return geo
         if not names:
             return geo          # reads no varying: nothing indexes vary or coef
+        import pyopencl as cl
+        pipe = self.pipe
         tris = geo.tris
         flat = dict(zip(geo.names, geo.flats))
         pos = {n: i for i, n in enumerate(geo.names)}
         smooth_pos = {n: i for i, n in enumerate(n for n in geo.names if not flat[n])}
-        vary = np.zeros((len(names), tris.nverts, 4), np.float32)
+        sel = [smooth_pos[n] for n in names if not flat[n]]
+        # copied on the device: the flat varyings' slots (the smooth ones are not read from
+        # vary), and the smooth ones' planes, column by column of the (rows, K, 3, 4) array
+        nv = tris.nverts
+        vary = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, len(names) * nv * 16))
         for i, n in enumerate(names):
             if flat[n]:
-                vary[i] = tris.vary[pos[n]]
-        coef = np.ascontiguousarray(tris.coef[:, [smooth_pos[n] for n in names if not flat[n]]])
-        if geo.index is not None and len(geo.index):     # in the buffers' rows
-            rows = np.zeros((int(geo.index.max()) + 1,) + coef.shape[1:], np.float32)
-            rows[geo.index] = coef
-            coef = rows
-        cut = Geo(tris, dict(geo.bufs, vary=self.pipe._buffer(vary),
-                             coef=self.pipe._buffer(coef)), geo.index)
-        cut.ncoef = coef.shape[1]
+                cl.enqueue_copy(pipe.queue, vary, geo.bufs["vary"], byte_count=nv * 16,
+                                src_offset=pos[n] * nv * 16, dst_offset=i * nv * 16)
+        K, plane = geo.ncoef, 3 * 16
+        rows = len(tris.coef) if geo.index is None or not len(geo.index) \
+            else int(geo.index.max()) + 1
+        coef = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE,
+                         size=max(16, rows * len(sel) * plane))
+        for j, col in enumerate(sel):
+            if rows:
+                cl.enqueue_copy(pipe.queue, coef, geo.bufs["coef"], src_origin=(col * plane, 0),
+                                dst_origin=(j * plane, 0), region=(plane, rows),
+                                src_pitches=(K * plane,), dst_pitches=(len(sel) * plane,))
+        cut = Geo(tris, dict(geo.bufs, vary=vary, coef=coef), geo.index)
+        cut.ncoef = len(sel)
         cut.names = list(names)
         return cut
 
@@ -614,8 +623,12 @@ class DrawGeometry:
             self.frame[key] = None
             return None
         vary_buf = v.vary_buf
-        if vary_buf is None or tris.vary.shape[1] != v.nverts:
-            vary_buf = pipe._buffer(tris.vary) if tris.vary is not None else pipe._zeros4
+        if tris.vary is None:
+            vary_buf = pipe._zeros4
+        elif vary_buf is None:
+            vary_buf = pipe._buffer(tris.vary)
+        elif tris.vary.shape[1] != v.nverts:     # the clipper's new vertices appended
+            vary_buf = self._grown_varyings(vary_buf, tris.vary, v.nverts)
         if dev is None:
             geo = self._upload(tris, vary_buf)
         else:       # the device set-up's buffers, rows through ``index``
@@ -629,6 +642,23 @@ class DrawGeometry:
             hi = np.searchsorted(light_of, v.inst, "right")
             geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(v.inst, lo, hi)}
         return geo
+
+    def _grown_varyings(self, buf, vary: np.ndarray, nverts: int):
+        """The device varyings ``buf`` (slot-major, ``nverts`` vertices a slot) with the
+        vertices ``vary`` has after them (the clipper's): each slot copied on the device, the
+        new vertices written from the host, instead of uploading all of ``vary``."""
+        import pyopencl as cl
+        pipe = self.pipe
+        S, total = vary.shape[:2]
+        grown = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * total * 16))
+        new = np.ascontiguousarray(vary[:, nverts:])
+        for k in range(S):
+            cl.enqueue_copy(pipe.queue, grown, buf, byte_count=nverts * 16,
+                            src_offset=k * nverts * 16, dst_offset=k * total * 16)
+            cl.enqueue_copy(pipe.queue, grown, new[k], dst_offset=(k * total + nverts) * 16,
+                            is_blocking=False)
+        self.frame.setdefault("_hold", []).append(new)   # read by the non-blocking writes
+        return grown
 
     def _upload(self, tris, vary_buf) -> Geo:
         buf = self.pipe._buffer
@@ -646,23 +676,33 @@ class DrawGeometry:
             bufs["parent"] = buf(np.asarray(tris.parent, np.int32))
         return Geo(tris, bufs)
 
-    def _cull_auto(self, tris, p: PassPlan, lights: list):
-        """``cull auto``: keep each light's front or back faces as ``draws.light_runs``
-        chooses (the GL runtime draws the same runs).  Filtering the set-up triangles keeps
-        their submission order, so per pixel the lights still arrive in light order."""
+    def _cull_auto(self, geo: Geo, sel: Optional[np.ndarray], p: PassPlan,
+                   lights: list) -> Geo:
+        """``cull auto``: of ``geo``'s triangles ``sel`` (None: all), keep each light's front
+        or back faces as ``draws.light_runs`` chooses (the GL runtime draws the same runs).
+        Filtering the set-up triangles keeps their submission order, so per pixel the lights
+        still arrive in light order.  The result shares ``geo``'s device buffers (its triangles
+        are rows of them) but for the facing words, which it changes."""
         scene = self.pipe._scene
         runs = draws.light_runs(p.state.cull, p.draw.volume, list(scene.lights), lights,
                                 scene.camera.position, self.pipe._proj)
         draw_front = np.zeros(max(lights) + 1, bool)
         for run in runs:
             draw_front[list(run.lights)] = not run.inside   # culling back faces: front drawn
-        front = (tris.flat[:, 0] & 1).astype(bool)
-        by_front = draw_front[tris.flat[:, 3]]
-        keep = front == by_front
-        tris = select_triangles(tris, np.flatnonzero(keep))
+        flat = geo.tris.flat if sel is None else geo.tris.flat[sel]
+        front = (flat[:, 0] & 1).astype(bool)
+        by_front = draw_front[flat[:, 3]]
+        keep = np.flatnonzero(front == by_front)
+        chosen = keep if sel is None else sel[keep]
+        tris = select_triangles(geo.tris, chosen)
         # bit 1 of flat.x: a light drawn with its back faces (`pg_inside`, `depth … inside`)
         tris.flat[:, 0] |= np.where(by_front[keep], 0, 2).astype(np.uint32)
-        return tris
+        rows = chosen.astype(np.int32) if geo.index is None else geo.index[chosen]
+        flat_rows = np.zeros((int(rows.max()) + 1 if len(rows) else 1, 4), np.uint32)
+        flat_rows[rows] = tris.flat
+        sub = Geo(tris, dict(geo.bufs, flat=self.pipe._buffer(flat_rows)), rows)
+        sub.ncoef = geo.ncoef
+        return sub
 
     def _light_scissors(self, lights: np.ndarray, width: int, height: int, tris_per: int):
         """Per-triangle scissor rectangles (x0, y0, x1, y1) of each light's screen rectangle."""

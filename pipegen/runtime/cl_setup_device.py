@@ -54,6 +54,7 @@ class _Job:
     events: list
     buffers: list        # kept alive until the job is finished
     bufs: dict           # the per-triangle fields' device buffers, by Triangles field name
+    rows: int            # rows each of them has room for
     status: np.ndarray
     out: dict
     params: dict
@@ -95,7 +96,9 @@ class DeviceSetup:
         K = len(smooth)
         kern = self._kernel(cull, depth_clamp, samples, flat is not None, scissor is not None,
                             w_plane, with_zq, smooth)
-        n = max(int(ntris), 1)
+        # rows for every input triangle, and spare ones for the clipped triangles' output
+        # (``finish`` writes them after the kernel's; more than this grows the buffers)
+        n = int(ntris) + max(64, int(ntris) // 16)
 
         def buf(nbytes):
             return cl.Buffer(self.ctx, mf.WRITE_ONLY, size=max(16, nbytes))
@@ -142,7 +145,7 @@ class DeviceSetup:
         fields = dict(bufs, coef=coef_buf)
         if with_zq:
             fields["zq"] = zq_buf
-        return _Job(events, keep, fields, status, out, params)
+        return _Job(events, keep, fields, n, status, out, params)
 
     def finish(self, job: _Job, clip: np.ndarray, vary: Optional[np.ndarray]):
         """Wait for ``job``: ``(tris, bufs, index)``.  ``tris``: the ``Triangles`` (host
@@ -166,22 +169,26 @@ class DeviceSetup:
         if len(hard):
             sub = _numpy_setup(hard, clip, vary, prm)
             T, m = len(status), sub.count
-            order = np.argsort(np.concatenate([parent, sub.parent]), kind="stable")
-            parent = np.concatenate([parent, sub.parent])[order]
-            index = np.concatenate([index, np.arange(T, T + m, dtype=np.int32)])[order]
+            # in submission order: each clipped triangle's output where its parent was
+            at = np.searchsorted(kept, sub.parent) + np.arange(m)   # their rows, merged
+            mine = np.ones(len(kept) + m, bool)
+            mine[at] = False
+            parent = _merged(parent, sub.parent, mine, at)
+            index = _merged(index, np.arange(T, T + m, dtype=np.int32), mine, at)
+            hold = bufs.setdefault("_hold", [])     # host arrays non-blocking writes read
             for name in parts:
-                extra = getattr(sub, name)
-                parts[name] = _rows(np.concatenate([parts[name], extra]), order)
+                extra = np.ascontiguousarray(getattr(sub, name))
+                parts[name] = _merged(parts[name], extra, mine, at)
                 row = extra.nbytes // m if m else 0
-                if row:    # the kernel's rows, then these: a buffer with room for both
+                if not row:
+                    continue
+                if T + m > job.rows:   # past the rows the buffers were made with: grown
                     grown = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=(T + m) * row)
                     cl.enqueue_copy(self.queue, grown, bufs[name], byte_count=T * row)
-                    host = np.ascontiguousarray(extra)
-                    # a non-blocking write reads it later: kept with the buffers
-                    bufs.setdefault("_hold", []).append(host)
-                    cl.enqueue_copy(self.queue, grown, host, dst_offset=T * row,
-                                    is_blocking=False)
                     bufs[name] = grown
+                hold.append(extra)
+                cl.enqueue_copy(self.queue, bufs[name], extra, dst_offset=T * row,
+                                is_blocking=False)
             vary_v, nverts = sub.vary, sub.nverts
         tris = Triangles(parts["a"], parts["b"], parts["c"], parts["z"], parts["w"],
                          parts["coef"], None, parts.get("zq"), parts["flat"], parts["vtx"],
@@ -195,9 +202,26 @@ def _rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
     faster than fancy indexing rows of 4 numbers)."""
     if a.ndim == 1 or not a.flags.c_contiguous or a.size == 0:
         return a[idx]
-    row = np.dtype((np.void, a.itemsize * int(np.prod(a.shape[1:]))))
-    items = a.reshape(len(a), -1).view(row)[:, 0]
-    return np.take(items, idx).view(a.dtype).reshape((len(idx),) + a.shape[1:])
+    return np.take(_items(a), idx).view(a.dtype).reshape((len(idx),) + a.shape[1:])
+
+
+def _merged(a: np.ndarray, b: np.ndarray, from_a: np.ndarray, b_at: np.ndarray) -> np.ndarray:
+    """Rows of ``a`` where ``from_a`` holds, in order, and rows of ``b`` at ``b_at``."""
+    out = np.empty((len(from_a),) + a.shape[1:], a.dtype)
+    if out.size == 0:
+        return out
+    rows = _items(out)          # each row one opaque item: numpy moves it in one go
+    if len(a):
+        rows[np.flatnonzero(from_a)] = _items(np.ascontiguousarray(a))
+    if len(b):
+        rows[b_at] = _items(np.ascontiguousarray(b))
+    return out
+
+
+def _items(a: np.ndarray) -> np.ndarray:
+    """A view of ``a`` (C-contiguous, non-empty rows) with each row one void item."""
+    row = np.dtype((np.void, a.itemsize * (a.size // len(a))))
+    return a.reshape(len(a), -1).view(row)[:, 0]
 
 
 def _numpy_setup(idx: np.ndarray, clip: np.ndarray, vary: Optional[np.ndarray],
