@@ -932,10 +932,20 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         writes=writes, depth=depth, stencil=stencil, reads=reads,
         fragment=code.fragment, discard=code.discard,
         early_z=code.discard and not _writes_stencil(pass_, stencil, dynamic),
+        depth_store=dynamic or _writes_depth(pass_),
+        stencil_load=stencil and (dynamic or pass_.state.stencil.enabled),
+        stencil_store=_writes_stencil(pass_, stencil, dynamic),
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=_inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, wide_helpers=cl_wide.wide_helpers() if wide else "", wide_w=cl_wide.W)
+
+
+def _writes_depth(pass_: PassPlan) -> bool:
+    """Whether a pass (its baked state) may write its depth attachment: the raster kernel
+    stores the depth it keeps per row only then."""
+    rows = {name: value for name, _, value in state_values(pass_)}
+    return bool(rows.get("S_DEPTH_WRITE") or rows.get("S_DEPTH_WRITE_IN"))
 
 
 def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
