@@ -580,7 +580,7 @@ class DrawGeometry:
                 depth_clamp=p.state.depth.clamp, flat=v.flat, scissor=v.scissor,
                 smooth=tuple(i for i, f in enumerate(v.flats) if not f), pixel_center=center,
                 w_plane=v.w_plane, viewport=None if shadow is None else shadow.rect,
-                with_zq=center == 0.0)
+                with_zq=center == 0.0, slots=len(v.names))
         return v
 
     def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
@@ -623,7 +623,9 @@ class DrawGeometry:
             self.frame[key] = None
             return None
         vary_buf = v.vary_buf
-        if tris.vary is None:
+        if dev is not None and "vary" in dev:     # with the device clipper's vertices
+            vary_buf = dev.pop("vary")
+        elif tris.vary is None:
             vary_buf = pipe._zeros4
         elif vary_buf is None:
             vary_buf = pipe._buffer(tris.vary)

@@ -3,14 +3,18 @@
 The numpy set-up costs ~0.8 us a triangle in numpy passes over memory (a 7,000-triangle
 scene draw ~6 ms per frame, on the host's critical path: the device waits for it), while
 per triangle it is a few dozen float32 operations.  ``templates/cl_setup.cl.j2`` does them
-on the device, one work-item per input triangle, in the numpy set-up's order of operations
-(float32, unfused, the viewport's fused multiply-adds as ``fma32``): every triangle it keeps
-has the numpy set-up's values bit for bit (tests/test_cl_setup_device.py compares every
-field on scenes and random triangles).  Triangles that need clipping (a vertex outside a
-clip plane the others are not all outside of) or have a non-finite window position are left
-to the numpy set-up, which runs on just those and whose output is merged back in
-submission order; so are draws with a polygon offset, and the float64 evaluation's (its
-homogeneous planes come from the numpy set-up's parent triangles): ``supports``.
+on the device in the numpy set-up's order of operations (float32, unfused, the viewport's
+fused multiply-adds as ``fma32``): ``pg_setup``, one work-item per input triangle, then
+``pg_clip_setup`` for the triangles that need clipping (a vertex outside a clip plane the
+others are not all outside of: draw_pipe_clip.c's clipper as ``cl_setup._clip_polygons``
+has it), whose fans go after the input triangles' rows and are merged back in submission
+order.  The clipper's new vertices are numbered ``nverts + 9 h + slot`` (h: the clipped
+triangle's rank), not consecutively as the numpy set-up numbers them: the same vertices, ids
+apart.  Triangles, tested field by field against the numpy set-up
+(tests/test_cl_setup_device.py), are bit for bit the same.  A clipped triangle with a
+non-finite window position sends all of a draw's clipped triangles to the numpy set-up; so
+are draws with a polygon offset, and the float64 evaluation's (its homogeneous planes come
+from the numpy set-up's parent triangles): ``supports``.
 
 ``DeviceSetup(ctx, queue).enqueue(...)`` queues the kernel and the read-back of its results
 without waiting (``CLPipeline`` queues it with the vertex kernels, before any raster kernel);
@@ -34,6 +38,7 @@ from .cl_setup import SUBPIXEL, Triangles, setup_triangles
 __all__ = ["DeviceSetup", "supports"]
 
 _CULL = {"none": 0, "back": 1, "front": 2}
+_MAXV, _FANS = 9, 7     # a triangle clipped by six planes, its fan (cl_setup.cl.j2)
 # per kept triangle: (field, dtype, trailing shape) as the kernel writes them
 _FIELDS = (("a", np.int32, (4,)), ("b", np.int32, (4,)), ("c", np.int64, (4,)),
            ("z", np.float32, (4,)), ("w", np.float32, (4,)), ("flat", np.uint32, (4,)),
@@ -65,28 +70,33 @@ class DeviceSetup:
         self.ctx, self.queue = ctx, queue
         self._kernels: dict = {}
 
-    def _kernel(self, cull: str, depth_clamp: bool, samples: Optional[int], has_flat: bool,
-                has_scissor: bool, w_plane: bool, with_zq: bool, smooth: tuple):
+    def _kernels_for(self, cull: str, depth_clamp: bool, samples: Optional[int],
+                     has_flat: bool, has_scissor: bool, w_plane: bool, with_zq: bool,
+                     smooth: tuple, slots: int):
+        """(pg_setup, pg_clip_setup) of the program for these switches, built once."""
         import pyopencl as cl
-        key = (cull, depth_clamp, samples == 1, has_flat, has_scissor, w_plane, with_zq, smooth)
-        kern = self._kernels.get(key)
-        if kern is None:
+        key = (cull, depth_clamp, samples == 1, has_flat, has_scissor, w_plane, with_zq, smooth,
+               slots)
+        kerns = self._kernels.get(key)
+        if kerns is None:
             lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
             src = templating.render(
                 "cl_setup.cl.j2", cull=_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
                 box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor),
-                w_plane=int(w_plane), with_zq=int(with_zq), smooth=list(smooth))
-            kern = self._kernels[key] = cl.Kernel(cl_context.build_program(src), "pg_setup")
-        return kern
+                w_plane=int(w_plane), with_zq=int(with_zq), smooth=list(smooth), slots=slots)
+            prog = cl_context.build_program(src)
+            kerns = self._kernels[key] = (cl.Kernel(prog, "pg_setup"),
+                                          cl.Kernel(prog, "pg_clip_setup"))
+        return kerns
 
     def enqueue(self, clip_buf, vary_buf, ntris: int, nverts: int, width: int, height: int, *,
                 cull: str = "none", depth_clamp: bool = False, flat: Optional[np.ndarray] = None,
                 scissor: Optional[np.ndarray] = None, samples: Optional[int] = None,
                 smooth: tuple = (), pixel_center: float = 0.5, w_plane: bool = True,
-                viewport=None, with_zq: bool = False) -> _Job:
+                viewport=None, with_zq: bool = False, slots: int = 0) -> _Job:
         """Queue the set-up of ``ntris`` triangles whose clip positions (``3 * ntris``
-        float4) are in ``clip_buf`` and varyings (slot-major, ``nverts`` per slot) in
-        ``vary_buf``; the keywords as ``setup_triangles`` takes them."""
+        float4) are in ``clip_buf`` and ``slots`` varyings (slot-major, ``nverts`` per slot)
+        in ``vary_buf``; the keywords as ``setup_triangles`` takes them."""
         import pyopencl as cl
         f32 = np.float32
         mf = cl.mem_flags
@@ -94,11 +104,14 @@ class DeviceSetup:
         vx, vy, vw, vh = viewport if viewport is not None else (0, 0, W, H)
         smooth = tuple(int(s) for s in smooth)
         K = len(smooth)
-        kern = self._kernel(cull, depth_clamp, samples, flat is not None, scissor is not None,
-                            w_plane, with_zq, smooth)
-        # rows for every input triangle, and spare ones for the clipped triangles' output
-        # (``finish`` writes them after the kernel's; more than this grows the buffers)
-        n = int(ntris) + max(64, int(ntris) // 16)
+        if smooth and max(smooth) >= slots:
+            raise ValueError(f"smooth varyings {smooth} of {slots} slots")
+        kern, clip_kern = self._kernels_for(cull, depth_clamp, samples, flat is not None,
+                                            scissor is not None, w_plane, with_zq, smooth,
+                                            int(slots))
+        # rows for every input triangle, and spare ones for the fans of clipped triangles
+        # (``finish`` sets them up after the kernel's rows; more than this grows the buffers)
+        n = int(ntris) + max(_FANS * 32, int(ntris) // 8)
 
         def buf(nbytes):
             return cl.Buffer(self.ctx, mf.WRITE_ONLY, size=max(16, nbytes))
@@ -141,6 +154,11 @@ class DeviceSetup:
                       scissor=scissor, samples=samples, smooth=list(smooth),
                       pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
                       with_zq=with_zq)
+        # what the clipping kernel takes besides: its kernel and arguments up to `hard`
+        params["clip"] = (clip_kern, [np.int32(nverts), np.int32(W), np.int32(H),
+                                      f32(vw * 0.5), f32(vh * 0.5), f32(vx + vw * 0.5),
+                                      f32(vy + vh * 0.5), f32(pixel_center)],
+                          clip_buf, vary_buf, inputs, int(slots), int(ntris))
         keep = [status_buf, coef_buf, zq_buf, dummy, *inputs, *bufs.values()]
         fields = dict(bufs, coef=coef_buf)
         if with_zq:
@@ -148,14 +166,13 @@ class DeviceSetup:
         return _Job(events, keep, fields, n, status, out, params)
 
     def finish(self, job: _Job, clip: np.ndarray, vary: Optional[np.ndarray]):
-        """Wait for ``job``: ``(tris, bufs, index)``.  ``tris``: the ``Triangles`` (host
-        copies, in submission order; ``clip``, ``vary``: the host copies of the kernel's
-        inputs, for the triangles the numpy set-up takes); ``bufs``: the device buffers of
-        its per-triangle fields as the kernel left them, one row per input triangle, the
-        numpy set-up's triangles appended (``"_hold"``: host arrays still being written to them);
-        ``index``: the row of ``bufs`` of each triangle
-        of ``tris`` (int32), what tile lists must hold."""
-        import pyopencl as cl
+        """Wait for ``job``, clip and set up its clipped triangles, and return ``(tris, bufs,
+        index)``.  ``tris``: the ``Triangles`` (host copies, in submission order; ``clip``,
+        ``vary``: the host copies of the kernel's inputs); ``bufs``: the device buffers of
+        their per-triangle fields, one row per input triangle, then the clipped triangles'
+        fans (``"vary"``: the varyings with the clipper's vertices, when it made some;
+        ``"_hold"``: host arrays still being written to the buffers); ``index``: the row of
+        ``bufs`` of each triangle of ``tris`` (int32), what tile lists must hold."""
         for ev in job.events:
             ev.wait()
         status, out, prm = job.status, job.out, job.params
@@ -164,38 +181,116 @@ class DeviceSetup:
         parts = {name: _rows(arr, kept) for name, arr in out.items()}
         parent = kept.astype(np.int64)
         index = kept.astype(np.int32)
-        bufs = dict(job.bufs)
+        bufs = job.bufs             # the rows of clipped triangles' fans are added to these
         vary_v, nverts = vary, len(clip)
+        T = len(status)
         if len(hard):
-            sub = _numpy_setup(hard, clip, vary, prm)
-            T, m = len(status), sub.count
-            # in submission order: each clipped triangle's output where its parent was
-            at = np.searchsorted(kept, sub.parent) + np.arange(m)   # their rows, merged
+            got = self._clipped(job, hard, vary)
+            if got is None:        # a window position the kernel left to numpy: all of them
+                sub = _numpy_setup(hard, clip, vary, prm)
+                rows, sub_parent = np.arange(T, T + sub.count, dtype=np.int32), sub.parent
+                fields = {name: getattr(sub, name) for name in parts}
+                vary_v, nverts = sub.vary, sub.nverts
+                self._write_rows(job, bufs, fields, T)
+            else:
+                rows, sub_parent, fields, vary_v, nverts, bufs["vary"] = got
+            m = len(rows)
+            # in submission order: each clipped triangle's fan where its parent was
+            at = np.searchsorted(kept, sub_parent) + np.arange(m)
             mine = np.ones(len(kept) + m, bool)
             mine[at] = False
-            parent = _merged(parent, sub.parent, mine, at)
-            index = _merged(index, np.arange(T, T + m, dtype=np.int32), mine, at)
-            hold = bufs.setdefault("_hold", [])     # host arrays non-blocking writes read
+            parent = _merged(parent, sub_parent, mine, at)
+            index = _merged(index, rows, mine, at)
             for name in parts:
-                extra = np.ascontiguousarray(getattr(sub, name))
-                parts[name] = _merged(parts[name], extra, mine, at)
-                row = extra.nbytes // m if m else 0
-                if not row:
-                    continue
-                if T + m > job.rows:   # past the rows the buffers were made with: grown
-                    grown = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=(T + m) * row)
-                    cl.enqueue_copy(self.queue, grown, bufs[name], byte_count=T * row)
-                    bufs[name] = grown
-                hold.append(extra)
-                cl.enqueue_copy(self.queue, bufs[name], extra, dst_offset=T * row,
-                                is_blocking=False)
-            vary_v, nverts = sub.vary, sub.nverts
+                parts[name] = _merged(parts[name], np.ascontiguousarray(fields[name]), mine, at)
         tris = Triangles(parts["a"], parts["b"], parts["c"], parts["z"], parts["w"],
                          parts["coef"], None, parts.get("zq"), parts["flat"], parts["vtx"],
                          parts["scissor"], parts["bbox"], vary_v, nverts, prm["samples"],
                          parent)
         return tris, bufs, index
 
+    def _grow(self, job: _Job, bufs: dict, rows: int) -> None:
+        """Make every field buffer hold ``rows`` rows (the kernel's rows copied over)."""
+        import pyopencl as cl
+        if rows <= job.rows:
+            return
+        T = len(job.status)
+        for name, buf in list(bufs.items()):
+            if name not in job.out or not job.out[name].size:
+                continue
+            row = job.out[name].nbytes // max(T, 1)
+            grown = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=rows * row)
+            cl.enqueue_copy(self.queue, grown, buf, byte_count=T * row)
+            bufs[name] = grown
+        job.rows = rows
+
+    def _write_rows(self, job: _Job, bufs: dict, fields: dict, at: int) -> None:
+        """Write host rows ``fields`` (per field name) into the field buffers from row ``at``."""
+        import pyopencl as cl
+        m = len(next(iter(fields.values()))) if fields else 0
+        self._grow(job, bufs, at + m)
+        hold = bufs.setdefault("_hold", [])      # host arrays non-blocking writes read
+        for name, extra in fields.items():
+            extra = np.ascontiguousarray(extra)
+            if not extra.size:
+                continue
+            hold.append(extra)
+            cl.enqueue_copy(self.queue, bufs[name], extra, dst_offset=at * (extra.nbytes // m),
+                            is_blocking=False)
+
+    def _clipped(self, job: _Job, hard: np.ndarray, vary: Optional[np.ndarray]):
+        """Clip and set up triangles ``hard`` with ``pg_clip_setup``: (their fans' rows,
+        parents, host fields, host varyings, vertex count, device varyings), or None when one
+        has a non-finite window position (the numpy set-up then does them all)."""
+        import pyopencl as cl
+        mf = cl.mem_flags
+        kern, head, clip_buf, vary_buf, inputs, S, T = job.params["clip"]
+        nh = len(hard)
+        nverts = int(head[0])
+        nv_out = nverts + _MAXV * nh
+        bufs = job.bufs
+        self._grow(job, bufs, T + _FANS * nh)
+        vary_out = cl.Buffer(self.ctx, mf.READ_WRITE, size=max(16, S * nv_out * 16))
+        for k in range(S):     # the input vertices; pg_clip_setup appends the clipper's
+            cl.enqueue_copy(self.queue, vary_out, vary_buf, byte_count=nverts * 16,
+                            src_offset=k * nverts * 16, dst_offset=k * nv_out * 16)
+        fan_buf = cl.Buffer(self.ctx, mf.READ_WRITE, size=max(16, _FANS * nh))
+        hard_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=hard.astype(np.int32))
+        dummy = inputs[0] if S == 0 else vary_buf
+        kern.set_args(np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out), *head[1:],
+                      hard_buf, clip_buf, dummy, *inputs, fan_buf, vary_out,
+                      bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"],
+                      bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"],
+                      bufs.get("zq", inputs[0]))
+        cl.enqueue_nd_range_kernel(self.queue, kern, (((nh + 63) // 64) * 64,), (64,))
+        fan = np.empty(_FANS * nh, np.uint8)
+        cl.enqueue_copy(self.queue, fan, fan_buf)
+        if (fan == 3).any():
+            return None
+        sel = np.flatnonzero(fan == 1)
+        fields = {}
+        events = []
+        for name, arr in job.out.items():
+            row = arr.nbytes // max(T, 1)
+            host = np.empty((_FANS * nh,) + arr.shape[1:], arr.dtype)
+            if host.size:
+                events.append(cl.enqueue_copy(self.queue, host, bufs[name],
+                                              src_offset=T * row, is_blocking=False))
+            fields[name] = host
+        made = None
+        if S:
+            made = np.empty((S, _MAXV * nh, 4), np.float32)
+            for k in range(S):
+                events.append(cl.enqueue_copy(self.queue, made[k], vary_out,
+                                              src_offset=(k * nv_out + nverts) * 16,
+                                              is_blocking=False))
+        for ev in events:
+            ev.wait()
+        fields = {name: _rows(a, sel) for name, a in fields.items()}
+        vary_v = None if vary is None else np.concatenate([vary, made], axis=1)
+        rows = (T + sel).astype(np.int32)
+        return rows, hard[sel // _FANS].astype(np.int64), fields, vary_v, nv_out, vary_out
 
 def _rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """``a[idx]`` along the first axis, each row moved as one opaque item (several times
