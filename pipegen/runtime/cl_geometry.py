@@ -709,12 +709,10 @@ class DrawGeometry:
     def _light_scissors(self, lights: np.ndarray, width: int, height: int, tris_per: int):
         """Per-triangle scissor rectangles (x0, y0, x1, y1) of each light's screen rectangle."""
         scene_lights = self.pipe._scene.lights
-        rects = []
-        for i in lights:
-            x, y, w, h = draws.scissor_rect(scene_lights[int(i)], self.pipe._view,
-                                            self.pipe._proj, width, height)
-            rects.append((x, y, x + w, y + h))
-        return np.repeat(np.asarray(rects, np.int32).reshape(-1, 4), tris_per, axis=0)
+        rects = draws.scissor_rects([scene_lights[int(i)] for i in lights], self.pipe._view,
+                                    self.pipe._proj, width, height)
+        rects[:, 2:] += rects[:, :2]
+        return np.repeat(rects.astype(np.int32), tris_per, axis=0)
 
 
 def _culled_pairs(geo: Geo, tri: np.ndarray, tile_id: np.ndarray, cull: ir.CullMode):

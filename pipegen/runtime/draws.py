@@ -364,23 +364,41 @@ def scissor_rect(light, view, proj, width: int, height: int) -> tuple[int, int, 
     behind the camera plane (w <= 1e-6) the rectangle is the whole viewport.  The rectangle is
     conservative (floor/ceil, clamped to the viewport) and may be empty (w or h 0).  A light
     without a radius (``radius <= 0``: a directional light) covers the whole viewport.
+    (``scissor_rects`` of the one light: both runtimes get the same rectangles.)
     """
-    c = np.asarray(light.position, np.float64)
-    r = float(light.radius)
-    if r <= 0.0:
-        return (0, 0, int(width), int(height))
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
-                     np.float64)
-    corners = np.concatenate([c + signs * r, np.ones((8, 1))], axis=1)
-    clip = corners @ (np.asarray(proj, np.float64) @ np.asarray(view, np.float64)).T
-    w = clip[:, 3]
-    if np.any(w <= 1e-6):
-        return (0, 0, int(width), int(height))
-    ndc = clip[:, :2] / w[:, None]
-    lo = (ndc.min(axis=0) * 0.5 + 0.5) * (width, height)
-    hi = (ndc.max(axis=0) * 0.5 + 0.5) * (width, height)
-    xa, ya = (int(min(max(np.floor(v), 0), s)) for v, s in zip(lo, (width, height)))
-    xb, yb = (int(min(max(np.ceil(v), 0), s)) for v, s in zip(hi, (width, height)))
-    return (xa, ya, max(xb - xa, 0), max(yb - ya, 0))
+    return tuple(int(v) for v in scissor_rects([light], view, proj, width, height)[0])
+
+
+_BOX_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)],
+                      np.float64)
+
+
+def scissor_rects(lights: Sequence, view, proj, width: int, height: int) -> np.ndarray:
+    """``scissor_rect`` of every light at once: (N, 4) int64 rows ``x, y, w, h``.  The corners
+    go through ``proj @ view`` as four products summed left to right (elementwise float64,
+    the same for one light as for many)."""
+    W, H = int(width), int(height)
+    out = np.tile(np.array([0, 0, W, H], np.int64), (len(lights), 1))
+    if not len(lights):
+        return out
+    c = np.array([np.asarray(l.position, np.float64) for l in lights]).reshape(-1, 3)
+    r = np.array([float(l.radius) for l in lights], np.float64)
+    m = np.asarray(proj, np.float64) @ np.asarray(view, np.float64)
+    corner = c[:, None, :] + _BOX_SIGNS[None] * r[:, None, None]          # (N, 8, 3)
+    x, y, z = corner[..., 0], corner[..., 1], corner[..., 2]
+    clip = [x * m[j, 0] + y * m[j, 1] + z * m[j, 2] + m[j, 3] for j in (0, 1, 3)]
+    w = clip[2]
+    whole = (r <= 0.0) | np.any(w <= 1e-6, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nx, ny = clip[0] / w, clip[1] / w
+    size = np.array([W, H], np.float64)
+    lo = (np.stack([nx.min(axis=1), ny.min(axis=1)], axis=1) * 0.5 + 0.5) * size
+    hi = (np.stack([nx.max(axis=1), ny.max(axis=1)], axis=1) * 0.5 + 0.5) * size
+    a = np.minimum(np.maximum(np.floor(lo), 0), size)
+    b = np.minimum(np.maximum(np.ceil(hi), 0), size)
+    keep = ~whole
+    rect = np.concatenate([a, np.maximum(b - a, 0)], axis=1)
+    out[keep] = rect[keep].astype(np.int64)
+    return out
 
 

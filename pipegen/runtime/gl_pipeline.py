@@ -618,11 +618,12 @@ class GLPipeline:
                         GS.apply_state(replace(p.state, cull=run.cull, depth=depth), p.writes,
                                        depth_format=depth_format)
                 if p.draw.scissor:
-                    for i in run.lights:
-                        rect = draws.scissor_rect(lights[i], self._view, self._proj, w, h)
+                    rects = draws.scissor_rects([lights[i] for i in run.lights], self._view,
+                                                self._proj, w, h)
+                    for i, rect in zip(run.lights, rects.tolist()):
                         if rect[2] == 0 or rect[3] == 0:
                             continue
-                        tracker.scissor(rect)
+                        tracker.scissor(tuple(rect))
                         self._draw_lights(p, vao, [i])
                     tracker.scissor(None)
                 else:
