@@ -197,9 +197,13 @@ class Format:
         w = np.asarray(words)
         if not self.packed:
             return w
-        w = w.astype(np.uint64)
-        return np.stack([(w >> np.uint64(s)) & np.uint64((1 << b) - 1)
-                         for b, s in zip(self.bits, self.shifts)], axis=-1).astype(self.dtype)
+        # in the word's own unsigned type (a field never reaches past the word), each
+        # channel written straight into the result
+        w = w.astype(np.dtype(w.dtype.str.replace("i", "u")), copy=False)
+        out = np.empty(w.shape + (len(self.bits),), self.dtype)
+        for k, (b, s) in enumerate(zip(self.bits, self.shifts)):
+            out[..., k] = (w >> w.dtype.type(s)) & w.dtype.type((1 << b) - 1)
+        return out
 
     # -- numpy storage ---------------------------------------------------------------------
     @property

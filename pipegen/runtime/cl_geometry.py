@@ -159,7 +159,7 @@ def select_triangles(tris, index: np.ndarray):
             continue
         v = getattr(tris, f.name)
         if isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == n:
-            changes[f.name] = v[index]
+            changes[f.name] = cl_setup_device.rows_of(v, index)
     return dataclasses.replace(tris, **changes)
 
 

@@ -236,9 +236,13 @@ def light_runs(cull: ir.CullMode, volume: Optional[ir.Volume], lights: Sequence,
         return [LightRun(cull, indices)]
     shape = (volume or ir.Volume.SPHERE).value
     reach = near_plane_reach(proj)
+    if shape == "sphere":       # every light's choice at once
+        inside = _spheres_inside([lights[i] for i in indices], eye, reach)
+        modes = [ir.CullMode.FRONT if k else ir.CullMode.BACK for k in inside.tolist()]
+    else:
+        modes = [volume_cull(shape, lights[i], eye, reach) for i in indices]
     runs: list[LightRun] = []
-    for i in indices:
-        mode = volume_cull(shape, lights[i], eye, reach)
+    for i, mode in zip(indices, modes):
         if runs and runs[-1].cull is mode:
             runs[-1] = LightRun(mode, runs[-1].lights + (i,))
         else:
@@ -346,12 +350,26 @@ def volume_cull(volume: str, light, eye, reach: float) -> ir.CullMode:
     """The faces to cull for one light under ``cull auto``: FRONT (draw the back faces) when
     the near plane may touch the mesh, conservatively
     ``clearance <= reach * (1 + CULL_SLACK) + bound * CULL_SLACK``; else BACK."""
+    if volume == "sphere":
+        inside = bool(_spheres_inside([light], eye, reach)[0])
+        return ir.CullMode.FRONT if inside else ir.CullMode.BACK
     cos_outer = float(getattr(light, "cos_outer", -2.0))
     bound = volume_bound(volume, light.radius, cos_outer)
     clearance = volume_clearance(volume, light.position, light.radius, eye, cos_outer,
                                  getattr(light, "direction", (0.0, 0.0, -1.0)))
     inside = clearance <= reach * (1.0 + CULL_SLACK) + bound * CULL_SLACK
     return ir.CullMode.FRONT if inside else ir.CullMode.BACK
+
+
+def _spheres_inside(lights: Sequence, eye, reach: float) -> np.ndarray:
+    """``volume_cull``'s test for sphere volumes, of many lights at once: the distance from
+    ``eye`` to each light minus its ``volume_bound`` against the near plane's reach."""
+    pos = np.array([np.asarray(l.position, np.float64) for l in lights]).reshape(-1, 3)
+    bound = np.maximum(np.array([float(l.radius) for l in lights], np.float64), 0.0)
+    bound *= _unit_circumradius()
+    v = np.asarray(eye, np.float64) - pos
+    clearance = np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2]) - bound
+    return clearance <= reach * (1.0 + CULL_SLACK) + bound * CULL_SLACK
 
 
 # ---- scissor -----------------------------------------------------------------------------------
