@@ -145,8 +145,10 @@ def test_what_stays_scalar():
     assert "per_light" in wide_passes("forward_multipass")
     assert not {"shade", "depth_prepass"} & wide_passes("lidr_bitplanes")
     assert "gbuffer" not in wide_passes("deferred")
-    # tabulated lighting: most of its work is gathers (measured slower wide)
-    assert "point_lights" not in wide_passes("deferred_calver")
+    # the gathers are wide too: tabulated lighting, most of its work gathers, pays wide
+    # (cl_wide.GATHER_COST); a fullscreen pass of little work does not (MIN_COST)
+    assert "point_lights" in wide_passes("deferred_calver")
+    assert "global_lights" not in wide_passes("deferred_calver")
 
 
 def test_unsupported_code_falls_back():
@@ -156,3 +158,122 @@ def test_unsupported_code_falls_back():
     tech = compile_source(src).technique
     p = next(p for p in tech.passes if p.name == "base")
     assert cl_wide.wide_fragment(tech, p, opencl.OpenCLLanguage(tech, p)) is None
+
+
+SAMPLES = """
+technique wide_samples "bilinear and nearest sample() of every filtered storage class"
+target h4 : rgba16f size 37 x 11
+target h1 : r16f size 37 x 11
+target h2 : rg16f size 37 x 11
+target f4 : rgba32f size 37 x 11
+target f1 : r32f size 37 x 11
+target u8 : rgba8 size 37 x 11
+target u16 : rgba16 size 37 x 11
+target sn : rg8_snorm size 37 x 11
+target ds : d24s8 clear depth 1.0 stencil 0
+target oh : rgba32f
+target of : rgba32f
+target ou : rgba32f
+target on : rgba32f
+output oh
+
+pass prepass {
+  draw scene.opaque
+  depth ds less write
+  cull back
+}
+
+pass tabulate {
+  draw fullscreen
+  writes h4, h1, h2, f4, f1, u8, u16, sn
+  fragment {
+    uint h = (uint(frag_coord.x) * 2654435761u) ^ (uint(frag_coord.y) * 40503u + 12345u);
+    h = h ^ (h >> 13);
+    float v = float(h & 65535u) / 65536.0;
+    vec4 q = vec4(v * 7.0 - 3.0, v * v * 100.0, 1.0 - v, v * 0.001);
+    h4 = q;
+    h1 = q.x;
+    h2 = q.yz;
+    f4 = q;
+    f1 = q.y;
+    u8 = vec4(v, v * v, 1.0 - v, fract(v * 3.5));
+    u16 = vec4(v, v * v, 1.0 - v, fract(v * 3.5));
+    sn = vec2(v * 2.0 - 1.0, 0.5 - v);
+  }
+}
+
+pass probe {
+  draw fullscreen
+  reads h4, h1, h2, f4, f1, u8, u16, sn, ds
+  writes oh, of, ou, on
+  fragment {
+    vec2 uv = frag_coord.xy / output_size * 1.4 - 0.2 + vec2(0.00123, 0.00071) * frag_coord.yx;
+    if (frag_coord.x < 4.0) { uv.x = (frag_coord.y - 20.0) * 1e30 * 1e10; }
+    if (frag_coord.y < 3.0) { uv.y = -uv.y * 3.0e38 * (frag_coord.x - 30.0); }
+    float big = frag_coord.y * 1e30 * 1e30;
+    if (frag_coord.x > 90.0) { uv.y = big - big; }
+    vec4 a = sample(h4, uv);
+    vec4 b = sample(h1, uv.yx);
+    vec4 c = sample(h2, uv);
+    oh = vec4(a.x + a.w, a.y - a.z, b.x, c.x * 2.0 + c.y);
+    of = sample(f4, uv) + vec4(sample(f1, uv * 0.9).x)
+         + vec4(0.0, 0.0, 0.0, load(u8, ivec2(frag_coord.xy) - ivec2(20, 20)).y);
+    ou = sample(u8, uv) * 2.0 + sample(u16, uv.yx);
+    on = vec4(sample(sn, uv).xy, sample(ds, uv), uv.y);    // .w: the coordinates, NaN included
+  }
+}
+"""
+
+
+@pytest.mark.cl
+def test_wide_gathers_are_exact(monkeypatch):
+    """The wide ``load``/``sample`` (address arithmetic, clamps, weights and lerps W-wide,
+    the reads lane by lane) give every lane the scalar function's value: bilinear samples of
+    half (1, 2 and 4 channels), float, unorm16 and snorm targets, the 8-bit-weight filter of
+    unorm8, nearest samples of a depth target, at coordinates inside, outside, infinite and
+    NaN; every target bit for bit."""
+    scalar, wide = _pipes(lambda: compile_source(SAMPLES), monkeypatch, min_cost=0, wmin=1)
+    assert _wide_passes(wide) == ["tabulate", "probe"]
+    k = [p.name for p in wide.plan.passes].index("probe")
+    src = wide.source(k)
+    for what in ("pgw_codes_u8(", "pgw_sample_ds(", "pgw_half8_to_float8((ushort8)",
+                 "pgw_sample_f4(", "pgw_sample_sn("):
+        assert what in src, what
+    scene = _scene("many_lights")
+    out = wide.render(scene)
+    _assert_same(scalar.render(scene), out)
+    assert np.isnan(out["on"][..., 3]).any() and np.count_nonzero(out["ou"]) > 0.5 * out["ou"].size
+
+
+@pytest.mark.cl
+@pytest.mark.parametrize("f16c", [True, False])
+def test_wide_half_decoding_is_exact(f16c):
+    """``pgw_half8_to_float8`` (the wide half reads: vcvtph2ps where the compiler targets
+    F16C, else selects) gives the prelude's ``pg_half_bits_to_float`` bits for all 65536
+    codes (NaN payloads and half denormals included)."""
+    import pyopencl as cl
+    from pipegen.runtime import cl_context
+
+    src = (opencl.prelude_source() + ("" if f16c else "\n#undef __F16C__\n")
+           + cl_wide.wide_helpers() + """
+__kernel void k(__global const ushort *p, __global uint *wide, __global uint *scalar) {
+    const int g = get_global_id(0);
+    vstore8(as_uint8(pgw_half8_to_float8(vload8(g, p))), g, wide);
+    for (int j = 0; j < 8; ++j) scalar[8 * g + j] = as_uint(pg_half_bits_to_float(p[8 * g + j]));
+}
+""")
+    ctx, queue = cl_context.get_context()
+    prog = cl_context.build_program(src)
+    codes = np.arange(65536, dtype=np.uint16)
+    mf = cl.mem_flags
+    src_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=codes)
+    outs = [np.zeros(65536, np.uint32) for _ in range(2)]
+    bufs = [cl.Buffer(ctx, mf.WRITE_ONLY, o.nbytes) for o in outs]
+    prog.k(queue, (65536 // 8,), None, src_buf, *bufs)
+    for o, b in zip(outs, bufs):
+        cl.enqueue_copy(queue, o, b)
+    queue.finish()
+    assert np.array_equal(outs[0], outs[1])
+    finite = np.isfinite(codes.view(np.float16))
+    exact = codes.view(np.float16)[finite].astype(np.float32).view(np.uint32)
+    assert np.array_equal(outs[1][finite], exact)

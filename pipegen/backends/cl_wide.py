@@ -34,15 +34,18 @@ None when the code uses what this form does not support (the pass then keeps the
   not supported (None: the scalar path).  Passes whose estimated work per pixel (``cost``)
   is below ``MIN_COST`` keep the scalar path too (the batching does not pay there), and the
   raster kernel shades a triangle's row batch of fewer than ``WMIN`` pixels with the scalar
-  function.  A ``load``/``sample`` counts ``GATHER_COST`` against the estimate (gathered
-  lane by lane).
+  function.  A ``load``/``sample`` counts ``GATHER_COST`` against the estimate (0 since the
+  gathers are wide: see the constant).
 
 Builtins the generated code calls with varying operands have ``W``-wide overloads in
 ``wide_helpers()`` (the prelude's definitions applied lane by lane, so the values are the
-scalar ones); ``load``/``sample`` gather lane by lane through the scalar ``pg_load_T`` /
-``pg_sample_T``.  The raster kernel (``cl_pass.cl.j2``) batches the pixels of a triangle's
-row that pass coverage (and early depth/stencil), fills ``pgw_in`` lane by lane with the
-scalar interpolation, calls ``pg_fragment_w`` and blends lane by lane, in pixel order.
+scalar ones).  ``load``/``sample`` are wide as well (``pgw_load_T`` / ``pgw_sample_T`` in
+``cl_pass.cl.j2``): the scalar ``pg_load_T`` / ``pg_sample_T``'s edge clamps, pixel indices,
+texel coordinates, weights and lerps as W-wide operations in the same order, only the
+memory reads (and decodings other than half's) lane by lane.  The raster kernel batches the
+pixels of a triangle's row that pass coverage (and early depth/stencil), fills ``pgw_in``
+lane by lane with the scalar interpolation, calls ``pg_fragment_w`` and blends lane by lane,
+in pixel order.
 """
 
 from __future__ import annotations
@@ -61,8 +64,26 @@ from .cstyle import guard_call_args, guard_construct_args, guard_shift_count
 
 W = 8                       # lanes: llvmpipe shades 8 pixels at once as well (the helpers
                             # below are written for 8)
-MIN_COST = 150              # below this estimated work per pixel, the scalar function only
-GATHER_COST = 25            # what a load()/sample() costs the wide form more (lane by lane)
+# Measured (one pass's raster kernel alone, its scalar and wide programs interleaved in one
+# process, 640x360, 2 PoCL threads, medians of 15-21 runs on a shared 2-core machine; scalar
+# -> wide ms, two rounds on scene many_lights / two on mixed_lights), pass (cost, gathers):
+#   deferred_calver point_lights (226, 9)    60.3 -> 47.6, 45.7 -> 38.0 / 23.1 -> 15.3, 22.2 -> 15.5
+#   deferred directional_lights (178, 3)     - / 10.4 -> 8.8, 11.9 -> 10.1
+#   deferred shade_cone (173, 3)             - / 0.80 -> 0.58, 1.15 -> 0.80
+#   inferred lighting (184, 3)               6.1 -> 5.8, 7.5 -> 7.0 / 2.37 -> 2.30, 4.3 -> 5.0
+#   light_prepass light_accumulation (129, 2)  19.7 -> 19.1, 22.1 -> 20.8 / 8.7 -> 6.9, 7.0 -> 5.7
+#   lidr_bitplanes spot_indices (122, 1)     - / 4.0 -> 3.4, 3.0 -> 2.4
+#   lidr_bitplanes light_indices (86, 1)     16.9 -> 18.0, 19.6 -> 20.0 / 7.2 -> 6.5, 7.7 -> 7.0
+#   deferred shade_light_volume (84, 3)      0.29 -> 0.26, 0.30 -> 0.27 / 0.85 -> 0.79, 0.95 -> 0.85
+#   deferred_calver global_lights (46, 3)    5.5 -> 7.4, 5.5 -> 8.2 / 8.1 -> 9.5, 5.9 -> 8.5
+# ("-": no such light in the scene).  The wide form pays from a cost of about 100 on, gathers
+# or not (no shipped pass without gathers has a cost between 84 and 150: that range's bound
+# is not measured for gather-free code)
+MIN_COST = 100              # below this estimated work per pixel, the scalar function only
+# what a load()/sample() costs the wide form more: nothing measurable since the gathers are
+# wide (lane by lane through the scalar functions, 25 kept point_lights scalar, and forcing it
+# wide measured 35 vs 30 ms; with the wide gathers its kernel is 17-34 % faster wide, above)
+GATHER_COST = 0
 WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by pixel
 # False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
 # before/after benchmarks); the emitted text then is the scalar path's alone
@@ -1006,6 +1027,29 @@ def _helpers() -> list:
     "    const float8 even = pg_b_fma(z2, pg_b_fma(z2, ((float8)(0.40671805f)), ((float8)(0.5774403f))), ((float8)(2.88539f)));",
     "    return pg_b_fma(y, pg_b_fma(odd, z, even), le);",
     "}",
+    "/* 8 half codes to floats: the prelude's pg_half_bits_to_float (vload_half) per lane; with",
+    " * F16C vcvtph2ps, as the prelude's half4 form (exact, a NaN's payload kept and quieted: the",
+    " * same bits for all 65536 codes, measured), else its branches as selects */",
+    "#ifdef __F16C__",
+    "PG_INL float8 pgw_half8_to_float8(const ushort8 h) {",
+    "    typedef short pgw_v8hi __attribute__((__vector_size__(16)));",
+    "    typedef float pgw_v8sf __attribute__((__vector_size__(32)));",
+    "    union { ushort8 u; pgw_v8hi v; } a;",
+    "    union { pgw_v8sf v; float8 f; } r;",
+    "    a.u = h;",
+    "    r.v = __builtin_ia32_vcvtph2ps256(a.v);",
+    "    return r.f;",
+    "}",
+    "#else",
+    "PG_INL float8 pgw_half8_to_float8(const ushort8 c) {",
+    "    const uint8 h = __builtin_convertvector(c, uint8);",
+    "    const uint8 s = (h & 0x8000u) << 16, e = (h >> 10) & 31u, m = h & 1023u;",
+    "    const uint8 special = s | 0x7f800000u | (m << 13) | select((uint8)(0u), (uint8)(0x00400000u), m != 0u);",
+    "    const uint8 small = s | as_uint8(convert_float8(m) * 5.9604644775390625e-8f);",
+    "    const uint8 normal = s | ((e + 112u) << 23) | (m << 13);",
+    "    return as_float8(select(select(normal, small, e == 0u), special, e == 31u));",
+    "}",
+    "#endif",
     f"typedef struct {{ float{W} c[4]; }} pgw_float{W}x4;",
     f"typedef struct {{ uint{W} c[4]; }} pgw_uint{W}x4;",
     f"PG_INL int pgw_all(const int{W} m) {{ return (" + " & ".join(f"m.s{k}" for k in range(W)) + ") != 0; }",
@@ -1051,9 +1095,9 @@ def cost(body, functions: dict) -> int:
 
 
 def gathers(body, functions: dict) -> int:
-    """How many ``load``/``sample`` calls the code holds (functions counted with theirs): the
-    wide form gathers them lane by lane, which measured slower than the scalar code where
-    they are a large share of the work (deferred_calver's tabulated point lights)."""
+    """How many ``load``/``sample`` calls the code holds (functions counted with theirs), for
+    ``GATHER_COST`` (0 since the gathers are wide: lane by lane they measured slower than the
+    scalar code where they were a large share of the work, deferred_calver's point lights)."""
     return _gathers(body, functions, {})
 
 
