@@ -19,7 +19,9 @@ over the lights of a repeat group, medians over ``--frames`` frames), largest fi
   host's per-light draw calls).  The GPU is drained before every pass, so the profiled frame
   is slower than an unprofiled one (printed too), but each pass is charged its own work.
 * CL: ``benchmarks/cl_profile.py``: host stages (vertex, set-up, binning) against the raster
-  kernel's device time (OpenCL profiling events).
+  kernel's device time (OpenCL profiling events); then both backends side by side, each pass
+  drained the same way (``CLPipeline.profile``: host time to the raster kernel's launch,
+  then until the queue is empty), so that a pass where CL loses stands out.
 
 ``--png FILE`` also draws the GL profile as horizontal stacked bars (matplotlib, if installed).
 """
@@ -47,6 +49,38 @@ def gl_profile(pipe, scene, frames: int = 3) -> dict:
     prof["passes"].sort(key=lambda r: -(r["setup"] + r["draw"]))
     return {"wall": prof["wall"], "plain": median_time(lambda: pipe.frame(scene), frames),
             "passes": prof["passes"]}
+
+
+def cl_drained_profile(pipe, scene, frames: int = 3) -> dict:
+    """Per-pass host and device time (ms) of a ``CLPipeline`` drained around every pass."""
+    def start():
+        pipe.profile = []
+
+    prof = pass_profile(lambda: pipe.render(scene),
+                        lambda: ((name, {"setup": host * 1e3, "draw": dev * 1e3})
+                                 for name, _light, host, dev in pipe.profile),
+                        frames, ("setup", "draw"), before=start)
+    pipe.profile = None
+    return prof
+
+
+def format_side_by_side(name: str, gl: dict, cl: dict) -> str:
+    """Both backends' drained per-pass times, in the CL pass order."""
+    g = {r["pass"]: r for r in gl["passes"]}
+    lines = [f"{name}, drained per pass (ms): GL frame {gl['wall']:.1f}, CL frame "
+             f"{cl['wall']:.1f}",
+             f"  {'pass':<24} {'GL host':>8} {'GL draw':>8} {'CL host':>8} {'CL dev':>8} "
+             f"{'CL/GL':>6}"]
+    tg = tc = 0.0
+    for r in cl["passes"]:
+        q = g.get(r["pass"], {"setup": 0.0, "draw": 0.0})
+        a, b = q["setup"] + q["draw"], r["setup"] + r["draw"]
+        tg, tc = tg + a, tc + b
+        lines.append(f"  {r['pass']:<24} {q['setup']:>8.2f} {q['draw']:>8.2f} "
+                     f"{r['setup']:>8.2f} {r['draw']:>8.2f} "
+                     f"{(b / a if a > 0.05 else float('nan')):>6.2f}")
+    lines.append(f"  {'sum':<24} {tg:>17.2f} {tc:>17.2f} {tc / tg if tg else float('nan'):>6.2f}")
+    return "\n".join(lines)
 
 
 def format_gl_profile(name: str, prof: dict) -> str:
@@ -123,6 +157,7 @@ def main() -> int:
             profiles.append((name, prof))
             print(format_gl_profile(name, prof))
             print(format_profile(f"{name} CL", profile(cl, scene, args.frames)))
+            print(format_side_by_side(name, prof, cl_drained_profile(cl, scene, args.frames)))
         gl.release()
         rows.append((name, gl_s, cl_s))
     width = max(20, *(len(r[0]) for r in rows))

@@ -37,3 +37,20 @@ def test_renders_in_a_row_match_fresh_pipelines_and_full_argument_setting(techni
     _same(b1, compiled.pipeline("cl", (96, 54)).render(second))
     monkeypatch.setattr(CLPipeline, "_set_args", lambda self, kern, args: kern.set_args(*args))
     _same(a1, compiled.pipeline("cl", (96, 54)).render(first))
+
+
+def test_profile_drains_each_pass_and_changes_nothing():
+    """``CLPipeline.profile``: one (pass, light, host_s, device_s) row per pass execution, in
+    the schedule's order, and the same targets as an unprofiled frame."""
+    from pipegen import compile_file
+    from pipegen.runtime import draws
+    compiled = compile_file(ROOT / "pipelines" / "deferred.pipe")
+    scene = _scene("mixed_lights")
+    pipe = compiled.pipeline("cl", (96, 54))
+    plain = pipe.render(scene)
+    pipe.profile = []
+    _same(plain, pipe.render(scene))
+    runs = list(draws.schedule(pipe.plan, pipe._selection))
+    assert [(name, light) for name, light, _, _ in pipe.profile] == [
+        (pipe.plan.passes[k].name, light) for k, light in runs]
+    assert all(host >= 0 and dev >= 0 for _, _, host, dev in pipe.profile)

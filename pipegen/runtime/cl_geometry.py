@@ -473,6 +473,13 @@ class DrawGeometry:
         if key not in self.frame and key not in self.pending:
             self.pending[key] = self._vertices(k, p, width, height, key, lights, shadow)
 
+    def clip_pending(self) -> None:
+        """Queue the clipping of every prefetched device set-up (``DeviceSetup.clip``), after
+        all of them and before any raster kernel."""
+        for v in self.pending.values():
+            if v is not None and v.job is not None:
+                self.device_setup.clip(v.job)
+
     def _vertices(self, k: int, p: PassPlan, width: int, height: int, key: tuple,
                   lights: Optional[tuple], shadow: Optional["ShadowView"]):
         """Queue the vertex kernel(s) of a draw and the read-back of clip positions and

@@ -59,13 +59,18 @@ serves all the states a parametrised test sweeps (production plans bake the stat
 ``last_timings`` holds per-pass times (ms) of the latest render: ``vertex``, ``setup``,
 ``bin``, ``raster`` (kernel times from OpenCL profiling events, read at the end of the frame;
 host stages from the clock; a pass that reused cached geometry or bins has no
-vertex/setup or bin entry), ``triangles`` and ``tile_entries``.  ``preset(name, codes)``
+vertex/setup or bin entry), ``triangles`` and ``tile_entries``.  ``profile = []`` makes the
+next frames append ``(pass, light, host_s, device_s)`` per pass execution, draining the queue
+around each pass as ``GLPipeline.profile`` drains the GPU: ``host_s`` from the start of the
+pass to its raster kernel's launch (the first pass of a frame also waits there for the
+frame's vertex and set-up kernels), ``device_s`` from there until the queue is empty.  ``preset(name, codes)``
 starts later renders with a target holding given codes (tests).
 
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 from typing import Optional
 
@@ -165,6 +170,7 @@ class CLPipeline:
         self._int2s: dict = {}
         self._last_args: dict = {}      # kernel -> the arguments it was last launched with
         self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
+        self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
         for k in range(len(plan.passes)):
             self._program(k)
 
@@ -273,8 +279,18 @@ class CLPipeline:
         self._shadows = {}
         for k, light in runs:      # every vertex kernel before the first raster kernel
             self._prefetch(k, light)
+        self.geometry.clip_pending()
         for k, light in runs:
+            if self.profile is None:
+                self._run_pass(k, light)
+                continue
+            self.queue.finish()                 # each pass charged its own work
+            t0 = time.perf_counter()
             self._run_pass(k, light)
+            t1 = time.perf_counter()
+            self.queue.finish()
+            self.profile.append((self.plan.passes[k].name, light, t1 - t0,
+                                 time.perf_counter() - t1))
             if capture_passes:
                 captures.append({"pass": self.plan.passes[k].name, "light": light,
                                  "targets": self.store.read_all(),

@@ -63,6 +63,7 @@ class _Job:
     status: np.ndarray
     out: dict
     params: dict
+    clipping: Optional[dict] = None    # ``DeviceSetup.clip``'s queued work
 
 
 class DeviceSetup:
@@ -173,11 +174,10 @@ class DeviceSetup:
         fans (``"vary"``: the varyings with the clipper's vertices, when it made some;
         ``"_hold"``: host arrays still being written to the buffers); ``index``: the row of
         ``bufs`` of each triangle of ``tris`` (int32), what tile lists must hold."""
-        for ev in job.events:
-            ev.wait()
+        self.clip(job)
         status, out, prm = job.status, job.out, job.params
         kept = np.flatnonzero(status == 1)
-        hard = np.flatnonzero(status == 2)
+        hard = job.clipping["hard"]
         parts = {name: rows_of(arr, kept) for name, arr in out.items()}
         parent = kept.astype(np.int64)
         index = kept.astype(np.int32)
@@ -185,7 +185,7 @@ class DeviceSetup:
         vary_v, nverts = vary, len(clip)
         T = len(status)
         if len(hard):
-            got = self._clipped(job, hard, vary)
+            got = self._clipped(job, vary)
             if got is None:        # a window position the kernel left to numpy: all of them
                 sub = _numpy_setup(hard, clip, vary, prm)
                 rows, sub_parent = np.arange(T, T + sub.count, dtype=np.int32), sub.parent
@@ -238,11 +238,21 @@ class DeviceSetup:
             cl.enqueue_copy(self.queue, bufs[name], extra, dst_offset=at * (extra.nbytes // m),
                             is_blocking=False)
 
-    def _clipped(self, job: _Job, hard: np.ndarray, vary: Optional[np.ndarray]):
-        """Clip and set up triangles ``hard`` with ``pg_clip_setup``: (their fans' rows,
-        parents, host fields, host varyings, vertex count, device varyings), or None when one
-        has a non-finite window position (the numpy set-up then does them all)."""
+    def clip(self, job: _Job) -> None:
+        """Wait for ``pg_setup``'s statuses and queue ``pg_clip_setup`` on the triangles that
+        need clipping, with the read-back of its results, without waiting for it
+        (``CLPipeline`` calls this for every set-up of the frame before its first raster
+        kernel: on the queue the clipper would otherwise wait behind the raster kernels of
+        the passes before; ``finish`` calls it when nobody did)."""
         import pyopencl as cl
+        if job.clipping is not None:
+            return
+        for ev in job.events:
+            ev.wait()
+        hard = np.flatnonzero(job.status == 2)
+        job.clipping = {"hard": hard}
+        if not len(hard):
+            return
         mf = cl.mem_flags
         kern, head, clip_buf, vary_buf, inputs, S, T = job.params["clip"]
         nh = len(hard)
@@ -265,12 +275,8 @@ class DeviceSetup:
                       bufs.get("zq", inputs[0]))
         cl.enqueue_nd_range_kernel(self.queue, kern, (((nh + 63) // 64) * 64,), (64,))
         fan = np.empty(_FANS * nh, np.uint8)
-        cl.enqueue_copy(self.queue, fan, fan_buf)
-        if (fan == 3).any():
-            return None
-        sel = np.flatnonzero(fan == 1)
+        events = [cl.enqueue_copy(self.queue, fan, fan_buf, is_blocking=False)]
         fields = {}
-        events = []
         for name, arr in job.out.items():
             row = arr.nbytes // max(T, 1)
             host = np.empty((_FANS * nh,) + arr.shape[1:], arr.dtype)
@@ -278,19 +284,31 @@ class DeviceSetup:
                 events.append(cl.enqueue_copy(self.queue, host, bufs[name],
                                               src_offset=T * row, is_blocking=False))
             fields[name] = host
-        made = None
-        if S:
-            made = np.empty((S, _MAXV * nh, 4), np.float32)
-            for k in range(S):
-                events.append(cl.enqueue_copy(self.queue, made[k], vary_out,
-                                              src_offset=(k * nv_out + nverts) * 16,
-                                              is_blocking=False))
-        for ev in events:
+        made = np.empty((S, _MAXV * nh, 4), np.float32)
+        for k in range(S):
+            events.append(cl.enqueue_copy(self.queue, made[k], vary_out,
+                                          src_offset=(k * nv_out + nverts) * 16,
+                                          is_blocking=False))
+        job.clipping.update(events=events, fan=fan, fields=fields, made=made, nv_out=nv_out,
+                            vary_out=vary_out, keep=[fan_buf, hard_buf])
+
+    def _clipped(self, job: _Job, vary: Optional[np.ndarray]):
+        """The clipper's results (``clip``): (their fans' rows, parents, host fields, host
+        varyings, vertex count, device varyings), or None when a clipped triangle has a
+        non-finite window position (the numpy set-up then does them all)."""
+        c = job.clipping
+        for ev in c["events"]:
             ev.wait()
-        fields = {name: rows_of(a, sel) for name, a in fields.items()}
-        vary_v = None if vary is None else np.concatenate([vary, made], axis=1)
+        if (c["fan"] == 3).any():
+            return None
+        T = len(job.status)
+        sel = np.flatnonzero(c["fan"] == 1)
+        fields = {name: rows_of(a, sel) for name, a in c["fields"].items()}
+        vary_v = None if vary is None else np.concatenate([vary, c["made"]], axis=1)
         rows = (T + sel).astype(np.int32)
-        return rows, hard[sel // _FANS].astype(np.int64), fields, vary_v, nv_out, vary_out
+        return (rows, c["hard"][sel // _FANS].astype(np.int64), fields, vary_v, c["nv_out"],
+                c["vary_out"])
+
 
 def rows_of(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """``a[idx]`` along the first axis, each row moved as one opaque item (several times
