@@ -530,9 +530,14 @@ class DrawGeometry:
         frame_buf = pipe._frame_buf if shadow is None else shadow.frame_buf
         frame64_buf = pipe._frame64_buf if shadow is None else shadow.frame64_buf
         v.nverts = nverts
-        v.clip = np.empty((nverts, 4), np.float32)
-        v.clip64 = np.empty((nverts, 4), np.float64) if pipe.f64 else None
-        v.vary = np.empty((len(v.names), nverts, 4), np.float32) if v.names else None
+        # set up on the device (``cl_setup_device``): the clip positions and varyings stay
+        # there, nothing is read back; else the host copies the numpy set-up takes
+        device = cl_setup_device.supports(_offset(p), pipe.f64)
+        v.clip = v.clip64 = v.vary = None
+        if not device:
+            v.clip = np.empty((nverts, 4), np.float32)
+            v.clip64 = np.empty((nverts, 4), np.float64) if pipe.f64 else None
+            v.vary = np.empty((len(v.names), nverts, 4), np.float32) if v.names else None
         v.vary_buf = None
         v.kernels, v.copies, v.outs, v.vbufs = [], [], [], []
         clip_bufs = []
@@ -552,14 +557,16 @@ class DrawGeometry:
                           frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
             v.kernels.append(cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,)))
-            if i == 0:
+            if i == 0 and not device:
                 v.copies.append(cl.enqueue_copy(pipe.queue, v.clip, clip_buf, is_blocking=False))
                 if pipe.f64:
                     v.copies.append(cl.enqueue_copy(pipe.queue, v.clip64, clip64_buf,
                                                     is_blocking=False))
             if S:
-                out = np.empty((S, nverts, 4), np.float32)
-                v.copies.append(cl.enqueue_copy(pipe.queue, out, vbuf, is_blocking=False))
+                out = None
+                if not device:
+                    out = np.empty((S, nverts, 4), np.float32)
+                    v.copies.append(cl.enqueue_copy(pipe.queue, out, vbuf, is_blocking=False))
                 v.outs.append((have, out))
                 v.vbufs.append(vbuf)
                 if have == v.names:
@@ -578,9 +585,7 @@ class DrawGeometry:
                                         src_offset=i * nverts * 16,
                                         dst_offset=v.names.index(n) * nverts * 16)
         v.job = None
-        if cl_setup_device.supports(_offset(p), pipe.f64) and (v.vary_buf or not v.names):
-            # set up on the device, queued behind the vertex kernel (one provider made every
-            # varying, or there are none)
+        if device:     # queued behind the vertex kernels
             center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
             v.job = self.device_setup.enqueue(
                 clip_bufs[0], v.vary_buf, nverts // 3, nverts, width, height, cull=v.cull,
@@ -601,12 +606,13 @@ class DrawGeometry:
         if v is None:
             self.frame[key] = None
             return None
-        for ev in v.copies:
+        for ev in v.copies + v.kernels:
             ev.wait()
-        for have, out in v.outs:
-            for i, n in enumerate(have):
-                if n in v.names:
-                    v.vary[v.names.index(n)] = out[i]
+        if v.job is None:
+            for have, out in v.outs:
+                for i, n in enumerate(have):
+                    if n in v.names:
+                        v.vary[v.names.index(n)] = out[i]
         timing["vertex"] = sum((ev.profile.end - ev.profile.start) * 1e-6 for ev in v.kernels)
         dfmt = p.depth_target and pipe.plan.target(p.depth_target).format.name
         center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
@@ -614,7 +620,7 @@ class DrawGeometry:
         t0 = time.perf_counter()
         dev = None
         if v.job is not None:
-            tris, dev, index = self.device_setup.finish(v.job, v.clip, v.vary)
+            tris, dev, index = self.device_setup.finish(v.job)
         else:
             tris = setup_triangles(v.clip, width, height, cull=v.cull, polygon_offset=_offset(p),
                                    depth_clamp=p.state.depth.clamp, depth_format=dfmt,

@@ -283,14 +283,14 @@ class CLPipeline:
         for k, light in runs:
             if self.profile is None:
                 self._run_pass(k, light)
-                continue
-            self.queue.finish()                 # each pass charged its own work
-            t0 = time.perf_counter()
-            self._run_pass(k, light)
-            t1 = time.perf_counter()
-            self.queue.finish()
-            self.profile.append((self.plan.passes[k].name, light, t1 - t0,
-                                 time.perf_counter() - t1))
+            else:
+                self.queue.finish()                 # each pass charged its own work
+                t0 = time.perf_counter()
+                self._run_pass(k, light)
+                t1 = time.perf_counter()
+                self.queue.finish()
+                self.profile.append((self.plan.passes[k].name, light, t1 - t0,
+                                     time.perf_counter() - t1))
             if capture_passes:
                 captures.append({"pass": self.plan.passes[k].name, "light": light,
                                  "targets": self.store.read_all(),

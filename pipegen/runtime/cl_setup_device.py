@@ -18,9 +18,10 @@ from the numpy set-up's parent triangles): ``supports``.
 
 ``DeviceSetup(ctx, queue).enqueue(...)`` queues the kernel and the read-back of its results
 without waiting (``CLPipeline`` queues it with the vertex kernels, before any raster kernel);
-``finish(job, clip, vary)`` waits and returns the ``cl_setup.Triangles`` (host copies) with
-the device buffers the raster kernel reads as they are (no upload): rows per input
-triangle, dropped ones included, so tile lists index them through ``index``.
+``finish(job)`` waits and returns the ``cl_setup.Triangles`` (host copies; the varyings stay
+on the device, ``DeviceVaryings``) with the device buffers the raster kernel reads as they
+are (no upload): rows per input triangle, dropped ones included, so tile lists index them
+through ``index``.
 """
 
 from __future__ import annotations
@@ -166,10 +167,10 @@ class DeviceSetup:
             fields["zq"] = zq_buf
         return _Job(events, keep, fields, n, status, out, params)
 
-    def finish(self, job: _Job, clip: np.ndarray, vary: Optional[np.ndarray]):
+    def finish(self, job: _Job):
         """Wait for ``job``, clip and set up its clipped triangles, and return ``(tris, bufs,
-        index)``.  ``tris``: the ``Triangles`` (host copies, in submission order; ``clip``,
-        ``vary``: the host copies of the kernel's inputs); ``bufs``: the device buffers of
+        index)``.  ``tris``: the ``Triangles`` (host copies, in submission order; their
+        ``vary`` a ``DeviceVaryings``, read from the device on first use); ``bufs``: the device buffers of
         their per-triangle fields, one row per input triangle, then the clipped triangles'
         fans (``"vary"``: the varyings with the clipper's vertices, when it made some;
         ``"_hold"``: host arrays still being written to the buffers); ``index``: the row of
@@ -182,11 +183,13 @@ class DeviceSetup:
         parent = kept.astype(np.int64)
         index = kept.astype(np.int32)
         bufs = job.bufs             # the rows of clipped triangles' fans are added to these
-        vary_v, nverts = vary, len(clip)
-        T = len(status)
+        _, head, clip_buf, vary_buf, _, S, T = prm["clip"]
+        nverts = int(head[0])
+        vary_v = DeviceVaryings(self.queue, vary_buf, S, nverts) if S else None
         if len(hard):
-            got = self._clipped(job, vary)
+            got = self._clipped(job)
             if got is None:        # a window position the kernel left to numpy: all of them
+                clip, vary = self._host_inputs(job)
                 sub = _numpy_setup(hard, clip, vary, prm)
                 rows, sub_parent = np.arange(T, T + sub.count, dtype=np.int32), sub.parent
                 fields = {name: getattr(sub, name) for name in parts}
@@ -284,15 +287,23 @@ class DeviceSetup:
                 events.append(cl.enqueue_copy(self.queue, host, bufs[name],
                                               src_offset=T * row, is_blocking=False))
             fields[name] = host
-        made = np.empty((S, _MAXV * nh, 4), np.float32)
-        for k in range(S):
-            events.append(cl.enqueue_copy(self.queue, made[k], vary_out,
-                                          src_offset=(k * nv_out + nverts) * 16,
-                                          is_blocking=False))
-        job.clipping.update(events=events, fan=fan, fields=fields, made=made, nv_out=nv_out,
+        job.clipping.update(events=events, fan=fan, fields=fields, nv_out=nv_out,
                             vary_out=vary_out, keep=[fan_buf, hard_buf])
 
-    def _clipped(self, job: _Job, vary: Optional[np.ndarray]):
+    def _host_inputs(self, job: _Job):
+        """The kernel's inputs read back: (clip positions, varyings or None)."""
+        import pyopencl as cl
+        _, head, clip_buf, vary_buf, _, S, T = job.params["clip"]
+        nverts = int(head[0])
+        clip = np.empty((nverts, 4), np.float32)
+        cl.enqueue_copy(self.queue, clip, clip_buf)
+        vary = None
+        if S:
+            vary = np.empty((S, nverts, 4), np.float32)
+            cl.enqueue_copy(self.queue, vary, vary_buf)
+        return clip, vary
+
+    def _clipped(self, job: _Job):
         """The clipper's results (``clip``): (their fans' rows, parents, host fields, host
         varyings, vertex count, device varyings), or None when a clipped triangle has a
         non-finite window position (the numpy set-up then does them all)."""
@@ -304,10 +315,38 @@ class DeviceSetup:
         T = len(job.status)
         sel = np.flatnonzero(c["fan"] == 1)
         fields = {name: rows_of(a, sel) for name, a in c["fields"].items()}
-        vary_v = None if vary is None else np.concatenate([vary, c["made"]], axis=1)
+        S = job.params["clip"][5]
+        vary_v = DeviceVaryings(self.queue, c["vary_out"], S, c["nv_out"]) if S else None
         rows = (T + sel).astype(np.int32)
         return (rows, c["hard"][sel // _FANS].astype(np.int64), fields, vary_v, c["nv_out"],
                 c["vary_out"])
+
+
+class DeviceVaryings:
+    """``Triangles.vary`` of a device set-up: the varyings stay in the device buffer the raster
+    kernel reads (slot-major; the clipper's vertices after the input's), and are read back
+    the first time something asks for them as an array (tests: the runtime never needs them
+    on the host, and a scene draw's are megabytes a frame)."""
+
+    ndim, dtype = 3, np.dtype(np.float32)
+
+    def __init__(self, queue, buf, slots: int, nverts: int):
+        self.queue, self.buf = queue, buf
+        self.shape = (int(slots), int(nverts), 4)
+        self._host: Optional[np.ndarray] = None
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        if self._host is None:
+            import pyopencl as cl
+            self._host = np.empty(self.shape, np.float32)
+            cl.enqueue_copy(self.queue, self._host, self.buf)
+        return self._host if dtype is None else self._host.astype(dtype)
+
+    def __getitem__(self, index):
+        return np.asarray(self)[index]
+
+    def __len__(self) -> int:
+        return self.shape[0]
 
 
 def rows_of(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
