@@ -282,3 +282,48 @@ def test_check_uses_per_pixel_blend_counts(gl_available):
     assert row.limit_map is not None and row.limit_map.shape == (90, 160)
     assert row.limit_map.min() == 1 and row.limit_map.max() > 1
     assert result.passed
+
+
+RESOLVE_PROBE = """
+technique resolves "multisampled targets of every format the device resolve takes"
+target c8 : rgba8 samples 4 clear 0
+target c10 : rgb10a2 samples 4 clear 0
+target c16 : rgba16 samples 4 clear 0
+target h16 : rgba16f samples 4 clear 0
+target r16 : r16f samples 4 clear 0
+target f32 : rgba32f samples 4 clear 0
+target ds : d24s8 samples 4 clear depth 1.0 stencil 0
+output c8
+pass ms {
+  draw scene.opaque
+  writes c8, c10, c16, h16, r16, f32
+  depth ds less write
+  stencil { func always ref 7 pass replace }
+  cull back
+  fragment {
+    vec3 n = normalize(normal);
+    c8 = vec4(n * 0.5 + 0.5, frag_coord.z);
+    c10 = vec4(fract(world_pos * 3.7), 0.4);
+    c16 = vec4(fract(world_pos * 0.37), fract(frag_coord.z * 9.0));
+    h16 = vec4(world_pos, frag_coord.w);
+    r16 = vec4(world_pos.x * 31.0, 0.0, 0.0, 1.0);
+    f32 = vec4(n, frag_coord.z);
+  }
+}
+"""
+
+
+def test_device_resolve_matches_the_numpy_resolve():
+    """The multisample resolve on the device (cl_targets.TargetStore.resolve, cl_resolve.cl.j2)
+    gives the numpy resolve's codes bit for bit: unorm8, packed 10-10-10-2, unorm16, half
+    (4 and 1 channels), d24s8 with its stencil, and float32 (which stays on the host)."""
+    compiled = compile_source(RESOLVE_PROBE)
+    scene = load_scene(ROOT / "examples/scenes/mixed_lights.toml").with_size(160, 90)
+    device = compiled.pipeline("cl").render(scene)
+    host_pipe = compiled.pipeline("cl")
+    host_pipe.store.device_resolve = False
+    host = host_pipe.render(scene)
+    assert device.keys() == host.keys()
+    for name in device:
+        assert np.array_equal(device[name], host[name]), name
+    assert (device["ds.stencil"] == 7).any() and len(np.unique(device["c8"])) > 50

@@ -79,6 +79,8 @@ class Target:
 class TargetStore:
     def __init__(self, ctx, queue, plan: Plan):
         self.ctx, self.queue = ctx, queue
+        self.device_resolve = True      # False: every resolve in numpy (tests compare both)
+        self._resolvers: dict = {}
         self.specs = {t.name: t for t in plan.targets}
         self.f64 = plan.precision == "f64"
         self.targets: dict[str, Target] = {}
@@ -208,9 +210,20 @@ class TargetStore:
         """Resolve the samples like llvmpipe's blit (measured): colour = the average of the
         sample values, stored like a fragment output (unorm: round half to even, half:
         toward zero); depth, stencil and integer formats take sample 0, d24 depth through
-        llvmpipe's float round trip (``d24_resolve``)."""
+        llvmpipe's float round trip (``d24_resolve``).  Unorm, half and d24 targets resolve on
+        the device (``templates/cl_resolve.cl.j2``, the same float32 operations: queued, not
+        waited for); the rest, and every target with ``device_resolve`` off, here in numpy."""
         import pyopencl as cl
         if t.samples == 1 or not t.dirty:
+            return
+        kern = self._resolve_kernel(t) if self.device_resolve else None
+        if kern is not None:
+            args = [np.int32(t.pixels), t.buf, t.res]
+            if t.stencil is not None:
+                args += [t.stencil, t.res_stencil]
+            kern.set_args(*args)
+            cl.enqueue_nd_range_kernel(self.queue, kern, (((t.pixels + 63) // 64) * 64,), (64,))
+            t.dirty = False
             return
         codes, st = self._read_planes(t, t.buf, t.stencil, t.samples)
         fmt = t.fmt
@@ -249,6 +262,37 @@ class TargetStore:
         if st is not None:
             cl.enqueue_copy(self.queue, t.res_stencil, np.ascontiguousarray(st[0]))
         t.dirty = False
+
+    def _resolve_kernel(self, t: Target):
+        """The device resolve of ``t``'s format (built once per format and sample count), or
+        None where it stays on the host (float32, snorm, integer formats, the float64
+        evaluation)."""
+        import pyopencl as cl
+        fmt = t.fmt
+        key = (fmt.name, t.samples)
+        if key in self._resolvers:
+            return self._resolvers[key]
+        kern = None
+        if not self.f64:
+            from ..backends import opencl as clgen
+            from ..backends import templating
+            from . import cl_context
+            f = clgen.cl_format(fmt.name)
+            if f["cls"] in ("unorm8", "unorm", "half") or (
+                    fmt.kind is F.Kind.DEPTH_STENCIL and fmt.bits[0] == 24):
+                top = clgen._rcp_literal(1.0)
+                if f["cls"] in ("unorm8", "unorm"):
+                    tops = [float((1 << b) - 1) for b in fmt.bits]
+                    tops += tops[-1:] * (4 - len(tops))
+                    top = "(float4)(" + ", ".join(clgen._rcp_literal(v) for v in tops) + ")"
+                src = templating.render(
+                    "cl_resolve.cl.j2", prelude=clgen.prelude_source(clgen.TILE, "f32", False),
+                    f=f, stencil=fmt.kind is F.Kind.DEPTH_STENCIL, samples=t.samples,
+                    inv_samples=clgen._rcp_literal(float(np.float32(1.0 / t.samples))),
+                    top=top, d24_rcp=clgen._rcp_literal(float(np.float32(1.0 / 16777215.0))))
+                kern = cl.Kernel(cl_context.build_program(src), "pg_resolve")
+        self._resolvers[key] = kern
+        return kern
 
     def read(self, t: Target) -> dict:
         self.resolve(t)
