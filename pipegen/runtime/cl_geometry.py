@@ -1,5 +1,6 @@
-"""The CL runtime's geometry: vertex kernels, clipping, triangle set-up and binning of each
-pass's draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
+"""The CL runtime's geometry: vertex kernels, clipping, triangle set-up (on the device,
+``cl_setup_device``, where it can; else the numpy ``cl_setup``) and binning of each pass's
+draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
 
 ``DrawGeometry(pipe).pass_triangles(k, pass, width, height, timing, lights)`` returns the
 set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile bins

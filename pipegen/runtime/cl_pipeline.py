@@ -14,9 +14,14 @@ pixel (counted by the raster kernel where it applies the blend: after discard, d
 stencil; once per fragment whatever its samples).  ``pipegen check`` allows 1 + P codes/ulps
 per pixel from it (DESIGN.md §7).
 
-Per pass (see ``backends/opencl.py`` for the program and ``cl_setup.py`` for the host stages):
+Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` for the set-up
+kernels and ``cl_setup.py`` for binning and the numpy set-up they replace):
 
-    pg_vertex (CL) -> clip + setup + binning (numpy) -> pg_raster (CL)
+    pg_vertex (CL) -> pg_setup, pg_clip_setup (CL) -> binning (numpy) -> pg_raster (CL)
+
+Every vertex and set-up kernel of a frame is queued before its first raster kernel
+(``render``), so the host bins one pass while the device rasterises another, and no host
+stage waits behind a raster kernel on the in-order queue.
 
 Targets live in device buffers in GL row order for the whole frame; clears write the codes of
 ``Format.quantize`` (the same the GL runtime clears with).  Passes of one ``repeat_group`` run
