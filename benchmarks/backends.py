@@ -36,32 +36,28 @@ from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, median_time, pass_p
                     set_threads)
 
 
-def gl_profile(pipe, scene, frames: int = 3) -> dict:
-    """Per-pass host set-up and draw time (ms) of a ``GLPipeline`` (``--profile``)."""
+def drained_profile(pipe, frame, frames: int = 3) -> dict:
+    """Per-pass times (ms) of either runtime, drained around every pass: its ``profile`` rows
+    ``(pass, light, host_s, draw_s)`` (``GLPipeline.profile``, ``CLPipeline.profile``) as
+    ``setup`` and ``draw``, summed per pass, medians of ``frames`` calls of ``frame()``."""
     def start():
         pipe.profile = []
 
-    prof = pass_profile(lambda: pipe.frame(scene),
+    prof = pass_profile(frame,
                         lambda: ((name, {"setup": setup * 1e3, "draw": draw * 1e3})
                                  for name, _light, setup, draw in pipe.profile),
                         frames, ("setup", "draw"), before=start)
     pipe.profile = None
+    return prof
+
+
+def gl_profile(pipe, scene, frames: int = 3) -> dict:
+    """Per-pass host set-up and draw time (ms) of a ``GLPipeline`` (``--profile``), largest
+    first, with the unprofiled frame time."""
+    prof = drained_profile(pipe, lambda: pipe.frame(scene), frames)
     prof["passes"].sort(key=lambda r: -(r["setup"] + r["draw"]))
     return {"wall": prof["wall"], "plain": median_time(lambda: pipe.frame(scene), frames),
             "passes": prof["passes"]}
-
-
-def cl_drained_profile(pipe, scene, frames: int = 3) -> dict:
-    """Per-pass host and device time (ms) of a ``CLPipeline`` drained around every pass."""
-    def start():
-        pipe.profile = []
-
-    prof = pass_profile(lambda: pipe.render(scene),
-                        lambda: ((name, {"setup": host * 1e3, "draw": dev * 1e3})
-                                 for name, _light, host, dev in pipe.profile),
-                        frames, ("setup", "draw"), before=start)
-    pipe.profile = None
-    return prof
 
 
 def format_side_by_side(name: str, gl: dict, cl: dict) -> str:
@@ -157,7 +153,8 @@ def main() -> int:
             profiles.append((name, prof))
             print(format_gl_profile(name, prof))
             print(format_profile(f"{name} CL", profile(cl, scene, args.frames)))
-            print(format_side_by_side(name, prof, cl_drained_profile(cl, scene, args.frames)))
+            print(format_side_by_side(name, prof, drained_profile(cl, lambda: cl.render(scene),
+                                                                  args.frames)))
         gl.release()
         rows.append((name, gl_s, cl_s))
     width = max(20, *(len(r[0]) for r in rows))

@@ -963,6 +963,44 @@ def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
                for f in (pass_.state.stencil.front, pass_.state.stencil.back))
 
 
+# ---- runtime programs: triangle set-up and multisample resolve -------------------------------
+
+SETUP_CULL = {"none": 0, "back": 1, "front": 2}
+SUBPIXEL = 256       # window coordinates snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8)
+
+
+def setup_program(cull: str, depth_clamp: bool, samples: Optional[int], has_flat: bool,
+                  has_scissor: bool, w_plane: bool, with_zq: bool, smooth: tuple,
+                  slots: int) -> str:
+    """The device set-up program (``cl_setup.cl.j2``: ``pg_setup``, ``pg_clip_setup``) for one
+    combination of the set-up's switches (``runtime/cl_setup_device.py``)."""
+    lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
+    return templating.render(
+        "cl_setup.cl.j2", cull=SETUP_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
+        box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor), w_plane=int(w_plane),
+        with_zq=int(with_zq), smooth=list(smooth), slots=int(slots))
+
+
+def resolve_program(format_name: str, samples: int) -> Optional[str]:
+    """The device multisample resolve (``cl_resolve.cl.j2``, ``pg_resolve``) of a target
+    format, or None for the formats it does not take (float32, snorm, integer: the runtime
+    resolves those in numpy)."""
+    fmt = F.get(format_name)
+    f = cl_format(format_name)
+    if not (f["cls"] in ("unorm8", "unorm", "half")
+            or (fmt.kind is F.Kind.DEPTH_STENCIL and fmt.bits[0] == 24)):
+        return None
+    top = _rcp_literal(1.0)
+    if f["cls"] in ("unorm8", "unorm"):
+        tops = _four([float((1 << b) - 1) for b in fmt.bits], len(fmt.bits))
+        top = "(float4)(" + ", ".join(_rcp_literal(v) for v in tops) + ")"
+    return templating.render(
+        "cl_resolve.cl.j2", prelude=prelude_source(TILE, "f32", False), f=f,
+        stencil=fmt.kind is F.Kind.DEPTH_STENCIL, samples=samples,
+        inv_samples=_rcp_literal(float(f32(1.0 / samples))), top=top,
+        d24_rcp=_rcp_literal(float(f32(1.0 / 16777215.0))))
+
+
 # ---- emission from the IR -----------------------------------------------------------------------------
 
 

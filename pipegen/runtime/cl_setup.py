@@ -62,7 +62,7 @@ from typing import Optional
 
 import numpy as np
 
-SUBPIXEL = 256
+from ..backends.opencl import SUBPIXEL     # 1/256 pixel, one place for it
 
 
 @dataclass

@@ -32,13 +32,12 @@ from typing import Optional
 
 import numpy as np
 
-from ..backends import templating
+from ..backends import opencl as clgen
 from . import cl_context
-from .cl_setup import SUBPIXEL, Triangles, setup_triangles
+from .cl_setup import Triangles, setup_triangles
 
 __all__ = ["DeviceSetup", "supports"]
 
-_CULL = {"none": 0, "back": 1, "front": 2}
 _MAXV, _FANS = 9, 7     # a triangle clipped by six planes, its fan (cl_setup.cl.j2)
 # per kept triangle: (field, dtype, trailing shape) as the kernel writes them
 _FIELDS = (("a", np.int32, (4,)), ("b", np.int32, (4,)), ("c", np.int64, (4,)),
@@ -61,10 +60,20 @@ class _Job:
     buffers: list        # kept alive until the job is finished
     bufs: dict           # the per-triangle fields' device buffers, by Triangles field name
     rows: int            # rows each of them has room for
-    status: np.ndarray
+    status: np.ndarray   # per input triangle (its length: the input triangles)
     out: dict
-    params: dict
+    params: dict         # ``setup_triangles``'s keywords (the numpy fallback)
+    clip_kernel: object  # pg_clip_setup of the same program
+    head: list           # the kernels' scalar arguments: nverts, W, H, viewport, centre
+    clip_buf: object     # the inputs: clip positions, varyings (``slots`` slot-major)
+    vary_buf: object
+    inputs: list         # flat values and scissor rectangles (or placeholders)
+    slots: int
     clipping: Optional[dict] = None    # ``DeviceSetup.clip``'s queued work
+
+    @property
+    def nverts(self) -> int:
+        return int(self.head[0])
 
 
 class DeviceSetup:
@@ -72,23 +81,15 @@ class DeviceSetup:
         self.ctx, self.queue = ctx, queue
         self._kernels: dict = {}
 
-    def _kernels_for(self, cull: str, depth_clamp: bool, samples: Optional[int],
-                     has_flat: bool, has_scissor: bool, w_plane: bool, with_zq: bool,
-                     smooth: tuple, slots: int):
-        """(pg_setup, pg_clip_setup) of the program for these switches, built once."""
+    def _kernels_for(self, *switches):
+        """(pg_setup, pg_clip_setup) of the program for these switches
+        (``opencl.setup_program``'s arguments), built once."""
         import pyopencl as cl
-        key = (cull, depth_clamp, samples == 1, has_flat, has_scissor, w_plane, with_zq, smooth,
-               slots)
-        kerns = self._kernels.get(key)
+        kerns = self._kernels.get(switches)
         if kerns is None:
-            lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
-            src = templating.render(
-                "cl_setup.cl.j2", cull=_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
-                box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor),
-                w_plane=int(w_plane), with_zq=int(with_zq), smooth=list(smooth), slots=slots)
-            prog = cl_context.build_program(src)
-            kerns = self._kernels[key] = (cl.Kernel(prog, "pg_setup"),
-                                          cl.Kernel(prog, "pg_clip_setup"))
+            prog = cl_context.build_program(clgen.setup_program(*switches))
+            kerns = self._kernels[switches] = (cl.Kernel(prog, "pg_setup"),
+                                               cl.Kernel(prog, "pg_clip_setup"))
         return kerns
 
     def enqueue(self, clip_buf, vary_buf, ntris: int, nverts: int, width: int, height: int, *,
@@ -130,10 +131,10 @@ class DeviceSetup:
         dummy = buf(16)
         inputs = [upload(np.asarray(flat, np.uint32)) if flat is not None else dummy,
                   upload(np.asarray(scissor, np.int32)) if scissor is not None else dummy]
-        kern.set_args(np.int32(ntris), np.int32(nverts), np.int32(W), np.int32(H),
-                      f32(vw * 0.5), f32(vh * 0.5), f32(vx + vw * 0.5), f32(vy + vh * 0.5),
-                      f32(pixel_center), clip_buf, vary_buf if vary_buf is not None else dummy,
-                      *inputs,
+        head = [np.int32(nverts), np.int32(W), np.int32(H), f32(vw * 0.5), f32(vh * 0.5),
+                f32(vx + vw * 0.5), f32(vy + vh * 0.5), f32(pixel_center)]
+        kern.set_args(np.int32(ntris), *head, clip_buf,
+                      vary_buf if vary_buf is not None else dummy, *inputs,
                       status_buf, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"],
                       coef_buf, bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"],
                       zq_buf)
@@ -156,16 +157,11 @@ class DeviceSetup:
                       scissor=scissor, samples=samples, smooth=list(smooth),
                       pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
                       with_zq=with_zq)
-        # what the clipping kernel takes besides: its kernel and arguments up to `hard`
-        params["clip"] = (clip_kern, [np.int32(nverts), np.int32(W), np.int32(H),
-                                      f32(vw * 0.5), f32(vh * 0.5), f32(vx + vw * 0.5),
-                                      f32(vy + vh * 0.5), f32(pixel_center)],
-                          clip_buf, vary_buf, inputs, int(slots), int(ntris))
-        keep = [status_buf, coef_buf, zq_buf, dummy, *inputs, *bufs.values()]
         fields = dict(bufs, coef=coef_buf)
         if with_zq:
             fields["zq"] = zq_buf
-        return _Job(events, keep, fields, n, status, out, params)
+        return _Job(events, [status_buf, dummy], fields, n, status, out, params, clip_kern,
+                    head, clip_buf, vary_buf, inputs, int(slots))
 
     def finish(self, job: _Job):
         """Wait for ``job``, clip and set up its clipped triangles, and return ``(tris, bufs,
@@ -183,9 +179,9 @@ class DeviceSetup:
         parent = kept.astype(np.int64)
         index = kept.astype(np.int32)
         bufs = job.bufs             # the rows of clipped triangles' fans are added to these
-        _, head, clip_buf, vary_buf, _, S, T = prm["clip"]
-        nverts = int(head[0])
-        vary_v = DeviceVaryings(self.queue, vary_buf, S, nverts) if S else None
+        T, nverts = len(status), job.nverts
+        vary_v = DeviceVaryings(self.queue, job.vary_buf, job.slots, nverts) if job.slots \
+            else None
         if len(hard):
             got = self._clipped(job)
             if got is None:        # a window position the kernel left to numpy: all of them
@@ -257,9 +253,9 @@ class DeviceSetup:
         if not len(hard):
             return
         mf = cl.mem_flags
-        kern, head, clip_buf, vary_buf, inputs, S, T = job.params["clip"]
+        S, T, nverts, inputs, vary_buf = job.slots, len(job.status), job.nverts, job.inputs, \
+            job.vary_buf
         nh = len(hard)
-        nverts = int(head[0])
         nv_out = nverts + _MAXV * nh
         bufs = job.bufs
         self._grow(job, bufs, T + _FANS * nh)
@@ -271,12 +267,14 @@ class DeviceSetup:
         hard_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=hard.astype(np.int32))
         dummy = inputs[0] if S == 0 else vary_buf
-        kern.set_args(np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out), *head[1:],
-                      hard_buf, clip_buf, dummy, *inputs, fan_buf, vary_out,
+        job.clip_kernel.set_args(
+                      np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out), *job.head[1:],
+                      hard_buf, job.clip_buf, dummy, *inputs, fan_buf, vary_out,
                       bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"],
                       bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"],
                       bufs.get("zq", inputs[0]))
-        cl.enqueue_nd_range_kernel(self.queue, kern, (((nh + 63) // 64) * 64,), (64,))
+        cl.enqueue_nd_range_kernel(self.queue, job.clip_kernel, (((nh + 63) // 64) * 64,),
+                                   (64,))
         fan = np.empty(_FANS * nh, np.uint8)
         events = [cl.enqueue_copy(self.queue, fan, fan_buf, is_blocking=False)]
         fields = {}
@@ -293,14 +291,12 @@ class DeviceSetup:
     def _host_inputs(self, job: _Job):
         """The kernel's inputs read back: (clip positions, varyings or None)."""
         import pyopencl as cl
-        _, head, clip_buf, vary_buf, _, S, T = job.params["clip"]
-        nverts = int(head[0])
-        clip = np.empty((nverts, 4), np.float32)
-        cl.enqueue_copy(self.queue, clip, clip_buf)
+        clip = np.empty((job.nverts, 4), np.float32)
+        cl.enqueue_copy(self.queue, clip, job.clip_buf)
         vary = None
-        if S:
-            vary = np.empty((S, nverts, 4), np.float32)
-            cl.enqueue_copy(self.queue, vary, vary_buf)
+        if job.slots:
+            vary = np.empty((job.slots, job.nverts, 4), np.float32)
+            cl.enqueue_copy(self.queue, vary, job.vary_buf)
         return clip, vary
 
     def _clipped(self, job: _Job):
@@ -315,8 +311,8 @@ class DeviceSetup:
         T = len(job.status)
         sel = np.flatnonzero(c["fan"] == 1)
         fields = {name: rows_of(a, sel) for name, a in c["fields"].items()}
-        S = job.params["clip"][5]
-        vary_v = DeviceVaryings(self.queue, c["vary_out"], S, c["nv_out"]) if S else None
+        vary_v = (DeviceVaryings(self.queue, c["vary_out"], job.slots, c["nv_out"])
+                  if job.slots else None)
         rows = (T + sel).astype(np.int32)
         return (rows, c["hard"][sel // _FANS].astype(np.int64), fields, vary_v, c["nv_out"],
                 c["vary_out"])

@@ -275,21 +275,9 @@ class TargetStore:
         kern = None
         if not self.f64:
             from ..backends import opencl as clgen
-            from ..backends import templating
             from . import cl_context
-            f = clgen.cl_format(fmt.name)
-            if f["cls"] in ("unorm8", "unorm", "half") or (
-                    fmt.kind is F.Kind.DEPTH_STENCIL and fmt.bits[0] == 24):
-                top = clgen._rcp_literal(1.0)
-                if f["cls"] in ("unorm8", "unorm"):
-                    tops = [float((1 << b) - 1) for b in fmt.bits]
-                    tops += tops[-1:] * (4 - len(tops))
-                    top = "(float4)(" + ", ".join(clgen._rcp_literal(v) for v in tops) + ")"
-                src = templating.render(
-                    "cl_resolve.cl.j2", prelude=clgen.prelude_source(clgen.TILE, "f32", False),
-                    f=f, stencil=fmt.kind is F.Kind.DEPTH_STENCIL, samples=t.samples,
-                    inv_samples=clgen._rcp_literal(float(np.float32(1.0 / t.samples))),
-                    top=top, d24_rcp=clgen._rcp_literal(float(np.float32(1.0 / 16777215.0))))
+            src = clgen.resolve_program(fmt.name, t.samples)
+            if src is not None:
                 kern = cl.Kernel(cl_context.build_program(src), "pg_resolve")
         self._resolvers[key] = kern
         return kern

@@ -332,7 +332,8 @@ def volume_clearance(volume: str, position, radius: float, eye, cos_outer: float
     v = np.asarray(eye, np.float64) - np.asarray(position, np.float64)
     r = max(float(radius), 0.0)
     if volume == "sphere":
-        return float(np.linalg.norm(v)) - volume_bound("sphere", r)
+        return float(_sphere_clearances(np.asarray(position, np.float64)[None], np.array([r]),
+                                        eye)[0])
     if volume == "cone":
         d = np.asarray(direction, np.float64)
         n = float(np.linalg.norm(d))
@@ -365,11 +366,18 @@ def _spheres_inside(lights: Sequence, eye, reach: float) -> np.ndarray:
     """``volume_cull``'s test for sphere volumes, of many lights at once: the distance from
     ``eye`` to each light minus its ``volume_bound`` against the near plane's reach."""
     pos = np.array([np.asarray(l.position, np.float64) for l in lights]).reshape(-1, 3)
-    bound = np.maximum(np.array([float(l.radius) for l in lights], np.float64), 0.0)
-    bound *= _unit_circumradius()
-    v = np.asarray(eye, np.float64) - pos
-    clearance = np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2]) - bound
+    radius = np.array([float(l.radius) for l in lights], np.float64)
+    bound = np.maximum(radius, 0.0) * _unit_circumradius()
+    clearance = _sphere_clearances(pos, radius, eye)
     return clearance <= reach * (1.0 + CULL_SLACK) + bound * CULL_SLACK
+
+
+def _sphere_clearances(pos: np.ndarray, radius: np.ndarray, eye) -> np.ndarray:
+    """``volume_clearance`` of sphere volumes, (N, 3) positions at once: the distance from
+    ``eye`` to each light less its ``volume_bound``."""
+    v = np.asarray(eye, np.float64) - pos
+    bound = np.maximum(radius, 0.0) * _unit_circumradius()
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2]) - bound
 
 
 # ---- scissor -----------------------------------------------------------------------------------
