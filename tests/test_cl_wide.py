@@ -115,7 +115,7 @@ def test_control_flow_lowering_is_exact(monkeypatch, wmin):
     assert _wide_passes(wide) == ["base", "resolve"]
     frag = next(p for p in wide.plan.passes if p.name == "base").code.fragment
     # the lowerings this technique is here to exercise
-    for what in ("pg_wdone", "pg_wbrk", "pg_wcont", "pg_live &= ", "select("):
+    for what in ("pg_wdone", "pg_wbrk", "pg_wcont", "pg_live &= ", "pg_sel("):
         assert what in frag, what
     for name in ("many_lights", "mixed_lights"):
         scene = _scene(name)

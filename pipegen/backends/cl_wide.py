@@ -320,7 +320,7 @@ class WideEmitter:
                     c = widen(c, v.type.scalar)
                 dst = f"out->o_{s.target}[{k}]"
                 if self.active() is not None:
-                    c = f"select({dst}, {c}, {self.active()})"
+                    c = f"pg_sel({dst}, {c}, {self.active()})"
                 lines.append(f"{pad}{dst} = {c};")
             return self._flush(depth, lines)
         if isinstance(s, ir.ExprStmt):
@@ -421,7 +421,7 @@ class WideEmitter:
                 for k, c in enumerate(v.comps):
                     if not v.varying:
                         c = widen(c, v.type.scalar)
-                    lines.append(f"{pad}pg_wrv{k} = select(pg_wrv{k}, {c}, {act});")
+                    lines.append(f"{pad}pg_wrv{k} = pg_sel(pg_wrv{k}, {c}, {act});")
             lines.append(f"{pad}pg_wdone |= {act};")
             if uniform_here:
                 if self.main:
@@ -486,7 +486,7 @@ class WideEmitter:
             if cur.varying and not v.varying:
                 c = widen(c, cur.type.scalar)
             if self.active() is not None:
-                c = f"select({dst}, {c}, {self.active()})"
+                c = f"pg_sel({dst}, {c}, {self.active()})"
             news.append(c)
         if len(news) > 1:     # c = c.zyx: every component's value before any is written
             news = self.tmp(Val(news, Type(cur.type.scalar, len(news)), cur.varying),
@@ -638,7 +638,7 @@ class WideEmitter:
             return Val([f"({c.comps[0]} ? {x} : {y})" for x, y in zip(ac, bc)], e.type, vary)
         m = self.tmp(c).comps[0] if len(ac) > 1 else c.comps[0]
         if s is Scalar.UINT or s is Scalar.FLOAT or s is Scalar.INT or s is Scalar.BOOL:
-            return Val([f"select({y}, {x}, {m})" for x, y in zip(ac, bc)], e.type, True)
+            return Val([f"pg_sel({y}, {x}, {m})" for x, y in zip(ac, bc)], e.type, True)
         raise Unsupported("ternary type")
 
     def _construct(self, e: ir.Construct) -> Val:
@@ -980,12 +980,19 @@ def _helpers() -> list:
     f"#define PG_W {W}",
     f"#define PG_WMIN {WMIN}   /* fewer pixels of a triangle's row than this: the scalar function */",
     _lanes(1), _lanes(2), _lanes(3),
-    "PG_INL float8 pg_b_fmax(const float8 a, const float8 b) { return select(b, a, (b != b) | (a > b)); }",
-    "PG_INL float8 pg_b_fmin(const float8 a, const float8 b) { return select(b, a, (b != b) | (a < b)); }",
+    "/* select() as the ternary operator, which OpenCL C defines as select(exp3, exp2, exp1)",
+    " * (the sign bit of each mask lane): PoCL's library select() is not inlined into the raster",
+    " * kernel (90 out-of-line calls in inferred's material kernel, every live ymm register",
+    " * spilled around each); the ternary is expanded in place. 10-18 % of a wide kernel */",
+    "PG_INL float8 pg_sel(const float8 a, const float8 b, const int8 m) { return m ? b : a; }",
+    "PG_INL int8 pg_sel(const int8 a, const int8 b, const int8 m) { return m ? b : a; }",
+    "PG_INL uint8 pg_sel(const uint8 a, const uint8 b, const int8 m) { return m ? b : a; }",
+    "PG_INL float8 pg_b_fmax(const float8 a, const float8 b) { return pg_sel(b, a, (b != b) | (a > b)); }",
+    "PG_INL float8 pg_b_fmin(const float8 a, const float8 b) { return pg_sel(b, a, (b != b) | (a < b)); }",
     "PG_INL float8 pg_b_fmax(const float8 a, const float b) { return pg_b_fmax(a, (float8)(b)); }",
     "PG_INL float8 pg_b_fmin(const float8 a, const float b) { return pg_b_fmin(a, (float8)(b)); }",
-    "PG_INL float8 pg_b_max(const float8 a, const float8 b) { return select(b, a, a > b); }",
-    "PG_INL float8 pg_b_min(const float8 a, const float8 b) { return select(b, a, a < b); }",
+    "PG_INL float8 pg_b_max(const float8 a, const float8 b) { return pg_sel(b, a, a > b); }",
+    "PG_INL float8 pg_b_min(const float8 a, const float8 b) { return pg_sel(b, a, a < b); }",
     "PG_INL float8 pg_b_clamp(const float8 x, const float8 lo, const float8 hi) { return pg_b_fmin(pg_b_fmax(x, lo), hi); }",
     "PG_INL float8 pg_b_fma(const float8 a, const float8 b, const float8 c) { return PGW_LANES3(__builtin_fmaf, float, a, b, c); }",
     "PG_INL float8 pg_b_fma(const float8 a, const float8 b, const float c) { return pg_b_fma(a, b, (float8)(c)); }",
@@ -994,13 +1001,13 @@ def _helpers() -> list:
     "PG_INL float8 pg_b_fabs(const float8 x) { return as_float8(as_uint8(x) & 0x7fffffffu); }",
     "PG_INL float8 pg_b_copysign(const float8 x, const float8 y) { return as_float8((as_uint8(x) & 0x7fffffffu) | (as_uint8(y) & 0x80000000u)); }",
     *[line for T in ("int8", "uint8") for line in (
-        f"PG_INL {T} pg_b_max(const {T} a, const {T} b) {{ return select(a, b, a < b); }}",
-        f"PG_INL {T} pg_b_min(const {T} a, const {T} b) {{ return select(a, b, a > b); }}",
+        f"PG_INL {T} pg_b_max(const {T} a, const {T} b) {{ return pg_sel(a, b, a < b); }}",
+        f"PG_INL {T} pg_b_min(const {T} a, const {T} b) {{ return pg_sel(a, b, a > b); }}",
         f"PG_INL {T} pg_b_clamp(const {T} x, const {T} lo, const {T} hi) {{ return pg_b_min(pg_b_max(x, lo), hi); }}")],
-    "PG_INL uint8 pg_b_sub_sat(const uint8 a, const uint8 b) { return select((uint8)(0u), a - b, a > b); }",
-    "static inline int8 __attribute__((overloadable)) pg_abs(int8 x) { return select(x, -x, x < 0); }",
+    "PG_INL uint8 pg_b_sub_sat(const uint8 a, const uint8 b) { return pg_sel((uint8)(0u), a - b, a > b); }",
+    "static inline int8 __attribute__((overloadable)) pg_abs(int8 x) { return pg_sel(x, -x, x < 0); }",
     "static inline float8 __attribute__((overloadable)) pg_abs(float8 x) { return pg_b_fabs(x); }",
-    "static inline int8 __attribute__((overloadable)) pg_sign(int8 x) { return select((int8)(0), (int8)(1), x > 0) - select((int8)(0), (int8)(1), x < 0); }",
+    "static inline int8 __attribute__((overloadable)) pg_sign(int8 x) { return pg_sel((int8)(0), (int8)(1), x > 0) - pg_sel((int8)(0), (int8)(1), x < 0); }",
     "static inline float8 __attribute__((overloadable)) pg_sign(float8 x) { return PGW_LANES1(sign, float, x); }",
     "static inline float8 __attribute__((overloadable)) pg_smoothstep(const float8 e0, const float8 e1, const float8 x) {",
     "    const float8 t = pg_b_fmin(pg_b_fmax((x - e0) / (e1 - e0), 0.0f), 1.0f);",
@@ -1044,10 +1051,10 @@ def _helpers() -> list:
     "PG_INL float8 pgw_half8_to_float8(const ushort8 c) {",
     "    const uint8 h = __builtin_convertvector(c, uint8);",
     "    const uint8 s = (h & 0x8000u) << 16, e = (h >> 10) & 31u, m = h & 1023u;",
-    "    const uint8 special = s | 0x7f800000u | (m << 13) | select((uint8)(0u), (uint8)(0x00400000u), m != 0u);",
+    "    const uint8 special = s | 0x7f800000u | (m << 13) | pg_sel((uint8)(0u), (uint8)(0x00400000u), m != 0u);",
     "    const uint8 small = s | as_uint8(convert_float8(m) * 5.9604644775390625e-8f);",
     "    const uint8 normal = s | ((e + 112u) << 23) | (m << 13);",
-    "    return as_float8(select(select(normal, small, e == 0u), special, e == 31u));",
+    "    return as_float8(pg_sel(pg_sel(normal, small, e == 0u), special, e == 31u));",
     "}",
     "#endif",
     f"typedef struct {{ float{W} c[4]; }} pgw_float{W}x4;",
