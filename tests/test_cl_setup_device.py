@@ -31,6 +31,7 @@ def _triangles(rng, T):
 def _same(ref, got) -> bool:
     if ref is None or got is None:
         return ref is None and got is None
+    got = np.asarray(got)        # a field left on the device (DeviceRows) is read here
     if ref.shape != got.shape or ref.dtype != got.dtype:
         return False
     return bool(np.array_equal(ref.view(np.uint8), got.view(np.uint8)))
@@ -58,7 +59,8 @@ def test_device_setup_matches_numpy_setup(cull, samples, smooth, center, scissor
     import pyopencl as cl
     from pipegen.runtime import cl_context
     from pipegen.runtime.cl_setup import setup_triangles
-    from pipegen.runtime.cl_setup_device import DeviceSetup
+    from pipegen.runtime.cl_geometry import select_triangles
+    from pipegen.runtime.cl_setup_device import HOST_FIELDS, DeviceRows, DeviceSetup
     ctx, queue = cl_context.get_context()
     rng = np.random.default_rng(len(SWITCHES) + SWITCHES.index(
         (cull, samples, smooth, center, scissor, depth_clamp)))
@@ -81,6 +83,15 @@ def test_device_setup_matches_numpy_setup(cull, samples, smooth, center, scissor
     job = setup.enqueue(clip_buf, vary_buf, T, 3 * T, W, H, slots=S, **dict(kw, smooth=smooth))
     got, bufs, index = setup.finish(job)
     assert (job.status == 2).any() and (job.status == 1).any()   # both kernels ran
+    # only the boxes and flat words come back to the host; the rest on first use
+    assert {f for f in FIELDS + ("vtx",) if isinstance(getattr(got, f), DeviceRows)} \
+        == {"a", "b", "c", "z", "w", "coef", "scissor", "vtx"} | ({"zq"} if with_zq else set())
+    assert set(HOST_FIELDS) == {"flat", "bbox"}
+    pick = rng.permutation(got.count)[:got.count // 3]
+    sub = select_triangles(got, pick)       # cull auto's selection, still on the device
+    assert isinstance(sub.a, DeviceRows)
+    for f in ("a", "c", "coef", "bbox"):
+        assert _same(getattr(ref, f)[pick], getattr(sub, f)), f
     for f in FIELDS:
         assert _same(getattr(ref, f), getattr(got, f)), f
     # the clipper's vertices have other ids (9 per clipped triangle, not consecutive): the

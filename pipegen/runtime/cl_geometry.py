@@ -161,6 +161,8 @@ def select_triangles(tris, index: np.ndarray):
         v = getattr(tris, f.name)
         if isinstance(v, np.ndarray) and v.ndim >= 1 and len(v) == n:
             changes[f.name] = cl_setup_device.rows_of(v, index)
+        elif isinstance(v, cl_setup_device.DeviceRows):     # stays on the device
+            changes[f.name] = v.rows(index)
     return dataclasses.replace(tris, **changes)
 
 

@@ -11,7 +11,9 @@ repeat groups).
 ``last_blend_counts`` (after ``render``): ``{target: (H, W) uint32}`` in GL row order, for every
 colour target some pass blended into this frame, how many fragments were blended into each
 pixel (counted by the raster kernel where it applies the blend: after discard, depth and
-stencil; once per fragment whatever its samples).  ``pipegen check`` allows 1 + P codes/ulps
+stencil; once per fragment whatever its samples); read from the device when first asked
+for after a frame (a frame's count buffers stay until the next frame's first blended pass
+zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P codes/ulps
 per pixel from it (DESIGN.md §7).
 
 Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` for the set-up
@@ -163,7 +165,8 @@ class CLPipeline:
         self.store = TargetStore(self.ctx, self.queue, plan)
         self._programs: dict[int, object] = {}
         self.last_timings: list[dict] = []
-        self.last_blend_counts: dict[str, np.ndarray] = {}
+        self._blend_counts: Optional[dict[str, np.ndarray]] = {}
+        self._blend_count_bufs: dict = {}
         self.geometry = DrawGeometry(self)
         self._presets: dict = {}
         self._scene = None
@@ -301,12 +304,19 @@ class CLPipeline:
                                  "targets": self.store.read_all(),
                                  "blend_counts": self.store.read_blend_counts()})
         result = self.store.read_all()
-        self.last_blend_counts = self.store.read_blend_counts()
+        self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
         self.queue.finish()
         for timing, ev in self._events:          # raster kernels run while the host goes on
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
         self._events = []
         return (result, captures) if capture_passes else result
+
+    @property
+    def last_blend_counts(self) -> dict[str, np.ndarray]:
+        """The last frame's blend counts (see the module docstring), read on first use."""
+        if self._blend_counts is None:
+            self._blend_counts = self.store.read_blend_counts(self._blend_count_bufs)
+        return self._blend_counts
 
     def _use_scene(self, scene) -> None:
         if self._scene is scene:

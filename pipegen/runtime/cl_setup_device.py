@@ -18,10 +18,11 @@ from the numpy set-up's parent triangles): ``supports``.
 
 ``DeviceSetup(ctx, queue).enqueue(...)`` queues the kernel and the read-back of its results
 without waiting (``CLPipeline`` queues it with the vertex kernels, before any raster kernel);
-``finish(job)`` waits and returns the ``cl_setup.Triangles`` (host copies; the varyings stay
-on the device, ``DeviceVaryings``) with the device buffers the raster kernel reads as they
-are (no upload): rows per input triangle, dropped ones included, so tile lists index them
-through ``index``.
+``finish(job)`` waits and returns the ``cl_setup.Triangles`` (host copies of the boxes and
+flat words, ``HOST_FIELDS``; the other fields and the varyings stay on the device,
+``DeviceRows`` and ``DeviceVaryings``, read back on first use) with the device buffers the
+raster kernel reads as they are (no upload): rows per input triangle, dropped ones
+included, so tile lists index them through ``index``.
 """
 
 from __future__ import annotations
@@ -36,13 +37,18 @@ from ..backends import opencl as clgen
 from . import cl_context
 from .cl_setup import Triangles, setup_triangles
 
-__all__ = ["DeviceSetup", "supports"]
+__all__ = ["DeviceRows", "DeviceSetup", "supports"]
 
 _MAXV, _FANS = 9, 7     # a triangle clipped by six planes, its fan (cl_setup.cl.j2)
 # per kept triangle: (field, dtype, trailing shape) as the kernel writes them
 _FIELDS = (("a", np.int32, (4,)), ("b", np.int32, (4,)), ("c", np.int64, (4,)),
            ("z", np.float32, (4,)), ("w", np.float32, (4,)), ("flat", np.uint32, (4,)),
            ("vtx", np.int32, (4,)), ("scissor", np.int32, (4,)), ("bbox", np.int32, (4,)))
+# the fields the host reads every frame (binning: boxes; facing, light and culling: flat
+# words); the others stay on the device (``DeviceRows``) unless something asks for them:
+# reading all back cost ~400 bytes a triangle (3-4 MB a frame of light_prepass, 1 ms of a
+# PoCL thread) and as much again gathering them in submission order on the host
+HOST_FIELDS = ("flat", "bbox")
 
 
 def supports(polygon_offset, f64: bool) -> bool:
@@ -61,7 +67,8 @@ class _Job:
     bufs: dict           # the per-triangle fields' device buffers, by Triangles field name
     rows: int            # rows each of them has room for
     status: np.ndarray   # per input triangle (its length: the input triangles)
-    out: dict
+    out: dict            # HOST_FIELDS' host copies (filled when the read-backs complete)
+    layout: dict         # every field's (dtype, trailing shape) in its buffer
     params: dict         # ``setup_triangles``'s keywords (the numpy fallback)
     clip_kernel: object  # pg_clip_setup of the same program
     head: list           # the kernels' scalar arguments: nverts, W, H, viewport, centre
@@ -143,16 +150,16 @@ class DeviceSetup:
             events.append(cl.enqueue_nd_range_kernel(self.queue, kern,
                                                      (((ntris + 63) // 64) * 64,), (64,)))
         status = np.zeros(ntris, np.uint8)
-        out = {name: np.empty((ntris,) + shape, dt) for name, dt, shape in _FIELDS}
-        out["coef"] = np.empty((ntris, K, 3, 4), f32)
+        layout = {name: (np.dtype(dt), shape) for name, dt, shape in _FIELDS}
+        layout["coef"] = (np.dtype(f32), (K, 3, 4))
         if with_zq:
-            out["zq"] = np.empty((ntris, 4), np.float64)
+            layout["zq"] = (np.dtype(np.float64), (4,))
+        out = {name: np.empty((ntris,) + layout[name][1], layout[name][0])
+               for name in HOST_FIELDS}
         if ntris:
             events.append(cl.enqueue_copy(self.queue, status, status_buf, is_blocking=False))
             for name, arr in out.items():
-                if arr.size:
-                    src = {"coef": coef_buf, "zq": zq_buf}.get(name) or bufs[name]
-                    events.append(cl.enqueue_copy(self.queue, arr, src, is_blocking=False))
+                events.append(cl.enqueue_copy(self.queue, arr, bufs[name], is_blocking=False))
         params = dict(width=W, height=H, cull=cull, depth_clamp=depth_clamp, flat=flat,
                       scissor=scissor, samples=samples, smooth=list(smooth),
                       pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
@@ -160,13 +167,14 @@ class DeviceSetup:
         fields = dict(bufs, coef=coef_buf)
         if with_zq:
             fields["zq"] = zq_buf
-        return _Job(events, [status_buf, dummy], fields, n, status, out, params, clip_kern,
-                    head, clip_buf, vary_buf, inputs, int(slots))
+        return _Job(events, [status_buf, dummy], fields, n, status, out, layout, params,
+                    clip_kern, head, clip_buf, vary_buf, inputs, int(slots))
 
     def finish(self, job: _Job):
         """Wait for ``job``, clip and set up its clipped triangles, and return ``(tris, bufs,
-        index)``.  ``tris``: the ``Triangles`` (host copies, in submission order; their
-        ``vary`` a ``DeviceVaryings``, read from the device on first use); ``bufs``: the device buffers of
+        index)``.  ``tris``: the ``Triangles`` in submission order (``HOST_FIELDS`` host
+        copies; the other fields ``DeviceRows``, ``vary`` a ``DeviceVaryings``, read from the
+        device on first use); ``bufs``: the device buffers of
         their per-triangle fields, one row per input triangle, then the clipped triangles'
         fans (``"vary"``: the varyings with the clipper's vertices, when it made some;
         ``"_hold"``: host arrays still being written to the buffers); ``index``: the row of
@@ -190,7 +198,7 @@ class DeviceSetup:
                 rows, sub_parent = np.arange(T, T + sub.count, dtype=np.int32), sub.parent
                 fields = {name: getattr(sub, name) for name in parts}
                 vary_v, nverts = sub.vary, sub.nverts
-                self._write_rows(job, bufs, fields, T)
+                self._write_rows(job, bufs, {name: getattr(sub, name) for name in job.layout}, T)
             else:
                 rows, sub_parent, fields, vary_v, nverts, bufs["vary"] = got
             m = len(rows)
@@ -202,6 +210,9 @@ class DeviceSetup:
             index = _merged(index, rows, mine, at)
             for name in parts:
                 parts[name] = _merged(parts[name], np.ascontiguousarray(fields[name]), mine, at)
+        for name, (dtype, shape) in job.layout.items():    # the rest: rows of the buffers
+            if name not in parts:
+                parts[name] = DeviceRows(self.queue, bufs[name], dtype, shape, index)
         tris = Triangles(parts["a"], parts["b"], parts["c"], parts["z"], parts["w"],
                          parts["coef"], None, parts.get("zq"), parts["flat"], parts["vtx"],
                          parts["scissor"], parts["bbox"], vary_v, nverts, prm["samples"],
@@ -215,9 +226,12 @@ class DeviceSetup:
             return
         T = len(job.status)
         for name, buf in list(bufs.items()):
-            if name not in job.out or not job.out[name].size:
+            if name not in job.layout:
                 continue
-            row = job.out[name].nbytes // max(T, 1)
+            dtype, shape = job.layout[name]
+            row = dtype.itemsize * int(np.prod(shape))
+            if not row:
+                continue
             grown = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=rows * row)
             cl.enqueue_copy(self.queue, grown, buf, byte_count=T * row)
             bufs[name] = grown
@@ -340,6 +354,51 @@ class DeviceVaryings:
 
     def __getitem__(self, index):
         return np.asarray(self)[index]
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+
+class DeviceRows:
+    """A per-triangle field of a device set-up that stays on the device (not in
+    ``HOST_FIELDS``): rows ``index`` of its buffer, read back the first time something asks
+    for it as an array (tests, ``cl_setup`` comparisons; the runtime does not)."""
+
+    def __init__(self, queue, buf, dtype, shape: tuple, index: np.ndarray):
+        self.queue, self.buf, self.index = queue, buf, np.asarray(index)
+        self.dtype, self.row_shape = np.dtype(dtype), tuple(shape)
+        self.shape = (len(self.index),) + self.row_shape
+        self.ndim = len(self.shape)
+        self._whole: Optional[np.ndarray] = None
+        self._host: Optional[np.ndarray] = None
+
+    def _buffer_rows(self) -> np.ndarray:
+        """The buffer's rows up to the last one ``index`` names, read once."""
+        if self._whole is None:
+            import pyopencl as cl
+            rows = int(self.index.max()) + 1 if len(self.index) else 0
+            self._whole = np.empty((rows,) + self.row_shape, self.dtype)
+            if self._whole.size:
+                cl.enqueue_copy(self.queue, self._whole, self.buf)
+        return self._whole
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        if self._host is None:
+            self._host = rows_of(self._buffer_rows(), self.index)
+        return self._host if dtype is None else self._host.astype(dtype)
+
+    def rows(self, idx: np.ndarray) -> "DeviceRows":
+        """Rows ``idx`` of this field (``select_triangles``), still on the device."""
+        return DeviceRows(self.queue, self.buf, self.dtype, self.row_shape,
+                          self.index[np.asarray(idx)])
+
+    def __getitem__(self, key):
+        """``a[t, k]`` with integer triangle indices ``t`` (binning's edge tests of the big
+        triangles) reads those rows alone; anything else indexes the whole array."""
+        if self._host is None and isinstance(key, tuple) and key and \
+                isinstance(key[0], np.ndarray) and key[0].dtype.kind in "iu":
+            return self._buffer_rows()[(self.index[key[0]],) + key[1:]]
+        return np.asarray(self)[key]
 
     def __len__(self) -> int:
         return self.shape[0]

@@ -332,10 +332,11 @@ class TargetStore:
             self.blend_counts[t.name] = buf
         return buf
 
-    def read_blend_counts(self) -> dict:
+    def read_blend_counts(self, bufs: Optional[dict] = None) -> dict:
+        """``{target: (H, W) uint32}`` of the count buffers ``bufs`` (this frame's: default)."""
         import pyopencl as cl
         out = {}
-        for name, buf in self.blend_counts.items():
+        for name, buf in (self.blend_counts if bufs is None else bufs).items():
             t = self.targets[name]
             a = np.empty((t.height, t.width), np.uint32)
             cl.enqueue_copy(self.queue, a, buf)
