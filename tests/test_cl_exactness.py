@@ -327,3 +327,56 @@ def test_device_resolve_matches_the_numpy_resolve():
     for name in device:
         assert np.array_equal(device[name], host[name]), name
     assert (device["ds.stencil"] == 7).any() and len(np.unique(device["c8"])) > 50
+
+
+def test_unorm8_and_d24_codes_round_like_convert_sat_rte():
+    """``pg_unorm8_code4`` rounds by adding 2^23 and ``pg_d24_code`` through ``rint`` (both
+    faster on PoCL than ``convert_*_sat_rte``): the same codes as ``convert_uint*_sat_rte`` of the
+    clamped, scaled value on 64 floats either side of every unorm8 code's rounding edge and
+    of 20,000 d24 edges, on specials (NaN, infinities, signed zeros, denormals) and on 10^6
+    random floats; and the codes round half to even (numpy's float32 arithmetic)."""
+    import pyopencl as cl
+    from pipegen.backends import opencl
+    from pipegen.runtime import cl_context
+
+    rng = np.random.default_rng(7)
+    f32 = np.float32
+
+    def around(edges, n):
+        base = np.asarray(edges, f32).view(np.int32)[:, None] + np.arange(-n, n + 1)
+        return base.reshape(-1).view(f32)
+
+    specials = np.array([np.nan, -np.nan, np.inf, -np.inf, 0.0, -0.0, 1e-45, -1e-45, 1e-38,
+                         1.0, -1.0, 2.0, 1e30, -1e30], f32)
+    u8 = np.concatenate([around((np.arange(256) + 0.5) / 255, 64), around(np.arange(256) / 255, 8),
+                         specials, rng.uniform(-0.5, 1.5, 10 ** 6).astype(f32)])
+    d24 = np.concatenate([around((rng.integers(0, 1 << 24, 20000) + 0.5) / 16777215, 4),
+                          specials, rng.uniform(-0.5, 1.5, 10 ** 6).astype(f32)])
+    n = max(len(u8), len(d24))
+    x = np.zeros((2, n), f32)
+    x[0, :len(u8)], x[1, :len(d24)] = u8, d24
+    src = opencl.prelude_source() + """
+__kernel void k(__global const float *x, const int n, __global uint *got, __global uint *ref) {
+    const int i = get_global_id(0);
+    const float4 u = (float4)(x[i], 0.0f, 0.0f, 0.0f);
+    got[i] = pg_unorm8_code4(u).x;
+    ref[i] = convert_uint4_sat_rte(fmin(fmax(u, 0.0f), 1.0f) * 255.0f).x;
+    got[n + i] = pg_d24_code(x[n + i]);
+    ref[n + i] = convert_uint_sat_rte(fmin(fmax(x[n + i], 0.0f), 1.0f) * 16777215.0f);
+}
+"""
+    ctx, queue = cl_context.get_context()
+    prog = cl_context.build_program(src)
+    mf = cl.mem_flags
+    xb = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x)
+    outs = [np.zeros(2 * n, np.uint32) for _ in range(2)]
+    bufs = [cl.Buffer(ctx, mf.WRITE_ONLY, o.nbytes) for o in outs]
+    prog.k(queue, (n,), None, xb, np.int32(n), *bufs)
+    for o, b in zip(outs, bufs):
+        cl.enqueue_copy(queue, o, b)
+    queue.finish()
+    assert np.array_equal(outs[0], outs[1])
+    for lo, scale in ((0, 255.0), (n, 16777215.0)):
+        v = np.nan_to_num(x[lo // n], nan=0.0)
+        expect = np.rint(np.clip(v, 0, 1).astype(f32) * f32(scale)).astype(np.uint32)
+        assert np.array_equal(outs[0][lo:lo + n], expect)
