@@ -241,7 +241,7 @@ class _ReadPerturbation:
     def __enter__(self):
         pipe, deltas, orig = self.pipe, self.deltas, self._orig
 
-        def run(k, light):
+        def run(k, light, *prepared):
             p = pipe.plan.passes[k]
             saved = {}
             for r in p.reads:
@@ -250,7 +250,7 @@ class _ReadPerturbation:
                 cur = pipe.store.read(pipe.store.targets[r])
                 saved[r] = cur
                 pipe.store.write(r, cur[r] + deltas[r], None)
-            orig(k, light)
+            orig(k, light, *prepared)
             for r, cur in saved.items():
                 if r not in p.writes and r != p.depth_target:
                     pipe.store.write(r, cur[r], None)
