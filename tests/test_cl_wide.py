@@ -135,6 +135,39 @@ def test_shipped_techniques_are_exact(monkeypatch, technique):
         _assert_same(scalar.render(scene), wide.render(scene))
 
 
+@pytest.mark.cl
+@pytest.mark.parametrize("technique,wmin", [("deferred_calver", 1), ("light_prepass", None),
+                                            ("inferred", None), ("deferred", 1)])
+def test_cross_triangle_batches_are_exact(monkeypatch, technique, wmin):
+    """Light passes batch the pixels of consecutive triangles with the same flat words
+    (cl_pass.cl.j2): every target and blend count as with batches of one triangle's row
+    (point, spot and directional lights, ``cull auto``'s inside lights, quads, ``repeat per
+    light``; with every batch wide and with the scalar function for small ones)."""
+    if wmin is not None:
+        monkeypatch.setattr(cl_wide, "WMIN", wmin)
+    path = ROOT / f"pipelines/{technique}.pipe"
+    monkeypatch.setattr(cl_wide, "CROSS_TRIANGLE", False)
+    one = compile_file(path).pipeline("cl")
+    monkeypatch.setattr(cl_wide, "CROSS_TRIANGLE", True)
+    cross = compile_file(path).pipeline("cl")
+    batched = [p.name for k, p in enumerate(cross.plan.passes) if "lane_t[" in cross.source(k)]
+    assert batched and not any("lane_t[" in one.source(k) for k in range(len(batched)))
+    for name in ("many_lights", "mixed_lights"):
+        scene = _scene(name)
+        _assert_same(one.render(scene), cross.render(scene))
+        _assert_same(one.last_blend_counts, cross.last_blend_counts)
+
+
+def test_which_passes_batch_across_triangles():
+    """Wide passes without varyings batch across triangles; scene passes (varyings) do not."""
+    def batched(t):
+        plan = compile_file(ROOT / f"pipelines/{t}.pipe").plan("cl")
+        return {p.name for p in plan.passes if p.code.kernel and "lane_t[" in p.code.kernel}
+    assert {"point_lights", "spot_lights"} <= batched("deferred_calver")
+    assert "light_accumulation" in batched("light_prepass")
+    assert "material" not in batched("inferred") and "gbuffer" not in batched("deferred_calver")
+
+
 def test_what_stays_scalar():
     """Light-indexed shading (each pixel its own lights) and trivial fragments keep the
     scalar function; the per-light loops of forward shading get the wide one."""

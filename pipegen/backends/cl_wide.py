@@ -88,6 +88,9 @@ WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by p
 # False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
 # before/after benchmarks); the emitted text then is the scalar path's alone
 ENABLED = os.environ.get("PIPEGEN_CL_WIDE", "1") != "0"
+# False (or PIPEGEN_CL_XBATCH=0): a wide pass batches the pixels of one triangle's row only,
+# never across triangles (cl_pass.cl.j2's cross-triangle batches; comparisons)
+CROSS_TRIANGLE = os.environ.get("PIPEGEN_CL_XBATCH", "1") != "0"
 MARK = "/* pg_fragment_w */"     # the first line of the wide function's text (has_wide)
 
 # library functions whose float8 forms may differ from their scalar forms: lane by lane

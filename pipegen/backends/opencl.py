@@ -919,6 +919,11 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     varyings = varying_slots(pass_)
     # the wide fragment function (cl_wide.py: PG_W pixels per call), when the emitter made one
     wide = not f64 and cl_wide.has_wide(code.fragment)
+    early_z = code.discard and not _writes_stencil(pass_, stencil, dynamic)
+    depth_store = dynamic or _writes_depth(pass_)
+    # batches across triangles (cl_pass.cl.j2): wide passes without varyings, unless a
+    # fragment's late depth write could be one a later triangle's early test must see
+    xbatch = wide and cl_wide.CROSS_TRIANGLE and not varyings and not (early_z and depth_store)
     if f64:
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
@@ -930,15 +935,14 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         varyings=varyings,
         flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
         writes=writes, depth=depth, stencil=stencil, reads=reads,
-        fragment=code.fragment, discard=code.discard,
-        early_z=code.discard and not _writes_stencil(pass_, stencil, dynamic),
-        depth_store=dynamic or _writes_depth(pass_),
+        fragment=code.fragment, discard=code.discard, early_z=early_z, depth_store=depth_store,
         stencil_load=stencil and (dynamic or pass_.state.stencil.enabled),
         stencil_store=_writes_stencil(pass_, stencil, dynamic),
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=_inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
-        wide=wide, wide_helpers=cl_wide.wide_helpers() if wide else "", wide_w=cl_wide.W)
+        wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
+        wide_w=cl_wide.W)
 
 
 def _writes_depth(pass_: PassPlan) -> bool:
