@@ -269,12 +269,11 @@ class DrawGeometry:
             tb = cache.get(key)
         if tb is None:
             t0 = time.perf_counter()
-            tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height)
+            tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull)
             if tuple(lights) != batch:       # the pairs of these lights' triangles
                 cut = [np.searchsorted(tri, r) for r in ranges]
                 tri = np.concatenate([tri[a:b] for a, b in cut])
                 tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
-            tri, tile_id = _culled_pairs(geo, tri, tile_id, cull)
             tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
             timing["bin"] = (time.perf_counter() - t0) * 1e3
             n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
@@ -282,12 +281,17 @@ class DrawGeometry:
                                    index=geo.index)
         return (geo, tb) if tb.ntiles else None
 
-    def _pairs(self, geo: Geo, width: int, height: int):
-        """``bin_pairs`` of all of ``geo``'s triangles, once per frame."""
-        key = ("pairs", id(geo.tris), width, height)
+    def _pairs(self, geo: Geo, width: int, height: int, cull: ir.CullMode):
+        """``bin_pairs`` of the faces of ``geo`` the cull mode keeps (light volumes are set up
+        without culling: binning only the kept faces halves a sphere's pairs), once per frame
+        and cull mode."""
+        keep = {ir.CullMode.BACK: True, ir.CullMode.FRONT: False}.get(cull)
+        key = ("pairs", id(geo.tris), width, height, keep)
         pairs = self.frame.get(key)
         if pairs is None:
-            pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.pipe.tile)
+            subset = None if keep is None else np.flatnonzero(geo.front == keep)
+            pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.pipe.tile,
+                                                subset=subset)
         return pairs
 
     def _group_bins(self, geo: Geo, batch: tuple, cull: ir.CullMode, width: int, height: int,
@@ -298,8 +302,7 @@ class DrawGeometry:
         light (deferred on many_lights: 162 per frame).  Each light's tile lists hold its
         triangles in submission order, exactly as binning its own pairs gives them."""
         t0 = time.perf_counter()
-        tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height)
-        tri, tile_id = _culled_pairs(geo, tri, tile_id, cull)
+        tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull)
         ntiles = tiles_x * tiles_y
         spans = np.array([geo.ranges[int(light)] for light in batch], np.int64).reshape(-1, 2)
         # the light of each pair (pairs are in triangle order, each light a range of them)
@@ -729,15 +732,6 @@ class DrawGeometry:
                                     self.pipe._proj, width, height)
         rects[:, 2:] += rects[:, :2]
         return np.repeat(rects.astype(np.int32), tris_per, axis=0)
-
-
-def _culled_pairs(geo: Geo, tri: np.ndarray, tile_id: np.ndarray, cull: ir.CullMode):
-    """The (triangle, tile) pairs of the faces a light draw's cull mode keeps (light volumes
-    are set up without culling)."""
-    if cull not in (ir.CullMode.BACK, ir.CullMode.FRONT):
-        return tri, tile_id
-    keep = geo.front[tri] == (cull is ir.CullMode.BACK)
-    return tri[keep], tile_id[keep]
 
 
 def _drawn(geo: Geo, spans: np.ndarray, cull: ir.CullMode) -> np.ndarray:
