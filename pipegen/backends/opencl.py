@@ -892,7 +892,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     writes = []
     for k, name in enumerate(pass_.writes):
         f = fmt_of(plan.target(name).format.name)
-        writes.append({**f, "k": k, "name": name, "format": f["name"]})
+        writes.append({**f, "k": k, "name": name, "format": f["name"],
+                       "bpp": plan.target(name).format.bytes_per_pixel})
     depth = None
     stencil = False
     if pass_.depth_target:
