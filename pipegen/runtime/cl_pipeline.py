@@ -11,10 +11,10 @@ repeat groups).
 ``last_blend_counts`` (after ``render``): ``{target: (H, W) uint32}`` in GL row order, for every
 colour target some pass blended into this frame, how many fragments were blended into each
 pixel (counted by the raster kernel where it applies the blend: after discard, depth and
-stencil; once per fragment whatever its samples); read from the device when first asked
+stencil; once per fragment whatever its samples), read from the device when first asked
 for after a frame (a frame's count buffers stay until the next frame's first blended pass
-zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P codes/ulps
-per pixel from it (DESIGN.md §7).
+zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P
+codes/ulps per pixel from it (DESIGN.md §7).
 
 Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` for the set-up
 kernels and ``cl_setup.py`` for binning and the numpy set-up they replace):
@@ -297,23 +297,12 @@ class CLPipeline:
             # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
             # frames interleaved in one process, medians of 15: light_prepass 37.9 -> 35.0
             # ms, inferred 30.8 -> 27.3, deferred_calver and deferred within 2 %)
-            for k, light, launch in [(k, light, self._prepare_pass(k, light)) for k, light in runs]:
+            prepared = [(k, light, self._prepare_pass(k, light)) for k, light in runs]
+            for k, light, launch in prepared:
                 self._run_pass(k, light, launch)
-        for k, light in runs if self.profile is not None or capture_passes else ():
-            if self.profile is None:
-                self._run_pass(k, light)
-            else:
-                self.queue.finish()                 # each pass charged its own work
-                t0 = time.perf_counter()
-                self._run_pass(k, light)
-                t1 = time.perf_counter()
-                self.queue.finish()
-                self.profile.append((self.plan.passes[k].name, light, t1 - t0,
-                                     time.perf_counter() - t1))
-            if capture_passes:
-                captures.append({"pass": self.plan.passes[k].name, "light": light,
-                                 "targets": self.store.read_all(),
-                                 "blend_counts": self.store.read_blend_counts()})
+        else:       # pass by pass: drained around each (profile), or read after each
+            for k, light in runs:
+                self._run_pass_observed(k, light, captures if capture_passes else None)
         result = self.store.read_all()
         self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
         self.queue.finish()
@@ -321,6 +310,24 @@ class CLPipeline:
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
         self._events = []
         return (result, captures) if capture_passes else result
+
+    def _run_pass_observed(self, k: int, light: Optional[int], captures: Optional[list]):
+        """One pass execution on its own: with ``profile``, the queue drained before and after
+        it; with ``captures``, its targets and blend counts read after it."""
+        if self.profile is None:
+            self._run_pass(k, light)
+        else:
+            self.queue.finish()                 # each pass charged its own work
+            t0 = time.perf_counter()
+            self._run_pass(k, light)
+            t1 = time.perf_counter()
+            self.queue.finish()
+            self.profile.append((self.plan.passes[k].name, light, t1 - t0,
+                                 time.perf_counter() - t1))
+        if captures is not None:
+            captures.append({"pass": self.plan.passes[k].name, "light": light,
+                             "targets": self.store.read_all(),
+                             "blend_counts": self.store.read_blend_counts()})
 
     @property
     def last_blend_counts(self) -> dict[str, np.ndarray]:
