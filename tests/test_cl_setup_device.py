@@ -122,3 +122,27 @@ def test_frames_with_and_without_device_setup_are_identical(technique, monkeypat
     assert device.keys() == host.keys()
     for name in device:
         assert np.array_equal(device[name], host[name]), name
+
+
+@pytest.mark.parametrize("technique", ["light_prepass", "deferred_calver"])
+def test_frames_reusing_buffers_are_identical_to_fresh_ones(technique):
+    """A pipeline's later frames reuse its earlier frames' geometry buffers
+    (``cl_context.FramePool``: vertex outputs, set-up fields, cut varyings, not the full-screen
+    draws kept across frames): frames of two scenes with different triangle counts, in turn,
+    give what a fresh pipeline gives each scene, and buffers were in fact handed out again."""
+    from pipegen.compiler import compile_file
+    from pipegen.scene import load_scene
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    compiled = compile_file(os.path.join(root, "pipelines", f"{technique}.pipe"))
+    scenes = [load_scene(os.path.join(root, "examples", "scenes", f"{n}.toml")).with_size(96, 54)
+              for n in ("many_lights", "mixed_lights")]
+    fresh = [compiled.pipeline("cl").render(s) for s in scenes]
+    pipe = compiled.pipeline("cl")
+    handed = []
+    for _ in range(2):
+        for scene, ref in zip(scenes, fresh):
+            out = pipe.render(scene)
+            handed.append({id(b) for _, b in pipe.geometry.pool._used})
+            for name in ref:
+                assert np.array_equal(out[name], ref[name], equal_nan=True), name
+    assert handed[2] & handed[0] and handed[3] & handed[1]      # the same buffers again

@@ -19,7 +19,7 @@ import numpy as np
 from .. import ir
 from ..backends import opencl as clgen
 from ..backends.plan import PassPlan
-from . import cl_setup_device, draws
+from . import cl_context, cl_setup_device, draws
 from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
 
 if TYPE_CHECKING:
@@ -176,11 +176,16 @@ class DrawGeometry:
         self.static: dict = {}         # full-screen draws: the same every frame
         self.scene_attrs: dict = {}    # per material filter, for the current scene
         self.meshes: dict = {}         # unit light-volume meshes
-        self.device_setup = cl_setup_device.DeviceSetup(pipe.ctx, pipe.queue)
+        # the per-frame geometry's buffers, reused by the next frames (not the static draws')
+        self.pool = cl_context.FramePool(pipe.ctx)
+        self.device_setup = cl_setup_device.DeviceSetup(pipe.ctx, pipe.queue, self.pool)
 
     def begin_frame(self) -> None:
+        """A new frame: the last frame's set-ups and bins are dropped and their buffers
+        recycled (``CLPipeline.render`` finished that frame on the device)."""
         self.frame = {}
         self.pending = {}
+        self.pool.recycle()
 
     def use_scene(self) -> None:
         self.scene_attrs = {}
@@ -412,9 +417,14 @@ class DrawGeometry:
             return self.frame[key]
         if kind is ir.DrawKind.LIGHTS:
             return self._set_up(k, p, width, height, timing, key, lights)
-        # the full-screen triangle depends on nothing of the frame: kept across frames
+        # the full-screen triangle depends on nothing of the frame: kept across frames, in
+        # buffers of its own (never recycled)
         if key not in self.static:
-            self.static[key] = self._set_up(k, p, width, height, timing, key, lights)
+            self.pool.enabled = False
+            try:
+                self.static[key] = self._set_up(k, p, width, height, timing, key, lights)
+            finally:
+                self.pool.enabled = True
         geo = self.frame[key] = self.static[key]
         return geo
 
@@ -436,7 +446,7 @@ class DrawGeometry:
         # copied on the device: the flat varyings' slots (the smooth ones are not read from
         # vary), and the smooth ones' planes, column by column of the (rows, K, 3, 4) array
         nv = tris.nverts
-        vary = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, len(names) * nv * 16))
+        vary = self.pool.buffer(len(names) * nv * 16)
         for i, n in enumerate(names):
             if flat[n]:
                 cl.enqueue_copy(pipe.queue, vary, geo.bufs["vary"], byte_count=nv * 16,
@@ -444,8 +454,7 @@ class DrawGeometry:
         K, plane = geo.ncoef, 3 * 16
         rows = len(tris.coef) if geo.index is None or not len(geo.index) \
             else int(geo.index.max()) + 1
-        coef = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE,
-                         size=max(16, rows * len(sel) * plane))
+        coef = self.pool.buffer(rows * len(sel) * plane)
         for j, col in enumerate(sel):
             if rows:
                 cl.enqueue_copy(pipe.queue, coef, geo.bufs["coef"], src_origin=(col * plane, 0),
@@ -549,13 +558,13 @@ class DrawGeometry:
         clip_bufs = []
         for i, (kp, have) in enumerate(providers):
             S = len(have)
-            clip_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 16)
+            clip_buf = self.pool.buffer(nverts * 16)
             clip_bufs.append(clip_buf)
-            vbuf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * nverts * 16))
+            vbuf = self.pool.buffer(S * nverts * 16)
             kern = pipe._kernel(kp, "pg_vertex")
             extra = []
             if pipe.f64:      # the float64 evaluation: clip positions in double too
-                clip64_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=nverts * 32)
+                clip64_buf = self.pool.buffer(nverts * 32)
                 extra = [frame64_buf, clip64_buf]
             # one kernel object per pass is shared by every draw it provides for: it is
             # enqueued (which takes the arguments) before the next draw sets them
@@ -580,8 +589,7 @@ class DrawGeometry:
         if v.vary_buf is None and v.names:
             # several passes' vertex kernels made the varyings: gather them into one buffer on
             # the device (slot-major, as the set-up and raster kernels read them)
-            v.vary_buf = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE,
-                                   size=len(v.names) * nverts * 16)
+            v.vary_buf = self.pool.buffer(len(v.names) * nverts * 16)
             done = set()
             for (have, _), vbuf in zip(v.outs, v.vbufs):
                 for i, n in enumerate(have):
@@ -671,7 +679,7 @@ class DrawGeometry:
         import pyopencl as cl
         pipe = self.pipe
         S, total = vary.shape[:2]
-        grown = cl.Buffer(pipe.ctx, cl.mem_flags.READ_WRITE, size=max(16, S * total * 16))
+        grown = self.pool.buffer(S * total * 16)
         new = np.ascontiguousarray(vary[:, nverts:])
         for k in range(S):
             cl.enqueue_copy(pipe.queue, grown, buf, byte_count=nverts * 16,

@@ -84,8 +84,11 @@ class _Job:
 
 
 class DeviceSetup:
-    def __init__(self, ctx, queue):
+    def __init__(self, ctx, queue, pool: Optional["cl_context.FramePool"] = None):
+        """``pool``: where the jobs' buffers come from (``DrawGeometry``'s frame pool; by
+        default a pool that never recycles)."""
         self.ctx, self.queue = ctx, queue
+        self.pool = pool if pool is not None else cl_context.FramePool(ctx)
         self._kernels: dict = {}
 
     def _kernels_for(self, *switches):
@@ -124,7 +127,7 @@ class DeviceSetup:
         n = int(ntris) + max(_FANS * 32, int(ntris) // 8)
 
         def buf(nbytes):
-            return cl.Buffer(self.ctx, mf.WRITE_ONLY, size=max(16, nbytes))
+            return self.pool.buffer(nbytes, mf.WRITE_ONLY)
 
         def upload(a):
             return cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
@@ -232,7 +235,7 @@ class DeviceSetup:
             row = dtype.itemsize * int(np.prod(shape))
             if not row:
                 continue
-            grown = cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE, size=rows * row)
+            grown = self.pool.buffer(rows * row)
             cl.enqueue_copy(self.queue, grown, buf, byte_count=T * row)
             bufs[name] = grown
         job.rows = rows
@@ -273,11 +276,11 @@ class DeviceSetup:
         nv_out = nverts + _MAXV * nh
         bufs = job.bufs
         self._grow(job, bufs, T + _FANS * nh)
-        vary_out = cl.Buffer(self.ctx, mf.READ_WRITE, size=max(16, S * nv_out * 16))
+        vary_out = self.pool.buffer(S * nv_out * 16)
         for k in range(S):     # the input vertices; pg_clip_setup appends the clipper's
             cl.enqueue_copy(self.queue, vary_out, vary_buf, byte_count=nverts * 16,
                             src_offset=k * nverts * 16, dst_offset=k * nv_out * 16)
-        fan_buf = cl.Buffer(self.ctx, mf.READ_WRITE, size=max(16, _FANS * nh))
+        fan_buf = self.pool.buffer(_FANS * nh)
         hard_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=hard.astype(np.int32))
         dummy = inputs[0] if S == 0 else vary_buf
@@ -362,7 +365,8 @@ class DeviceVaryings:
 class DeviceRows:
     """A per-triangle field of a device set-up that stays on the device (not in
     ``HOST_FIELDS``): rows ``index`` of its buffer, read back the first time something asks
-    for it as an array (tests, ``cl_setup`` comparisons; the runtime does not)."""
+    for it as an array (tests, ``cl_setup`` comparisons; the runtime does not).  A pipeline's
+    next frame reuses the buffer (``cl_context.FramePool``): read it before then."""
 
     def __init__(self, queue, buf, dtype, shape: tuple, index: np.ndarray):
         self.queue, self.buf, self.index = queue, buf, np.asarray(index)
