@@ -122,7 +122,7 @@ class FramePool:
     flags and size: a scene's draws ask for the same sizes frame after frame).  PoCL gives a
     new buffer fresh pages, and the kernels that first write them pay the page faults (light
     pre-pass at 640x360: 12 varying copies of 0.1-0.5 ms each, the same copies into reused
-    buffers ~0.02 ms).  ``enabled = False`` (``alloc`` then creates every buffer anew): for
+    buffers ~0.02 ms).  ``enabled = False`` (``buffer`` then creates every buffer anew): for
     geometry kept across frames, which must never be recycled."""
 
     def __init__(self, ctx):

@@ -335,24 +335,25 @@ class DeviceSetup:
                 c["vary_out"])
 
 
-class DeviceVaryings:
-    """``Triangles.vary`` of a device set-up: the varyings stay in the device buffer the raster
-    kernel reads (slot-major; the clipper's vertices after the input's), and are read back
-    the first time something asks for them as an array (tests: the runtime never needs them
-    on the host, and a scene draw's are megabytes a frame)."""
+class _OnDevice:
+    """An array a set-up leaves on the device: ``shape``, ``dtype`` and ``ndim`` as numpy
+    has them, the values read back the first time something asks for them as an array
+    (``_read``), then kept."""
 
-    ndim, dtype = 3, np.dtype(np.float32)
+    shape: tuple
+    dtype: np.dtype
+    _host: Optional[np.ndarray] = None
 
-    def __init__(self, queue, buf, slots: int, nverts: int):
-        self.queue, self.buf = queue, buf
-        self.shape = (int(slots), int(nverts), 4)
-        self._host: Optional[np.ndarray] = None
+    @property
+    def ndim(self) -> int:
+        return len(self.shape)
+
+    def _read(self) -> np.ndarray:
+        raise NotImplementedError
 
     def __array__(self, dtype=None, copy=None) -> np.ndarray:
         if self._host is None:
-            import pyopencl as cl
-            self._host = np.empty(self.shape, np.float32)
-            cl.enqueue_copy(self.queue, self._host, self.buf)
+            self._host = self._read()
         return self._host if dtype is None else self._host.astype(dtype)
 
     def __getitem__(self, index):
@@ -362,7 +363,26 @@ class DeviceVaryings:
         return self.shape[0]
 
 
-class DeviceRows:
+class DeviceVaryings(_OnDevice):
+    """``Triangles.vary`` of a device set-up: the varyings stay in the device buffer the raster
+    kernel reads (slot-major; the clipper's vertices after the input's), and are read back
+    the first time something asks for them as an array (tests: the runtime never needs them
+    on the host, and a scene draw's are megabytes a frame)."""
+
+    dtype = np.dtype(np.float32)
+
+    def __init__(self, queue, buf, slots: int, nverts: int):
+        self.queue, self.buf = queue, buf
+        self.shape = (int(slots), int(nverts), 4)
+
+    def _read(self) -> np.ndarray:
+        import pyopencl as cl
+        host = np.empty(self.shape, np.float32)
+        cl.enqueue_copy(self.queue, host, self.buf)
+        return host
+
+
+class DeviceRows(_OnDevice):
     """A per-triangle field of a device set-up that stays on the device (not in
     ``HOST_FIELDS``): rows ``index`` of its buffer, read back the first time something asks
     for it as an array (tests, ``cl_setup`` comparisons; the runtime does not).  A pipeline's
@@ -372,9 +392,7 @@ class DeviceRows:
         self.queue, self.buf, self.index = queue, buf, np.asarray(index)
         self.dtype, self.row_shape = np.dtype(dtype), tuple(shape)
         self.shape = (len(self.index),) + self.row_shape
-        self.ndim = len(self.shape)
         self._whole: Optional[np.ndarray] = None
-        self._host: Optional[np.ndarray] = None
 
     def _buffer_rows(self) -> np.ndarray:
         """The buffer's rows up to the last one ``index`` names, read once."""
@@ -386,10 +404,8 @@ class DeviceRows:
                 cl.enqueue_copy(self.queue, self._whole, self.buf)
         return self._whole
 
-    def __array__(self, dtype=None, copy=None) -> np.ndarray:
-        if self._host is None:
-            self._host = rows_of(self._buffer_rows(), self.index)
-        return self._host if dtype is None else self._host.astype(dtype)
+    def _read(self) -> np.ndarray:
+        return rows_of(self._buffer_rows(), self.index)
 
     def rows(self, idx: np.ndarray) -> "DeviceRows":
         """Rows ``idx`` of this field (``select_triangles``), still on the device."""
@@ -402,10 +418,7 @@ class DeviceRows:
         if self._host is None and isinstance(key, tuple) and key and \
                 isinstance(key[0], np.ndarray) and key[0].dtype.kind in "iu":
             return self._buffer_rows()[(self.index[key[0]],) + key[1:]]
-        return np.asarray(self)[key]
-
-    def __len__(self) -> int:
-        return self.shape[0]
+        return super().__getitem__(key)
 
 
 def rows_of(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
