@@ -968,7 +968,7 @@ def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
                for f in (pass_.state.stencil.front, pass_.state.stencil.back))
 
 
-# ---- runtime programs: triangle set-up and multisample resolve -------------------------------
+# ---- runtime programs: triangle set-up, binning and multisample resolve ---------------------
 
 SETUP_CULL = {"none": 0, "back": 1, "front": 2}
 SUBPIXEL = 256       # window coordinates snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8)
@@ -984,6 +984,12 @@ def setup_program(cull: str, depth_clamp: bool, samples: Optional[int], has_flat
         "cl_setup.cl.j2", cull=SETUP_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
         box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor), w_plane=int(w_plane),
         with_zq=int(with_zq), smooth=list(smooth), slots=int(slots))
+
+
+def bin_program() -> str:
+    """The device binning program (``cl_bin.cl.j2``: ``pg_bin_count``, ``pg_bin_starts``,
+    ``pg_bin_write``; ``runtime/cl_bin.py``)."""
+    return templating.render("cl_bin.cl.j2", subpixel=SUBPIXEL)
 
 
 def resolve_program(format_name: str, samples: int) -> Optional[str]:

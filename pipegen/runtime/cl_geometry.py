@@ -4,7 +4,9 @@ draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
 
 ``DrawGeometry(pipe).pass_triangles(k, pass, width, height, timing, lights)`` returns the
 set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile bins
-(``Bins``), or None when the pass draws no triangle.  ``begin_frame()`` drops the per-frame
+(``cl_bin.DeviceBins``, binned on the device; ``Bins`` where numpy bins them: the groups of
+``repeat per light`` passes, and every draw with ``$PIPEGEN_CL_DEVICE_BIN=0``), or None when
+the pass draws no triangle (bins may still hold no tile: the raster launch checks).  ``begin_frame()`` drops the per-frame
 caches; ``use_scene()`` the scene's attribute buffers.
 """
 
@@ -19,7 +21,7 @@ import numpy as np
 from .. import ir
 from ..backends import opencl as clgen
 from ..backends.plan import PassPlan
-from . import cl_context, cl_setup_device, draws
+from . import cl_bin, cl_context, cl_setup_device, draws
 from .cl_setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
 
 if TYPE_CHECKING:
@@ -179,6 +181,7 @@ class DrawGeometry:
         # the per-frame geometry's buffers, reused by the next frames (not the static draws')
         self.pool = cl_context.FramePool(pipe.ctx)
         self.device_setup = cl_setup_device.DeviceSetup(pipe.ctx, pipe.queue, self.pool)
+        self.binner = cl_bin.DeviceBinner(pipe.ctx, pipe.queue)
 
     def begin_frame(self) -> None:
         """A new frame: the last frame's set-ups and bins are dropped and their buffers
@@ -274,17 +277,27 @@ class DrawGeometry:
             tb = cache.get(key)
         if tb is None:
             t0 = time.perf_counter()
-            tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull)
-            if tuple(lights) != batch:       # the pairs of these lights' triangles
-                cut = [np.searchsorted(tri, r) for r in ranges]
-                tri = np.concatenate([tri[a:b] for a, b in cut])
-                tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
-            tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
-            timing["bin"] = (time.perf_counter() - t0) * 1e3
             n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
-            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, n,
-                                   index=geo.index)
-        return (geo, tb) if tb.ntiles else None
+            if cl_bin.enabled():
+                keep = {ir.CullMode.BACK: True, ir.CullMode.FRONT: False}.get(cull)
+                subset = None
+                if tuple(lights) != batch:       # these lights' triangles, in light order
+                    subset = np.concatenate([np.arange(a, b) for a, b in ranges])
+                if keep is not None:
+                    kept = np.flatnonzero(geo.front == keep)
+                    subset = kept if subset is None else subset[geo.front[subset] == keep]
+                tb = self._device_bins(geo, subset, width, height, n, self.pool)
+            else:
+                tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull)
+                if tuple(lights) != batch:       # the pairs of these lights' triangles
+                    cut = [np.searchsorted(tri, r) for r in ranges]
+                    tri = np.concatenate([tri[a:b] for a, b in cut])
+                    tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
+                tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
+                tb = Bins(self.pipe, tile_start, tile_tris, tiles_x, n, index=geo.index)
+            cache[key] = tb
+            timing["bin"] = (time.perf_counter() - t0) * 1e3
+        return geo, tb
 
     def _pairs(self, geo: Geo, width: int, height: int, cull: ir.CullMode):
         """``bin_pairs`` of the faces of ``geo`` the cull mode keeps (light volumes are set up
@@ -336,19 +349,45 @@ class DrawGeometry:
         timing["bin"] = (time.perf_counter() - t0) * 1e3
 
     def _bins(self, geo: Geo, cache: dict, width: int, height: int, timing: dict):
-        """(geo, bins of all its triangles), cached in ``cache``; None when no tile has any.
+        """(geo, bins of all its triangles), the bins cached in ``cache`` (built on the
+        device unless ``cl_bin.enabled()`` says no).
         The set-up triangles already hold the pass's culling (scene and full-screen draws
         are set up per cull mode, ``cull auto`` light draws filtered per light)."""
         key = ("bins", id(geo.tris), width, height)
         tb = cache.get(key)
         if tb is None:
             t0 = time.perf_counter()
-            tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height,
-                                                              self.pipe.tile)
+            if cl_bin.enabled():
+                tb = self._device_bins(geo, None, width, height, geo.tris.count,
+                                       self.pool if cache is self.frame else None)
+            else:
+                tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height,
+                                                                  self.pipe.tile)
+                tb = Bins(self.pipe, tile_start, tile_tris, tiles_x, geo.tris.count,
+                          index=geo.index)
+            cache[key] = tb
             timing["bin"] = (time.perf_counter() - t0) * 1e3
-            tb = cache[key] = Bins(self.pipe, tile_start, tile_tris, tiles_x, geo.tris.count,
-                                   index=geo.index)
-        return (geo, tb) if tb.ntiles else None
+        return geo, tb
+
+    def _device_bins(self, geo: Geo, subset: Optional[np.ndarray], width: int, height: int,
+                     triangles: int, pool):
+        """Queue the binning of ``geo``'s triangles ``subset`` (increasing indices; None: all)
+        on the device (``cl_bin``: ``DeviceBins``; empty ``Bins`` when there is none);
+        ``pool``: None for bins kept across frames."""
+        tris = geo.tris
+        if subset is None:
+            rows = np.arange(tris.count, dtype=np.int32) if geo.index is None else geo.index
+            bbox = tris.bbox
+        else:
+            rows = subset.astype(np.int32) if geo.index is None else geo.index[subset]
+            bbox = tris.bbox[subset]
+        if not len(rows):         # nothing to bin (no zero-sized buffers in OpenCL)
+            T = self.pipe.tile
+            tiles = ((width + T - 1) // T) * ((height + T - 1) // T)
+            return Bins(self.pipe, np.zeros(tiles + 1, np.int32), np.zeros(1, np.int32),
+                        (width + T - 1) // T, triangles, index=geo.index)
+        return self.binner.bin(geo.bufs, rows, bbox, tris.samples, width, height,
+                               self.pipe.tile, triangles, geo.index, pool)
 
     def _raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
         """What the set-up triangles of a pass's draw depend on besides its varyings."""

@@ -16,14 +16,14 @@ for after a frame (a frame's count buffers stay until the next frame's first ble
 zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P
 codes/ulps per pixel from it (DESIGN.md §7).
 
-Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` for the set-up
-kernels and ``cl_setup.py`` for binning and the numpy set-up they replace):
+Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` and
+``cl_bin.py`` for the set-up and binning kernels, ``cl_setup.py`` for the numpy set-up and
+binning they replace):
 
-    pg_vertex (CL) -> pg_setup, pg_clip_setup (CL) -> binning (numpy) -> pg_raster (CL)
+    pg_vertex (CL) -> pg_setup, pg_clip_setup (CL) -> pg_bin_* (CL) -> pg_raster (CL)
 
 Every vertex and set-up kernel of a frame is queued before its first raster kernel
-(``render``), so the host bins one pass while the device rasterises another, and no host
-stage waits behind a raster kernel on the in-order queue.
+(``render``), so no host stage waits behind a raster kernel on the in-order queue.
 
 Targets live in device buffers in GL row order for the whole frame; clears write the codes of
 ``Format.quantize`` (the same the GL runtime clears with).  Passes of one ``repeat_group`` run
@@ -48,12 +48,14 @@ gets varying and plane buffers cut from the shared ones); a light draw sets up a
 its light list at once, without culling, and each pass (each light of a repeat group) draws
 its lights' consecutive range of triangles with its own cull mode; the full-screen triangle
 is kept across frames.  Per-triangle results do not depend on which other triangles or
-varyings are set up with them, so sharing changes no value.  Bins are per pass (light
-draws cut them from the (triangle, tile) pairs of all their lights).  A frame does the
-host work of all its passes (set-up read-backs, binning) before it queues their clears,
-resolves and raster kernels in pass order, without waiting (on 2 cores, host work done
-while a raster kernel runs gets a third of them, and the next kernel waits for it); target
-and blend-count buffers are reused from frame to frame (cleared as before).
+varyings are set up with them, so sharing changes no value.  Bins are per pass, built on
+the device from the triangles the pass draws (its lights' ranges, the faces its cull mode
+keeps); a ``repeat per light`` group's bins are found for all its lights in one numpy sort.
+A frame does the host work of all its passes (set-up read-backs, queuing the binning)
+before it queues their clears, resolves and raster kernels in pass order, without waiting
+(on 2 cores, host work done while a raster kernel runs gets a third of them, and the next
+kernel waits for it); target and blend-count buffers are reused from frame to frame
+(cleared as before).
 
 The float64 evaluation (a plan emitted with ``precision="f64"``, ``Compiled.pipeline("cl",
 precision="f64")``): the same schedule, coverage and primitive order, the technique's
@@ -291,7 +293,7 @@ class CLPipeline:
             self._prefetch(k, light)
         self.geometry.clip_pending()
         if self.profile is None and not capture_passes:
-            # every pass's host work (set-up read-backs, binning) first, then the frame's
+            # every pass's host work (set-up read-backs, bins) first, then the frame's
             # device work queued in one go: host work done while a raster kernel runs gets a
             # third of the 2 cores PoCL's 2 threads share with it, and the next kernel waits
             # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
@@ -399,9 +401,13 @@ class CLPipeline:
 
     def _launch(self, k: int, p: PassPlan, light: Optional[int], timing: dict, width: int,
                 height: int, drawn: tuple, frame_buf, frame64_buf) -> None:
-        """Queue a pass's raster kernel (``drawn``: its geometry and bins)."""
+        """Queue a pass's raster kernel (``drawn``: its geometry and bins; nothing when no
+        tile has a triangle).  Bins built on the device tell their number of tiles when
+        their binning has run: this waits for it."""
         import pyopencl as cl
         geo, tb = drawn
+        if not tb.ntiles:
+            return
         bufs = geo.bufs
         st = self._dummy
         if self.dynamic_state:
