@@ -7,8 +7,10 @@ e.g. ``inferred:lbuffer_scale=0.625 inferred:lbuffer_scale=1.0 light_prepass def
 
 Both backends run the full ``render()`` (all passes, then read-back of every target), so the
 ratio compares like with like.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to
-``--threads`` before either runtime loads.  Each figure is the median of ``--frames`` renders
-after one warm-up render (which compiles shaders and kernels).
+``--threads`` before either runtime loads.  The frames are interleaved, GL CL CL GL GL CL ...
+(``common.interleaved``: drift in a shared machine's load hits both alike, and neither always
+runs first), after one warm-up render of each (which compiles shaders and kernels); each
+figure is the median of ``--frames`` renders.
 
 ``--profile`` adds, per technique and backend, where the frame goes, pass by pass (summed
 over the lights of a repeat group, medians over ``--frames`` frames), largest first:
@@ -29,11 +31,12 @@ over the lights of a repeat group, medians over ``--frames`` frames), largest fi
 from __future__ import annotations
 
 import argparse
+import statistics
 import sys
 from pathlib import Path
 
-from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, median_time, pass_profile, scene_at,
-                    set_threads)
+from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, interleaved, median_time,
+                    pass_profile, scene_at, set_threads)
 
 
 def drained_profile(pipe, frame, frames: int = 3) -> dict:
@@ -145,8 +148,9 @@ def main() -> int:
         name = spec
         gl, cl = compiled.pipeline("gl"), compiled.pipeline("cl")
         print(f"[{i}/{len(args.techniques)}] {name}", file=sys.stderr)
-        gl_s = median_time(lambda: gl.render(scene), args.frames)
-        cl_s = median_time(lambda: cl.render(scene), args.frames)
+        times = interleaved({"gl": lambda: gl.render(scene), "cl": lambda: cl.render(scene)},
+                            args.frames)
+        gl_s, cl_s = statistics.median(times["gl"]), statistics.median(times["cl"])
         if args.profile:
             from cl_profile import format_profile, profile
             prof = gl_profile(gl, scene, args.frames)

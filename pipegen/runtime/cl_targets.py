@@ -86,6 +86,7 @@ class TargetStore:
         self.targets: dict[str, Target] = {}
         self.blend_counts: dict = {}        # target name -> this frame's count buffer
         self._count_pool: dict = {}         # count buffers, reused every frame
+        self._clear_patterns: dict = {}     # (format, clear value) -> the bytes to fill with
 
     # -- a frame ------------------------------------------------------------------------------
     def prepare(self, out_w: int, out_h: int) -> None:
@@ -153,8 +154,31 @@ class TargetStore:
         """Fill ``n`` pixels of ``buf`` (and of the stencil buffer ``sbuf``) with the clear
         value, normalised by ``Format.clear_*`` as the GL runtime's clears are."""
         import pyopencl as cl
-        fmt = t.fmt
+        main, st = self._patterns(t.fmt, color, depth, stencil, depth_given, stencil_given)
+        if main is not None:
+            if len(main) in (1, 2, 4, 8, 16, 32, 64, 128):     # clEnqueueFillBuffer's sizes
+                cl.enqueue_fill_buffer(self.queue, buf, main, 0, n * len(main))
+            else:
+                cl.enqueue_copy(self.queue, buf, np.tile(main, n))
+        if st is not None:
+            cl.enqueue_fill_buffer(self.queue, sbuf, st, 0, n)
+
+    def _patterns(self, fmt: F.Format, color, depth, stencil, depth_given: bool,
+                  stencil_given: bool) -> tuple:
+        """(a pixel's bytes of the clear value or None, the stencil byte or None), found once
+        per format and clear value (clears run every frame, the same values each time)."""
+        key = (fmt.name, None if color is None else tuple(np.ravel(color).tolist()), depth,
+               stencil, depth_given, stencil_given)
+        got = self._clear_patterns.get(key)
+        if got is None:
+            got = self._clear_patterns[key] = self._clear_bytes(fmt, color, depth, stencil,
+                                                                depth_given, stencil_given)
+        return got
+
+    def _clear_bytes(self, fmt: F.Format, color, depth, stencil, depth_given: bool,
+                     stencil_given: bool) -> tuple:
         if fmt.has_depth:
+            main = st = None
             if depth_given:
                 if self._doubles(fmt):
                     v = np.float64(value_range(fmt, fmt.clear_depth(depth)))
@@ -162,23 +186,17 @@ class TargetStore:
                     v = np.uint32(fmt.clear_codes(depth=depth))
                 else:
                     v = np.float32(fmt.clear_codes(depth=depth))
-                cl.enqueue_fill_buffer(self.queue, buf, v, 0, n * v.nbytes)
+                main = np.frombuffer(v.tobytes(), np.uint8)
             if fmt.kind is F.Kind.DEPTH_STENCIL and stencil_given:
-                s = np.uint8(fmt.clear_stencil(stencil))
-                cl.enqueue_fill_buffer(self.queue, sbuf, s, 0, n)
-            return
+                st = np.uint8(fmt.clear_stencil(stencil))
+            return main, st
         if self._doubles(fmt):
             pattern = value_range(fmt, fmt.clear_channels(color)).astype(np.float64)
-            cl.enqueue_fill_buffer(self.queue, buf, pattern.view(np.uint8), 0, n * pattern.nbytes)
-            return
+            return np.ascontiguousarray(pattern).view(np.uint8).reshape(-1), None
         codes = fmt.clear_codes(color)
         pixel = fmt.pack(np.asarray(codes).reshape(1, 1, -1) if fmt.channels > 1
                          else np.asarray(codes).reshape(1, 1))
-        pattern = np.ascontiguousarray(pixel).view(np.uint8).reshape(-1)
-        if len(pattern) in (1, 2, 4, 8, 16, 32, 64, 128):     # clEnqueueFillBuffer's sizes
-            cl.enqueue_fill_buffer(self.queue, buf, pattern, 0, n * len(pattern))
-        else:
-            cl.enqueue_copy(self.queue, buf, np.tile(pattern, n))
+        return np.ascontiguousarray(pixel).view(np.uint8).reshape(-1), None
 
     # -- reading ------------------------------------------------------------------------------
     def _read_planes(self, t: Target, buf, sbuf, planes: int):
