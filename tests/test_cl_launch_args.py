@@ -1,6 +1,7 @@
-"""A raster kernel's arguments are set only where they differ from its previous launch
-(``CLPipeline._set_args``): a pipeline that renders one scene after another gives the same
-targets as fresh pipelines, and setting every argument at every launch changes nothing."""
+"""Kernel arguments are set with their scalar types declared (``cl_context.set_args``, which
+``CLPipeline._set_args`` uses for raster kernels): a pipeline that renders one scene after
+another gives the same targets as fresh pipelines, and pyopencl's own argument probing at
+every launch changes nothing."""
 
 from pathlib import Path
 
@@ -37,6 +38,20 @@ def test_renders_in_a_row_match_fresh_pipelines_and_full_argument_setting(techni
     _same(b1, compiled.pipeline("cl", (96, 54)).render(second))
     monkeypatch.setattr(CLPipeline, "_set_args", lambda self, kern, args: kern.set_args(*args))
     _same(a1, compiled.pipeline("cl", (96, 54)).render(first))
+
+
+def test_typed_arguments_take_numpy_scalars_only():
+    """A Python number has no OpenCL type to declare: ``set_args`` refuses it."""
+    import pyopencl as cl
+    from pipegen.backends import opencl as clgen
+    from pipegen.runtime import cl_context
+    kern = cl.Kernel(cl_context.build_program(clgen.bin_program()), "pg_bin_starts")
+    ctx, _ = cl_context.get_context()
+    bufs = [cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=64) for _ in range(4)]
+    with pytest.raises(TypeError, match="numpy scalars"):
+        cl_context.set_args(kern, 1, np.int32(2), *bufs)
+    cl_context.set_args(kern, np.int32(1), np.int32(2), *bufs)
+    assert kern._pg_typed
 
 
 def test_profile_drains_each_pass_and_changes_nothing():

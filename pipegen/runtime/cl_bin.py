@@ -144,12 +144,12 @@ class DeviceBinner:
                 np.int32(width), np.int32(height), np.int32(tile), np.int32(edge_test_tiles),
                 np.int32(lo), np.int32(hi), rows_buf, bufs["bbox"], bufs["a"], bufs["b"],
                 bufs["c"]]
-        count_k.set_args(*head, counts)
+        cl_context.set_args(count_k, *head, counts)
         cl.enqueue_nd_range_kernel(self.queue, count_k, (runs,), (1,))
-        starts_k.set_args(np.int32(runs), np.int32(ntiles), counts, tile_start, tile_list,
-                          summary_buf)
+        cl_context.set_args(starts_k, np.int32(runs), np.int32(ntiles), counts, tile_start,
+                            tile_list, summary_buf)
         cl.enqueue_nd_range_kernel(self.queue, starts_k, (1,), (1,))
-        write_k.set_args(*head, counts, tile_tris)
+        cl_context.set_args(write_k, *head, counts, tile_tris)
         cl.enqueue_nd_range_kernel(self.queue, write_k, (runs,), (1,))
         summary = np.zeros(2, np.int32)
         event = cl.enqueue_copy(self.queue, summary, summary_buf, is_blocking=False)

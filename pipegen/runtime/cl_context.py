@@ -109,6 +109,25 @@ def build_program(source: str, options: tuple[str, ...] = ()):
     return prog
 
 
+def set_args(kernel, *args) -> None:
+    """``kernel.set_args(*args)``, with the kernel's scalar argument types declared from its
+    first call's arguments (numpy scalars; buffers and None: pointers).  pyopencl then packs
+    the scalars with a generated invoker: ~1.5 us for 16 arguments, against ~90 us when it
+    probes the type of every argument of an undeclared kernel (a light pre-pass frame sets
+    ~70 scalars: ~0.7 ms of host time before its first raster kernel)."""
+    if not getattr(kernel, "_pg_typed", False):
+        import numpy as np
+        dtypes = []
+        for a in args:
+            if isinstance(a, (bool, int, float)):
+                raise TypeError("kernel scalars are numpy scalars (their type is the "
+                                f"kernel's argument type), not {type(a).__name__}")
+            dtypes.append(a.dtype if isinstance(a, np.generic) else None)
+        kernel.set_scalar_arg_dtypes(dtypes)
+        kernel._pg_typed = True
+    kernel.set_args(*args)
+
+
 def describe() -> str:
     ctx, _ = get_context()
     dev = ctx.devices[0]

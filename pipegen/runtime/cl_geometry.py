@@ -607,8 +607,8 @@ class DrawGeometry:
                 extra = [frame64_buf, clip64_buf]
             # one kernel object per pass is shared by every draw it provides for: it is
             # enqueued (which takes the arguments) before the next draw sets them
-            kern.set_args(np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
-                          frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
+            cl_context.set_args(kern, np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
+                                frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
             v.kernels.append(cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,)))
             if i == 0 and not device:

@@ -180,7 +180,6 @@ class CLPipeline:
         self._events: list = []
         self._kernels: dict = {}
         self._int2s: dict = {}
-        self._last_args: dict = {}      # kernel -> the arguments it was last launched with
         self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
         self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
         for k in range(len(plan.passes)):
@@ -467,20 +466,10 @@ class CLPipeline:
         return got
 
     def _set_args(self, kern, args: list) -> None:
-        """Set the kernel's arguments that differ from its previous launch.  A pass run once
-        per light changes a few of its ~30 (the bins, the light), and ``set_args`` checks and
-        sets every one: ~0.09 ms a launch, 14 ms of a ``deferred`` frame's 162 launches."""
-        last = self._last_args.get(kern)
-        if last is None or len(last) != len(args):
-            kern.set_args(*args)
-        else:
-            for i, (new, old) in enumerate(zip(args, last)):
-                # buffers and cached vectors by identity (``last`` keeps the old ones alive,
-                # so an identity is never reused), numpy scalars by type and value
-                if new is not old and not (type(new) is type(old)
-                                           and isinstance(new, np.generic) and new == old):
-                    kern.set_arg(i, new)
-        self._last_args[kern] = args
+        """Set a raster kernel's arguments (``cl_context.set_args``: scalar types declared,
+        ~3 us for its ~30; pyopencl's probing of each took ~0.09 ms a launch, 14 ms of a
+        ``deferred`` frame's 162 launches)."""
+        cl_context.set_args(kern, *args)
 
     def _int2(self, x: int, y: int):
         """An ``int2`` kernel argument (pyopencl's ``make_int2`` evaluates code per call:

@@ -143,11 +143,11 @@ class DeviceSetup:
                   upload(np.asarray(scissor, np.int32)) if scissor is not None else dummy]
         head = [np.int32(nverts), np.int32(W), np.int32(H), f32(vw * 0.5), f32(vh * 0.5),
                 f32(vx + vw * 0.5), f32(vy + vh * 0.5), f32(pixel_center)]
-        kern.set_args(np.int32(ntris), *head, clip_buf,
-                      vary_buf if vary_buf is not None else dummy, *inputs,
-                      status_buf, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"],
-                      coef_buf, bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"],
-                      zq_buf)
+        cl_context.set_args(kern, np.int32(ntris), *head, clip_buf,
+                            vary_buf if vary_buf is not None else dummy, *inputs,
+                            status_buf, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"],
+                            coef_buf, bufs["flat"], bufs["vtx"], bufs["scissor"],
+                            bufs["bbox"], zq_buf)
         events = []
         if ntris:
             events.append(cl.enqueue_nd_range_kernel(self.queue, kern,
@@ -284,12 +284,11 @@ class DeviceSetup:
         hard_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=hard.astype(np.int32))
         dummy = inputs[0] if S == 0 else vary_buf
-        job.clip_kernel.set_args(
-                      np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out), *job.head[1:],
-                      hard_buf, job.clip_buf, dummy, *inputs, fan_buf, vary_out,
-                      bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"],
-                      bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"],
-                      bufs.get("zq", inputs[0]))
+        cl_context.set_args(
+            job.clip_kernel, np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out),
+            *job.head[1:], hard_buf, job.clip_buf, dummy, *inputs, fan_buf, vary_out,
+            bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"], bufs["flat"],
+            bufs["vtx"], bufs["scissor"], bufs["bbox"], bufs.get("zq", inputs[0]))
         cl.enqueue_nd_range_kernel(self.queue, job.clip_kernel, (((nh + 63) // 64) * 64,),
                                    (64,))
         fan = np.empty(_FANS * nh, np.uint8)

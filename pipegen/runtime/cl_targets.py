@@ -23,6 +23,7 @@ import numpy as np
 
 from .. import formats as F
 from ..backends.plan import Plan, TargetPlan
+from . import cl_context
 
 
 def device_buffer(ctx, array: np.ndarray):
@@ -239,7 +240,7 @@ class TargetStore:
             args = [np.int32(t.pixels), t.buf, t.res]
             if t.stencil is not None:
                 args += [t.stencil, t.res_stencil]
-            kern.set_args(*args)
+            cl_context.set_args(kern, *args)
             cl.enqueue_nd_range_kernel(self.queue, kern, (((t.pixels + 63) // 64) * 64,), (64,))
             t.dirty = False
             return
@@ -293,7 +294,6 @@ class TargetStore:
         kern = None
         if not self.f64:
             from ..backends import opencl as clgen
-            from . import cl_context
             src = clgen.resolve_program(fmt.name, t.samples)
             if src is not None:
                 kern = cl.Kernel(cl_context.build_program(src), "pg_resolve")
