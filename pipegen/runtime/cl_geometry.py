@@ -230,7 +230,8 @@ class DrawGeometry:
 
         Geometry (vertex kernel, clipping and setup, on the device) is cached per frame and
         shared by the passes that draw the same triangles under the same raster state.  A
-        light draw sets up every light of its light list at once, with no culling, and each
+        light draw sets up every light of its light list at once (culled only where every
+        pass sharing the set-up culls the same faces, ``_light_cull``), and each
         pass draws the range of its light(s) (the instances are consecutive in submission
         order), keeping the faces its cull mode keeps: inside a repeat group one set-up
         serves all lights and every pass of the group with the same raster state.  Bins are
@@ -301,8 +302,8 @@ class DrawGeometry:
 
     def _pairs(self, geo: Geo, width: int, height: int, cull: ir.CullMode):
         """``bin_pairs`` of the faces of ``geo`` the cull mode keeps (light volumes are set up
-        without culling: binning only the kept faces halves a sphere's pairs), once per frame
-        and cull mode."""
+        without culling where their passes cull differently: binning only the kept faces
+        halves a sphere's pairs), once per frame and cull mode."""
         keep = {ir.CullMode.BACK: True, ir.CullMode.FRONT: False}.get(cull)
         key = ("pairs", id(geo.tris), width, height, keep)
         pairs = self.frame.get(key)
@@ -398,7 +399,7 @@ class DrawGeometry:
         center = 0.0 if self.pipe.plan.pass_samples(p) > 1 else 0.5
         offset = str(_offset(p))
         if draw.kind is ir.DrawKind.LIGHTS:
-            # culling is per pass (light draws are set up without it)
+            # culling is per pass (``_light_cull``: at set-up where all its passes agree)
             return ("lights", (draw.volume or ir.Volume.SPHERE).value, draw.scissor,
                     offset, depth_clamp, width, height, dfmt, center)
         return (draw.kind.value, draw.material, draw.order, p.state.cull.value, offset,
@@ -429,6 +430,21 @@ class DrawGeometry:
                 missing -= set(have)
         got = (names, [union[n] for n in names], providers, any(m[2] for m in members))
         self.frame[("group", key)] = got
+        return got
+
+    def _light_cull(self, key: tuple) -> str:
+        """The cull mode a light draw's set-up (raster key ``key``) can apply: that of every
+        pass of the plan drawing lights under that key when they all cull the same faces
+        (light pre-pass and Calver: their spheres' back faces, half the triangles, dropped
+        before binning), else none (each pass culls its own)."""
+        got = self.frame.get(("light cull", key))
+        if got is None:
+            modes = {q.state.cull for q in self.pipe.plan.passes
+                     if q.draw.kind is ir.DrawKind.LIGHTS
+                     and self._raster_key(q, *self.pipe._pass_size(q)) == key}
+            mode = modes.pop() if len(modes) == 1 else None
+            got = mode.value if mode in (ir.CullMode.BACK, ir.CullMode.FRONT) else "none"
+            self.frame[("light cull", key)] = got
         return got
 
     def _geometry(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
@@ -554,9 +570,10 @@ class DrawGeometry:
         else:
             # light volumes and the full-screen triangle have no varyings; their 1/w plane
             # (frag_coord.w) is set up always, so that every pass drawing them shares one
-            # set-up (light draws are culled per pass)
+            # set-up (light draws are culled per pass, or at set-up where all cull alike)
             v.w_plane = True
-            v.cull = "none" if draw.kind is ir.DrawKind.LIGHTS else p.state.cull.value
+            v.cull = (self._light_cull(key[:-1]) if draw.kind is ir.DrawKind.LIGHTS
+                      else p.state.cull.value)
         mesh_verts = 1
         zeros = pipe._zeros4
         attrs = [zeros] * 4

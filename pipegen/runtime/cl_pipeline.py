@@ -45,8 +45,9 @@ Set-up triangles are cached per frame and shared by the passes that draw the sam
 under the same raster state (``_geometry``): a scene draw is set up once for every pass of
 the plan drawing it under that state, with the union of their varyings (a pass reading fewer
 gets varying and plane buffers cut from the shared ones); a light draw sets up all lights of
-its light list at once, without culling, and each pass (each light of a repeat group) draws
-its lights' consecutive range of triangles with its own cull mode; the full-screen triangle
+its light list at once, culled only where every pass drawing them culls the same faces, and
+each pass (each light of a repeat group) draws its lights' consecutive range of triangles
+with its own cull mode; the full-screen triangle
 is kept across frames.  Per-triangle results do not depend on which other triangles or
 varyings are set up with them, so sharing changes no value.  Bins are per pass, built on
 the device from the triangles the pass draws (its lights' ranges, the faces its cull mode

@@ -1,0 +1,46 @@
+"""Light volumes are culled at set-up where every pass drawing them culls the same faces
+(``DrawGeometry._light_cull``): the frames are the ones a set-up without culling gives
+(each pass then culling its own), targets and blend counts alike."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.cl
+pytest.importorskip("pyopencl")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _render(technique: str, scene, culled: bool, monkeypatch):
+    from pipegen import compile_file
+    from pipegen.runtime import cl_geometry as G
+    if not culled:
+        monkeypatch.setattr(G.DrawGeometry, "_light_cull", lambda self, key: "none")
+    else:
+        monkeypatch.undo()
+    pipe = compile_file(ROOT / "pipelines" / f"{technique}.pipe").pipeline("cl", (160, 90))
+    out = pipe.render(scene)
+    modes = sorted(v for k, v in pipe.geometry.frame.items()
+                   if isinstance(k, tuple) and k[0] == "light cull")
+    return out, pipe.last_blend_counts, modes
+
+
+@pytest.mark.parametrize("technique,scene_name,modes", [
+    ("light_prepass", "mixed_lights", ["front", "front", "none"]),
+    ("lidr_bitplanes", "street_lamps", ["front", "front", "none"]),
+    ("inferred", "mixed_lights", ["front", "none", "none"]),
+    ("deferred", "mixed_lights", ["none", "none", "none"])])
+def test_light_volumes_culled_at_set_up_render_as_culled_per_pass(technique, scene_name,
+                                                                   modes, monkeypatch):
+    from pipegen import load_scene
+    scene = load_scene(ROOT / "examples" / "scenes" / f"{scene_name}.toml")
+    plain, plain_counts, _ = _render(technique, scene, False, monkeypatch)
+    culled, counts, got_modes = _render(technique, scene, True, monkeypatch)
+    assert got_modes == modes
+    assert plain.keys() == culled.keys()
+    for name in plain:
+        assert np.array_equal(plain[name], culled[name]), name
+    for name in plain_counts:
+        assert np.array_equal(plain_counts[name], counts[name]), name
