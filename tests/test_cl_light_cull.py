@@ -1,6 +1,7 @@
 """Light volumes are culled at set-up where every pass drawing them culls the same faces
-(``DrawGeometry._light_cull``): the frames are the ones a set-up without culling gives
-(each pass then culling its own), targets and blend counts alike."""
+(``DrawGeometry._light_cull``; ``cull auto``: each light's faces as the host chooses them):
+the frames are the ones a set-up without culling gives (each pass then culling its own,
+``_cull_auto`` filtering per light), targets and blend counts alike."""
 
 from pathlib import Path
 
@@ -31,7 +32,11 @@ def _render(technique: str, scene, culled: bool, monkeypatch):
     ("light_prepass", "mixed_lights", ["front", "front", "none"]),
     ("lidr_bitplanes", "street_lamps", ["front", "front", "none"]),
     ("inferred", "mixed_lights", ["front", "none", "none"]),
-    ("deferred", "mixed_lights", ["none", "none", "none"])])
+    ("deferred", "mixed_lights", ["none", "none", "none"]),
+    # cull auto: each light's faces chosen on the host, culled at set-up (lights around the
+    # camera drawn with their back faces)
+    ("deferred_calver", "stress_overlap", ["auto"]),
+    ("lidr_transparent", "mixed_lights", ["auto", "auto", "none"])])
 def test_light_volumes_culled_at_set_up_render_as_culled_per_pass(technique, scene_name,
                                                                    modes, monkeypatch):
     from pipegen import load_scene
@@ -39,6 +44,13 @@ def test_light_volumes_culled_at_set_up_render_as_culled_per_pass(technique, sce
     plain, plain_counts, _ = _render(technique, scene, False, monkeypatch)
     culled, counts, got_modes = _render(technique, scene, True, monkeypatch)
     assert got_modes == modes
+    if scene_name == "stress_overlap":     # some lights drawn with their back faces
+        from pipegen import compile_file
+        pipe = compile_file(ROOT / "pipelines" / f"{technique}.pipe").pipeline("cl", (160, 90))
+        pipe.render(scene)
+        flats = [np.asarray(g.tris.flat) for g in pipe.geometry.frame.values()
+                 if getattr(g, "setup_cull", None) == "auto"]
+        assert any(((f[:, 0] >> 1) & 1).any() for f in flats)
     assert plain.keys() == culled.keys()
     for name in plain:
         assert np.array_equal(plain[name], culled[name]), name

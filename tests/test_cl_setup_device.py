@@ -38,16 +38,18 @@ def _same(ref, got) -> bool:
 
 
 # (cull, samples, smooth slots, pixel centre, scissor, depth clamp): every pair of values of
-# any two switches in some row (a pairwise covering set of the 48 combinations: each row is
-# a program to build, ~1 s on a cold kernel cache)
+# any two switches in some row (a pairwise covering set of the 64 combinations: each row is
+# a program to build, ~1 s on a cold kernel cache).  "auto" culls per input triangle by bit 2
+# of its flat word (random here)
 SWITCHES = [("none", None, (), 0.5, False, False), ("none", 1, (0, 2), 0.0, True, True),
             ("back", None, (), 0.5, True, True), ("back", 1, (0, 2), 0.0, False, False),
             ("front", None, (), 0.0, False, True), ("front", 1, (0, 2), 0.5, True, False),
-            ("none", None, (0, 2), 0.5, False, False), ("none", 1, (), 0.5, False, False)]
+            ("none", None, (0, 2), 0.5, False, False), ("none", 1, (), 0.5, False, False),
+            ("auto", None, (), 0.5, False, False), ("auto", 1, (0, 2), 0.0, True, True)]
 
 
 def test_switch_rows_cover_every_pair():
-    values = [{row[i] for row in itertools.product(["none", "back", "front"], [None, 1],
+    values = [{row[i] for row in itertools.product(["none", "back", "front", "auto"], [None, 1],
                                                      [(), (0, 2)], [0.5, 0.0], [False, True],
                                                      [False, True])} for i in range(6)]
     for i, j in itertools.combinations(range(6), 2):

@@ -970,7 +970,9 @@ def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
 
 # ---- runtime programs: triangle set-up, binning and multisample resolve ---------------------
 
-SETUP_CULL = {"none": 0, "back": 1, "front": 2}
+# "auto": per triangle, bit 2 of its flat input word says whether its light is drawn with its
+# back faces (``cull auto``: the host decides per light, ``draws.light_runs``)
+SETUP_CULL = {"none": 0, "back": 1, "front": 2, "auto": 3}
 SUBPIXEL = 256       # window coordinates snap to 1/256 pixel (GL_SUBPIXEL_BITS = 8)
 
 

@@ -51,6 +51,7 @@ class Geo:
         self.ncoef = tris.coef.shape[1]
         self.names: list = []        # scene draws: the varyings set up, in slot order
         self.flats: list = []
+        self.setup_cull = "none"     # the faces the set-up culled (a light draw: _light_cull)
 
 
 class _Vertices:
@@ -261,7 +262,10 @@ class DrawGeometry:
         if geo is None:
             return None
         ranges = [geo.ranges[int(l)] for l in lights]
-        if p.cull_auto:
+        cull = p.state.cull
+        if geo.setup_cull != "none":     # culled at set-up: every triangle is drawn
+            cull = ir.CullMode.NONE
+        elif p.cull_auto:
             key = ("auto", id(geo), tuple(lights))
             sub = cache.get(key)
             if sub is None:
@@ -270,7 +274,6 @@ class DrawGeometry:
                     sel = np.concatenate([np.arange(a, b) for a, b in ranges]).astype(np.int64)
                 sub = cache[key] = self._cull_auto(geo, sel, p, lights)
             return self._bins(sub, cache, width, height, timing)
-        cull = p.state.cull
         key = ("bins", id(geo.tris), tuple(lights), cull.value, width, height)
         tb = cache.get(key)
         if tb is None and len(lights) == 1 and len(batch) > 1 and int(lights[0]) in geo.ranges:
@@ -434,18 +437,31 @@ class DrawGeometry:
 
     def _light_cull(self, key: tuple) -> str:
         """The cull mode a light draw's set-up (raster key ``key``) can apply: that of every
-        pass of the plan drawing lights under that key when they all cull the same faces
-        (light pre-pass and Calver: their spheres' back faces, half the triangles, dropped
-        before binning), else none (each pass culls its own)."""
+        pass of the plan drawing lights under that key when they all cull alike (the light
+        pre-pass's spheres: their front faces, half the triangles, dropped before binning;
+        ``auto``: each light's faces as ``draws.light_runs`` chooses, the same for every pass
+        with the key), else none (each pass culls its own)."""
         got = self.frame.get(("light cull", key))
         if got is None:
             modes = {q.state.cull for q in self.pipe.plan.passes
                      if q.draw.kind is ir.DrawKind.LIGHTS
                      and self._raster_key(q, *self.pipe._pass_size(q)) == key}
             mode = modes.pop() if len(modes) == 1 else None
-            got = mode.value if mode in (ir.CullMode.BACK, ir.CullMode.FRONT) else "none"
+            got = mode.value if mode in (ir.CullMode.BACK, ir.CullMode.FRONT,
+                                         ir.CullMode.AUTO) else "none"
             self.frame[("light cull", key)] = got
         return got
+
+    def _inside_bits(self, p: PassPlan, lights: np.ndarray) -> np.ndarray:
+        """Per light of a ``cull auto`` draw, 4 (the set-up's flat bit 2) where it is drawn
+        with its back faces, else 0 (``draws.light_runs``, as the GL runtime draws it)."""
+        scene = self.pipe._scene
+        bits = np.zeros(int(lights.max()) + 1 if len(lights) else 1, np.uint32)
+        for run in draws.light_runs(p.state.cull, p.draw.volume, list(scene.lights),
+                                    lights.tolist(), scene.camera.position, self.pipe._proj):
+            if run.inside:
+                bits[list(run.lights)] = 4
+        return bits[lights]
 
     def _geometry(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
                   lights: Optional[tuple]):
@@ -593,6 +609,11 @@ class DrawGeometry:
             v.inst = np.asarray(lights, np.uint32)
             v.flat = np.zeros((nverts // 3, 4), np.uint32)
             v.flat[:, 3] = np.repeat(v.inst, mesh_verts // 3)
+            if v.cull == "auto":
+                if cl_setup_device.supports(_offset(p), pipe.f64):
+                    v.flat[:, 0] = np.repeat(self._inside_bits(p, v.inst), mesh_verts // 3)
+                else:       # the numpy set-up culls by one mode: each pass culls its own
+                    v.cull = "none"
             if draw.scissor:
                 v.scissor = self._light_scissors(v.inst, width, height, mesh_verts // 3)
         else:
@@ -721,6 +742,7 @@ class DrawGeometry:
             geo = Geo(tris, dict(dev, zp=none, zq=dev.get("zq", none), vary=vary_buf), index)
         self.frame[key] = geo
         geo.names, geo.flats = v.names, v.flats
+        geo.setup_cull = v.cull
         if p.draw.kind is ir.DrawKind.LIGHTS:
             light_of = tris.flat[:, 3]
             lo = np.searchsorted(light_of, v.inst, "left")

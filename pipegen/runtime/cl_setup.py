@@ -650,8 +650,10 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
                     viewport=None, with_zp: bool = True, with_zq: bool = True) -> Triangles:
     """Clip, project, snap, cull and build edge equations for a non-indexed triangle list.
 
-    ``clip``: (3T, 4) clip-space positions; ``flat``: (T, 4) uint32 per input triangle (y, z,
-    w are kept; x is replaced by the facing bit); ``vary``: (S, 3T, 4); ``scissor``: (T, 4)
+    ``clip``: (3T, 4) clip-space positions; ``cull``: "none", "back", "front" or "auto" (per
+    input triangle: bit 2 of its ``flat.x`` set, its back faces are kept and marked with
+    bit 1, else its front faces); ``flat``: (T, 4) uint32 per input triangle (y, z, w are
+    kept; x is replaced by the facing bit); ``vary``: (S, 3T, 4); ``scissor``: (T, 4)
     int32 x0, y0, x1, y1 (exclusive) per input triangle, clamped to the viewport;
     ``samples``: samples per pixel of the pass (1: bounding boxes of pixel centres; None: of
     any sample position, always safe); ``smooth``: the varying slots interpolated with
@@ -694,6 +696,9 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
         keep &= area > 0
     elif cull == "front":
         keep &= area < 0
+    elif cull == "auto":     # per input triangle: flat.x bit 2, drawn with its back faces
+        inside = (np.take(np.asarray(flat, np.uint32)[:, 0], parent) >> 2) & 1
+        keep &= np.where(inside == 1, area < 0, area > 0)
     # bounding boxes: pixels with a sample position (the centre, 128/256, when ``samples`` is
     # 1; any of 1..255/256 otherwise) inside the box.  Clipping makes slivers along the
     # viewport edges that cover samples but no pixel centre.  (>> 8: floor division by
@@ -796,7 +801,9 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
         tri_flat = np.take(np.asarray(flat, np.uint32), parent, axis=0)
     else:
         tri_flat = np.zeros((n, 4), np.uint32)
+    inside = (tri_flat[:, 0] >> 2) & 1 if cull == "auto" else 0
     tri_flat[:, 0] = area > 0
+    tri_flat[:, 0] |= inside << 1       # cull auto: a back-face light's triangle (pg_inside)
     tri_vtx = np.zeros((n, 4), np.int32)
     tri_vtx[:, :3] = vid.T
     tri_sc = np.empty((n, 4), np.int32)
