@@ -56,3 +56,17 @@ def test_light_volumes_culled_at_set_up_render_as_culled_per_pass(technique, sce
         assert np.array_equal(plain[name], culled[name]), name
     for name in plain_counts:
         assert np.array_equal(plain_counts[name], counts[name]), name
+
+
+def test_cull_auto_at_set_up_in_the_float64_evaluation(monkeypatch):
+    """The float64 evaluation sets triangles up in numpy (``cl_setup.setup_triangles``, which
+    culls per triangle too): the same values as culling per pass."""
+    from pipegen import compile_file, load_scene
+    from pipegen.runtime import cl_geometry as G
+    scene = load_scene(ROOT / "examples" / "scenes" / "stress_overlap.toml")
+    compiled = compile_file(ROOT / "pipelines" / "deferred_calver.pipe")
+    culled = compiled.pipeline("cl", (97, 61), precision="f64").render(scene)
+    monkeypatch.setattr(G.DrawGeometry, "_light_cull", lambda self, key: "none")
+    plain = compiled.pipeline("cl", (97, 61), precision="f64").render(scene)
+    for name in plain:
+        assert np.array_equal(plain[name], culled[name]), name

@@ -6,8 +6,8 @@ draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
 set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile bins
 (``cl_bin.DeviceBins``, binned on the device; ``Bins`` where numpy bins them: the groups of
 ``repeat per light`` passes, and every draw with ``$PIPEGEN_CL_DEVICE_BIN=0``), or None when
-the pass draws no triangle (bins may still hold no tile: the raster launch checks).  ``begin_frame()`` drops the per-frame
-caches; ``use_scene()`` the scene's attribute buffers.
+the pass draws no triangle (bins may still hold no tile: the raster launch checks).
+``begin_frame()`` drops the per-frame caches; ``use_scene()`` the scene's attribute buffers.
 """
 
 from __future__ import annotations
@@ -609,11 +609,8 @@ class DrawGeometry:
             v.inst = np.asarray(lights, np.uint32)
             v.flat = np.zeros((nverts // 3, 4), np.uint32)
             v.flat[:, 3] = np.repeat(v.inst, mesh_verts // 3)
-            if v.cull == "auto":
-                if cl_setup_device.supports(_offset(p), pipe.f64):
-                    v.flat[:, 0] = np.repeat(self._inside_bits(p, v.inst), mesh_verts // 3)
-                else:       # the numpy set-up culls by one mode: each pass culls its own
-                    v.cull = "none"
+            if v.cull == "auto":        # which lights the set-up keeps the back faces of
+                v.flat[:, 0] = np.repeat(self._inside_bits(p, v.inst), mesh_verts // 3)
             if draw.scissor:
                 v.scissor = self._light_scissors(v.inst, width, height, mesh_verts // 3)
         else:

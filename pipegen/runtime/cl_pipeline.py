@@ -47,9 +47,9 @@ the plan drawing it under that state, with the union of their varyings (a pass r
 gets varying and plane buffers cut from the shared ones); a light draw sets up all lights of
 its light list at once, culled only where every pass drawing them culls the same faces, and
 each pass (each light of a repeat group) draws its lights' consecutive range of triangles
-with its own cull mode; the full-screen triangle
-is kept across frames.  Per-triangle results do not depend on which other triangles or
-varyings are set up with them, so sharing changes no value.  Bins are per pass, built on
+with its own cull mode; the full-screen triangle is kept across frames.  Per-triangle
+results do not depend on which other triangles or varyings are set up with them, so sharing
+changes no value.  Bins are per pass, built on
 the device from the triangles the pass draws (its lights' ranges, the faces its cull mode
 keeps); a ``repeat per light`` group's bins are found for all its lights in one numpy sort.
 A frame does the host work of all its passes (set-up read-backs, queuing the binning)
@@ -467,9 +467,9 @@ class CLPipeline:
         return got
 
     def _set_args(self, kern, args: list) -> None:
-        """Set a raster kernel's arguments (``cl_context.set_args``: scalar types declared,
-        ~3 us for its ~30; pyopencl's probing of each took ~0.09 ms a launch, 14 ms of a
-        ``deferred`` frame's 162 launches)."""
+        """Set a raster kernel's arguments (``cl_context.set_args``: scalar types declared, a
+        few microseconds for its ~30; pyopencl's probing of each took ~0.09 ms a launch, 14
+        ms of a ``deferred`` frame's 162 launches)."""
         cl_context.set_args(kern, *args)
 
     def _int2(self, x: int, y: int):
