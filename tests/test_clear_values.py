@@ -80,7 +80,7 @@ def _cl_fill(fmt, color=None, depth=None, stencil=None, f64=False):
                lambda q, buf, data: log.append((buf, np.asarray(data).tobytes())))
     try:
         store = object.__new__(CT.TargetStore)
-        store.f64, store.queue = f64, None
+        store.f64, store.queue, store._clear_patterns = f64, None, {}
         store._fill(types.SimpleNamespace(fmt=fmt), "buf", "sbuf", 1, color, depth, stencil,
                     True, True)
     finally:
