@@ -287,7 +287,7 @@ class CLPipeline:
         self._frame_buf = self._buffer(self._frame_np)
         self._frame64_buf = self._buffer(self._frame64_np) if self.f64 else None
         captures: list[dict] = []
-        runs = list(draws.schedule(self.plan, self._selection))
+        runs = self._selection.schedule()
         self._shadows = {}
         for k, light in runs:      # every vertex kernel before the first raster kernel
             self._prefetch(k, light)

@@ -55,6 +55,14 @@ class LightSelection:
     sets: dict[str, list[list[int]]] = field(default_factory=dict)
     dropped: dict[str, list[int]] = field(default_factory=dict)
     _of: dict = field(default_factory=dict, repr=False)
+    _schedule: Optional[list] = field(default=None, repr=False)
+
+    def schedule(self) -> list[tuple[int, Optional[int]]]:
+        """``schedule(plan, self)`` as a list, found once per scene: it depends on the plan
+        and the lights only (a frame of ``deferred`` on many_lights runs 165 passes)."""
+        if self._schedule is None:
+            self._schedule = list(schedule(self.plan, self))
+        return self._schedule
 
     def of(self, draw: ir.Draw) -> list[int]:
         """The lights ``draw`` takes, in table order."""

@@ -266,6 +266,7 @@ class GLPipeline:
         self.transitions = bool(transitions)
         self.debug = debug_enabled() if debug is None else bool(debug)
         self.profile: Optional[list] = None   # a list: per pass timings appended (_run_pass)
+        self._auto_cull: dict = {}      # per frame: cull auto choices (``_light_runs``)
         self.size = None if size is None else (int(size[0]), int(size[1]))
         self.passes = [_Pass(self.ctx, p, k) for k, p in enumerate(plan.passes)]
         for p in self.passes:     # each pass's state, lowered once (gl_transitions)
@@ -485,13 +486,14 @@ class GLPipeline:
             self._build(size)
         self._use_scene(scene)
         self._frame_uniforms(scene, size)
+        self._auto_cull: dict = {}      # this frame's cull auto choices (``_light_runs``)
         check_error("uploading the scene")
         GT.TRACKER.invalidate()       # the shared context: a frame starts from unknown state
         for t in self.targets.values():
             c = t.spec.clear
             t.clear(c.color, c.depth, c.stencil)
         captures: list[dict] = []
-        for k, light in draws.schedule(self.plan, self._selection):
+        for k, light in self._selection.schedule():
             p = self.passes[k]
             self._run_pass(p, light)
             if self.debug:
@@ -599,8 +601,7 @@ class GLPipeline:
         elif p.kind is ir.DrawKind.LIGHTS:
             lights = self._lights
             indices = self._selection.instance(p, light)
-            runs = draws.light_runs(p.state.cull, p.draw.volume, lights, indices,
-                                    self._scene.camera.position, self._proj)
+            runs = self._light_runs(p, indices)
             for run in runs:
                 if p.spec.cull_auto:     # consecutive lights with the same choice, in order
                     depth = p.state.depth
@@ -637,6 +638,27 @@ class GLPipeline:
         if self.profile is not None:
             GL.glFinish()
             self.profile.append((p.name, light, t1 - t0, time.perf_counter() - t1))
+
+    def _light_runs(self, p: _Pass, indices: Sequence[int]) -> list:
+        """``draws.light_runs`` of a light pass execution.  Under ``cull auto`` a pass run
+        once per light asks for one light at a time (deferred on many_lights: 81 times a
+        frame): every light of the draw's list is decided at once, once a frame (each light's
+        choice is its own, so the same choices), and the light looks its own up."""
+        eye, proj = self._scene.camera.position, self._proj
+        if p.state.cull is not ir.CullMode.AUTO or len(indices) != 1:
+            return draws.light_runs(p.state.cull, p.draw.volume, self._lights, indices, eye,
+                                    proj)
+        modes = self._auto_cull.get(p.draw)
+        if modes is None:
+            modes = self._auto_cull[p.draw] = {
+                i: run.cull for run in draws.light_runs(
+                    ir.CullMode.AUTO, p.draw.volume, self._lights,
+                    self._selection.of(p.draw), eye, proj) for i in run.lights}
+        i = int(indices[0])
+        if i not in modes:
+            return draws.light_runs(p.state.cull, p.draw.volume, self._lights, indices, eye,
+                                    proj)
+        return [draws.LightRun(modes[i], (i,))]
 
     def _draw_lights(self, p: _Pass, vao, indices: Sequence[int]) -> None:
         if p.instance_buffer is not None:
