@@ -14,9 +14,11 @@ sets up the next pass, so the frame's wall time is about the larger of host and 
 plus the read-back, not their sum.
 
 ``--compare``: GL (llvmpipe) against CL per technique with the frames *interleaved* (GL, CL,
-GL, CL, ... after a warm-up of each), so that both see the same load on a shared machine: the
-median wall time of each, their ratio, and the ratio of process CPU time (all threads; less
-sensitive to other processes than wall time).
+CL, GL, ... after a warm-up of each, as ``backends.py`` times them: a frame right after one of
+the other backend ran up to 10% apart from one after its own, so neither always goes first),
+so that both see the same load on a shared machine: the median wall time of each, their
+ratio, and the ratio of process CPU time (all threads; less sensitive to other processes than
+wall time).
 
 Both ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`` are set to ``--threads`` before PoCL
 loads.
@@ -48,7 +50,7 @@ def profile(pipe, scene, frames: int = 3) -> dict:
 def compare(gl, cl, scene, frames: int = 5) -> dict:
     """Interleaved GL/CL frames: median wall and CPU ms of each (see the module docstring)."""
     times = interleaved({"gl": lambda: gl.render(scene), "cl": lambda: cl.render(scene)},
-                        frames, alternate=False, cpu=time.process_time)
+                        frames, cpu=time.process_time)
     return {k: statistics.median(t * 1e3 for t in v) for k, v in times.items()}
 
 
