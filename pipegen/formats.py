@@ -315,6 +315,13 @@ class Format:
             return self.quantize(self.clear_depth(depth))
         return self.quantize(self.clear_channels(color))
 
+    @staticmethod
+    def clear_key(color=None, depth=None, stencil=None) -> tuple:
+        """A clear value as a dict key (colour: None, a scalar or a sequence): both runtimes
+        keep the words they clear with per format and value, cleared again every frame."""
+        import numpy as np
+        return (None if color is None else tuple(np.ravel(color).tolist()), depth, stencil)
+
     def tolerance(self, blended_passes: int = 0) -> Tolerance:
         """Cross-backend tolerance for this format (DESIGN.md §7).
 

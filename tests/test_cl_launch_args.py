@@ -1,7 +1,7 @@
-"""Kernel arguments are set with their scalar types declared (``cl_context.set_args``, which
-``CLPipeline._set_args`` uses for raster kernels): a pipeline that renders one scene after
-another gives the same targets as fresh pipelines, and pyopencl's own argument probing at
-every launch changes nothing."""
+"""Kernel arguments are set with their scalar types declared (``cl_context.set_args``, every
+launch of the CL runtime): a pipeline that renders one scene after another gives the same
+targets as fresh pipelines, and pyopencl's own argument probing at every launch changes
+nothing."""
 
 from pathlib import Path
 
@@ -29,14 +29,14 @@ def _same(a: dict, b: dict) -> None:
 def test_renders_in_a_row_match_fresh_pipelines_and_full_argument_setting(technique,
                                                                           monkeypatch):
     from pipegen import compile_file
-    from pipegen.runtime.cl_pipeline import CLPipeline
+    from pipegen.runtime import cl_context
     compiled = compile_file(ROOT / "pipelines" / f"{technique}.pipe")
     first, second = _scene("mixed_lights"), _scene("street_lamps")
     reused = compiled.pipeline("cl", (96, 54))
     a1, b1, a2 = reused.render(first), reused.render(second), reused.render(first)
     _same(a1, a2)
     _same(b1, compiled.pipeline("cl", (96, 54)).render(second))
-    monkeypatch.setattr(CLPipeline, "_set_args", lambda self, kern, args: kern.set_args(*args))
+    monkeypatch.setattr(cl_context, "set_args", lambda kern, *args: kern.set_args(*args))
     _same(a1, compiled.pipeline("cl", (96, 54)).render(first))
 
 

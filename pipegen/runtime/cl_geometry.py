@@ -283,7 +283,7 @@ class DrawGeometry:
             t0 = time.perf_counter()
             n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
             if cl_bin.enabled():
-                keep = {ir.CullMode.BACK: True, ir.CullMode.FRONT: False}.get(cull)
+                keep = _KEEPS_FRONT.get(cull)
                 subset = None
                 if tuple(lights) != batch:       # these lights' triangles, in light order
                     subset = np.concatenate([np.arange(a, b) for a, b in ranges])
@@ -307,7 +307,7 @@ class DrawGeometry:
         """``bin_pairs`` of the faces of ``geo`` the cull mode keeps (light volumes are set up
         without culling where their passes cull differently: binning only the kept faces
         halves a sphere's pairs), once per frame and cull mode."""
-        keep = {ir.CullMode.BACK: True, ir.CullMode.FRONT: False}.get(cull)
+        keep = _KEEPS_FRONT.get(cull)
         key = ("pairs", id(geo.tris), width, height, keep)
         pairs = self.frame.get(key)
         if pairs is None:
@@ -385,11 +385,10 @@ class DrawGeometry:
         else:
             rows = subset.astype(np.int32) if geo.index is None else geo.index[subset]
             bbox = tris.bbox[subset]
-        if not len(rows):         # nothing to bin (no zero-sized buffers in OpenCL)
-            T = self.pipe.tile
-            tiles = ((width + T - 1) // T) * ((height + T - 1) // T)
-            return Bins(self.pipe, np.zeros(tiles + 1, np.int32), np.zeros(1, np.int32),
-                        (width + T - 1) // T, triangles, index=geo.index)
+        if not len(rows):   # nothing to bin (no zero-sized OpenCL buffers): numpy's empty lists
+            tile_start, tile_tris, tiles_x, _ = bin_triangles(tris, width, height,
+                                                              self.pipe.tile, subset=subset)
+            return Bins(self.pipe, tile_start, tile_tris, tiles_x, triangles, index=geo.index)
         return self.binner.bin(geo.bufs, rows, bbox, tris.samples, width, height,
                                self.pipe.tile, triangles, geo.index, pool)
 
@@ -454,14 +453,11 @@ class DrawGeometry:
 
     def _inside_bits(self, p: PassPlan, lights: np.ndarray) -> np.ndarray:
         """Per light of a ``cull auto`` draw, 4 (the set-up's flat bit 2) where it is drawn
-        with its back faces, else 0 (``draws.light_runs``, as the GL runtime draws it)."""
+        with its back faces, else 0 (``draws.auto_inside``, as the GL runtime draws it)."""
         scene = self.pipe._scene
-        bits = np.zeros(int(lights.max()) + 1 if len(lights) else 1, np.uint32)
-        for run in draws.light_runs(p.state.cull, p.draw.volume, list(scene.lights),
-                                    lights.tolist(), scene.camera.position, self.pipe._proj):
-            if run.inside:
-                bits[list(run.lights)] = 4
-        return bits[lights]
+        inside = draws.auto_inside(p.draw.volume, list(scene.lights), lights.tolist(),
+                                   scene.camera.position, self.pipe._proj)
+        return np.array([4 if inside[int(i)] else 0 for i in lights], np.uint32)
 
     def _geometry(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
                   lights: Optional[tuple]):
@@ -788,11 +784,11 @@ class DrawGeometry:
         still arrive in light order.  The result shares ``geo``'s device buffers (its triangles
         are rows of them) but for the facing words, which it changes."""
         scene = self.pipe._scene
-        runs = draws.light_runs(p.state.cull, p.draw.volume, list(scene.lights), lights,
-                                scene.camera.position, self.pipe._proj)
+        inside = draws.auto_inside(p.draw.volume, list(scene.lights), lights,
+                                   scene.camera.position, self.pipe._proj)
         draw_front = np.zeros(max(lights) + 1, bool)
-        for run in runs:
-            draw_front[list(run.lights)] = not run.inside   # culling back faces: front drawn
+        for i, back in inside.items():
+            draw_front[i] = not back        # culling back faces: front drawn
         flat = geo.tris.flat if sel is None else geo.tris.flat[sel]
         front = (flat[:, 0] & 1).astype(bool)
         by_front = draw_front[flat[:, 3]]
@@ -817,14 +813,19 @@ class DrawGeometry:
         return np.repeat(rects.astype(np.int32), tris_per, axis=0)
 
 
+# the facing a cull mode keeps (front: True); none or auto cull nothing per pass here
+_KEEPS_FRONT = {ir.CullMode.BACK: True, ir.CullMode.FRONT: False}
+
+
 def _drawn(geo: Geo, spans: np.ndarray, cull: ir.CullMode) -> np.ndarray:
     """Per (start, end) triangle range of ``geo``, how many triangles the cull mode keeps."""
     drawn = spans[:, 1] - spans[:, 0]
-    if cull not in (ir.CullMode.BACK, ir.CullMode.FRONT):
+    keep = _KEEPS_FRONT.get(cull)
+    if keep is None:
         return drawn
     fronts = np.concatenate([[0], np.cumsum(geo.front)])
     front = fronts[spans[:, 1]] - fronts[spans[:, 0]]
-    return front if cull is ir.CullMode.BACK else drawn - front
+    return front if keep else drawn - front
 
 
 def _offset(p: PassPlan):

@@ -440,7 +440,7 @@ class CLPipeline:
                 attrs = self.geometry.attributes(p.draw)[1]
             args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
         kern = self._kernel(k, "pg_raster")
-        self._set_args(kern, args)
+        cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
         T = self.tile
         ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
         self._events.append((timing, ev))
@@ -465,12 +465,6 @@ class CLPipeline:
             int(light), tuple(int(v) for v in rect), self._buffer(fr),
             None if f8 is None else self._buffer(f8))
         return got
-
-    def _set_args(self, kern, args: list) -> None:
-        """Set a raster kernel's arguments (``cl_context.set_args``: scalar types declared, a
-        few microseconds for its ~30; pyopencl's probing of each took ~0.09 ms a launch, 14
-        ms of a ``deferred`` frame's 162 launches)."""
-        cl_context.set_args(kern, *args)
 
     def _int2(self, x: int, y: int):
         """An ``int2`` kernel argument (pyopencl's ``make_int2`` evaluates code per call:

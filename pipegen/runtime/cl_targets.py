@@ -168,8 +168,7 @@ class TargetStore:
                   stencil_given: bool) -> tuple:
         """(a pixel's bytes of the clear value or None, the stencil byte or None), found once
         per format and clear value (clears run every frame, the same values each time)."""
-        key = (fmt.name, None if color is None else tuple(np.ravel(color).tolist()), depth,
-               stencil, depth_given, stencil_given)
+        key = (fmt.name, fmt.clear_key(color, depth, stencil), depth_given, stencil_given)
         got = self._clear_patterns.get(key)
         if got is None:
             got = self._clear_patterns[key] = self._clear_bytes(fmt, color, depth, stencil,

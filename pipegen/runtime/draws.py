@@ -258,6 +258,15 @@ def light_runs(cull: ir.CullMode, volume: Optional[ir.Volume], lights: Sequence,
     return runs
 
 
+def auto_inside(volume: Optional[ir.Volume], lights: Sequence, indices: Sequence[int], eye,
+                proj) -> dict[int, bool]:
+    """``cull auto``'s choice for each light of ``indices``: whether it is drawn with its back
+    faces (``LightRun.inside``).  Each light's choice is its own (``light_runs`` only groups
+    equal neighbours), so a runtime may decide a draw's lights at once and look one up."""
+    return {i: run.inside for run in light_runs(ir.CullMode.AUTO, volume, lights, indices,
+                                                 eye, proj) for i in run.lights}
+
+
 def near_plane_reach(proj) -> float:
     """Distance from the eye to the farthest point of the near-plane rectangle of a GL
     perspective projection (``Camera.projection``; an infinite far plane works too):

@@ -118,7 +118,7 @@ class _Target:
                 _CLEAR_FBO_FV(target_fbo, GL.GL_DEPTH, 0, value)
             self.dirty = self.samples > 1
             return
-        key = (None if color is None else tuple(np.ravel(color).tolist()), depth, stencil)
+        key = self.fmt.clear_key(color, depth, stencil)
         words = self._clear_words.get(key)
         if words is None:        # Format.quantize once per clear value (exact codes)
             codes = np.ascontiguousarray(GF.clear_codes(self.format, color, depth, stencil))
@@ -648,17 +648,15 @@ class GLPipeline:
         if p.state.cull is not ir.CullMode.AUTO or len(indices) != 1:
             return draws.light_runs(p.state.cull, p.draw.volume, self._lights, indices, eye,
                                     proj)
-        modes = self._auto_cull.get(p.draw)
-        if modes is None:
-            modes = self._auto_cull[p.draw] = {
-                i: run.cull for run in draws.light_runs(
-                    ir.CullMode.AUTO, p.draw.volume, self._lights,
-                    self._selection.of(p.draw), eye, proj) for i in run.lights}
+        inside = self._auto_cull.get(p.draw)
+        if inside is None:
+            inside = self._auto_cull[p.draw] = draws.auto_inside(
+                p.draw.volume, self._lights, self._selection.of(p.draw), eye, proj)
         i = int(indices[0])
-        if i not in modes:
+        if i not in inside:
             return draws.light_runs(p.state.cull, p.draw.volume, self._lights, indices, eye,
                                     proj)
-        return [draws.LightRun(modes[i], (i,))]
+        return [draws.LightRun(ir.CullMode.FRONT if inside[i] else ir.CullMode.BACK, (i,))]
 
     def _draw_lights(self, p: _Pass, vao, indices: Sequence[int]) -> None:
         if p.instance_buffer is not None:
