@@ -7,7 +7,9 @@ Prints the best and the median wall time of ``--repeat`` runs per technique (the
 figure to compare on a shared machine: other load only ever adds time), the load average
 before and after; ``--parse-only`` times ``syntax.parse`` of the technique in a fresh process
 instead; ``--stages`` prints where the time of one ``compile`` goes, in a fresh process
-(imports, front end, emission).  Target: < 0.3 s per technique.
+(imports, front end, emission); ``--many-passes`` times ``compile_source`` in this process on
+forward.pipe with 100, 200 and 400 trivial full-screen passes added and prints how the time
+grows with the count (linear: about 2x per doubling).  Target: < 0.3 s per technique.
 
 The syntax trees of files parsed before are loaded from the user's cache (``syntax.parse``), so
 a shipped technique compiled again loads neither the parser nor parses; the "edited" columns
@@ -93,6 +95,28 @@ print("  imported: numpy", "yes" if "numpy" in sys.modules else "no", "| lark",
 """
 
 
+def many_passes(repeat: int) -> int:
+    """Best of ``repeat`` in-process compiles of forward.pipe plus N trivial passes."""
+    sys.path.insert(0, str(ROOT))
+    from pipegen.compiler import compile_source
+    forward = (ROOT / "pipelines" / "forward.pipe").read_text()
+    path = str(ROOT / "pipelines" / "forward.pipe")
+    best = {}
+    print(f"{'passes added':>12} {'best s':>8} {'x previous':>10}")
+    for n in (100, 200, 400):
+        extra = "".join(f"\npass extra{k} {{ draw fullscreen writes color "
+                        f"fragment {{ color = vec4(float({k}) * 0.001); }} }}" for k in range(n))
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            compile_source(forward + extra, path)
+            times.append(time.perf_counter() - t0)
+        best[n] = min(times)
+        ratio = f"{best[n] / best[n // 2]:10.2f}" if n // 2 in best else f"{'':10}"
+        print(f"{n:12d} {best[n]:8.3f} {ratio}")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -103,8 +127,12 @@ def main() -> int:
                     help="where the time of one compile goes (after the timed runs)")
     ap.add_argument("--no-bytecode", action="store_true",
                     help="compile every module from source in every run")
+    ap.add_argument("--many-passes", action="store_true",
+                    help="compile time against the number of passes (in this process)")
     ap.add_argument("techniques", nargs="*", default=ALL)
     args = ap.parse_args()
+    if args.many_passes:
+        return many_passes(args.repeat)
 
     base = _pipegen_command()
     print(f"load average before: {_load()}")

@@ -82,9 +82,11 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
         err[..., exact] = np.where(err[..., exact] > 0, np.maximum(err[..., exact], over), 0.0)
     per_pixel = err.max(axis=-1) if err.ndim == 3 else err
     bad = per_pixel > limit
-    on_edge = _discontinuity(a, tol, limit) | _discontinuity(b, tol, limit)
-    admitted = bad & on_edge & _neighbourhood_match(a, b, tol, limit) \
-        & _neighbourhood_match(b, a, tol, limit)
+    admitted = np.zeros_like(bad)
+    if bad.any():          # the neighbourhood tests decide only for pixels over tolerance
+        on_edge = _discontinuity(a, tol, limit) | _discontinuity(b, tol, limit)
+        admitted = bad & on_edge & _neighbourhood_match(a, b, tol, limit) \
+            & _neighbourhood_match(b, a, tol, limit)
     finite = per_pixel[np.isfinite(per_pixel)]
     rmse = float(np.sqrt(np.mean(finite.astype(np.float64) ** 2))) if finite.size else 0.0
     bound = max(EDGE_MIN, int(EDGE_FRACTION * per_pixel.size))

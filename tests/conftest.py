@@ -8,7 +8,28 @@ subprocess declare what the command renders with.)"""
 
 from __future__ import annotations
 
+import os
+
 import pytest
+
+
+def pytest_configure(config):
+    """The suite runs on every core (pytest-xdist, ``-n auto`` in pyproject.toml).
+
+    - One PoCL kernel cache for the whole run, shared by the workers: each CL program is
+      compiled once (0.2-3 s each, ~400 of them in a run), not once per worker.  It outlives
+      the run, in the temporary folder, keyed by source text like every PoCL cache.
+    - In a worker, llvmpipe and PoCL render on one thread each: the workers already keep
+      every core busy, and two renderers on two threads each on two cores only wait on each
+      other.  What a test renders does not depend on the thread count (tiles are independent
+      and each keeps its primitive order).
+    Both are defaults: a variable set by the user wins."""
+    from pipegen.runtime.cl_context import default_cache_dir
+    os.environ.setdefault("POCL_CACHE_DIR", default_cache_dir("pytest"))
+    if os.environ.get("PYTEST_XDIST_WORKER") and int(os.environ.get(
+            "PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
+        os.environ.setdefault("LP_NUM_THREADS", "1")
+        os.environ.setdefault("POCL_MAX_PTHREAD_COUNT", "1")
 
 _GUARDS = "_pipegen_backend_guard"
 
@@ -32,6 +53,20 @@ def _guard(item) -> pytest.MonkeyPatch:
         from pipegen.runtime import cl_context
         mp.setattr(cl_context, "get_context", _refuse("cl"))
     return mp
+
+
+def pytest_addoption(parser):
+    parser.addoption("--exhaustive", action="store_true",
+                     help="also run the tests marked exhaustive (whole measured tables)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--exhaustive"):
+        return
+    skip = pytest.mark.skip(reason="exhaustive: run with --exhaustive (README, Tests)")
+    for item in items:
+        if item.get_closest_marker("exhaustive") is not None:
+            item.add_marker(skip)
 
 
 def pytest_runtest_setup(item):

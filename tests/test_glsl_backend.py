@@ -189,10 +189,24 @@ def glslang_validator() -> str:
 
 
 def validate(source: str, stage: str, tmp_path: Path) -> None:
-    path = tmp_path / f"shader.{ {'vertex': 'vert', 'fragment': 'frag'}[stage] }"
-    path.write_text(source)
-    r = subprocess.run([glslang_validator(), str(path)], capture_output=True, text=True)
-    assert r.returncode == 0, f"{r.stdout}{r.stderr}\n{_numbered(source)}"
+    validate_all([(source, stage)], tmp_path)
+
+
+def validate_all(shaders: list[tuple[str, str]], tmp_path: Path) -> None:
+    """Compile every (source, stage) with one glslangValidator run (each file on its own, as
+    a compilation unit of its stage); on failure, name the shaders that failed."""
+    paths = []
+    for k, (source, stage) in enumerate(shaders):
+        paths.append(tmp_path / f"shader{k}.{ {'vertex': 'vert', 'fragment': 'frag'}[stage] }")
+        paths[-1].write_text(source)
+    r = subprocess.run([glslang_validator(), *map(str, paths)], capture_output=True, text=True)
+    if r.returncode != 0:
+        # its output lists each file's name, then that file's errors
+        failed = [k for k, path in enumerate(paths)
+                  if f"{path.name}\nERROR" in r.stdout or f"{path}\nERROR" in r.stdout]
+        shown = "\n".join(_numbered(shaders[k][0]) for k in failed[:1]) if failed else ""
+        raise AssertionError(f"{r.stdout}{r.stderr}\nfailed: {[paths[k].name for k in failed]}"
+                             f"\n{shown}")
 
 
 def _numbered(source: str) -> str:
@@ -561,6 +575,5 @@ def test_shipped_techniques_emit_valid_glsl(path, tmp_path):
         pytest.skip(f"front end not available: {e}")
     compiled = compile_file(path)
     plan = emit_gl(compiled.technique).to_dict()
-    for p in plan["passes"]:
-        for stage in ("vertex", "fragment"):
-            validate(p[stage], stage, tmp_path)
+    validate_all([(p[stage], stage) for p in plan["passes"] for stage in ("vertex", "fragment")],
+                 tmp_path)

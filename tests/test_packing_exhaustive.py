@@ -20,6 +20,7 @@ the OpenCL the compiler emits for the shipped LIDR techniques on PoCL (``cl``).
 from __future__ import annotations
 
 import itertools
+import math
 import re
 import zlib
 from pathlib import Path
@@ -364,6 +365,27 @@ def domains(scheme):
     return ("hemisphere",) if scheme == "kircher" else ("sphere", "hemisphere")
 
 
+def assert_reproduces(m, figures, key):
+    """A fresh measurement ``m`` against the table's (max, mean), 4 significant digits.
+
+    The measurement is reproducible by construction (``measure_normal_error``): the same
+    normals are searched and the same worst one found on every CPU and numpy version; only
+    the conversion of chords to degrees and the mean go through numpy's arcsin, whose last
+    bits differ.  So each figure must lie within the table's rounding (half a unit in the 4th
+    digit) plus 1e-12 relative for those last bits."""
+    for fresh, tabulated in zip((m.max, m.mean), figures):
+        half_unit = 0.5 * 10.0 ** (math.floor(math.log10(tabulated)) - 3)
+        assert abs(fresh - tabulated) <= half_unit + 1e-12 * tabulated, (key, fresh, tabulated)
+
+
+def search_margin(storage: str) -> float:
+    """How far above a tabulated maximum another search may land: the table's figure is the
+    worst normal one search path found, and six other seeds of the same search find up to
+    0.6 % more for every storage but rg32f, whose errors (~3e-5 degrees) are float32 rounding
+    noise with many near-equal peaks: up to 5 % more there (``measure_normal_error``)."""
+    return 1.05 if storage == "rg32f" else 1.006
+
+
 class TestNormalFigures:
     def test_the_table_covers_every_encoding_format_and_domain(self):
         want = {(s, g, d) for s in NORMAL_SCHEMES for g in packing.NORMAL_FORMATS
@@ -411,21 +433,41 @@ class TestNormalFigures:
                                      ("spheremap", "rg16", "sphere")])
     def test_a_fresh_measurement_reproduces_the_table(self, key):
         m = packing.measure_normal_error(key[0], key[1], key[2] == "hemisphere")
-        assert (packing._sig(m.max), packing._sig(m.mean)) == packing.NORMAL_ERRORS[key]
+        assert_reproduces(m, packing.NORMAL_ERRORS[key], key)
 
-    @pytest.mark.slow
+    @pytest.mark.exhaustive      # the three keys above and the test below prove it cheaper
     def test_a_fresh_measurement_reproduces_the_whole_table(self):
         for key, figures in packing.NORMAL_ERRORS.items():
             m = packing.measure_normal_error(key[0], key[1], key[2] == "hemisphere")
-            assert (packing._sig(m.max), packing._sig(m.mean)) == figures, key
+            assert_reproduces(m, figures, key)
+
+    def test_the_search_decides_without_numpy_transcendentals(self, monkeypatch):
+        """The measurement is reproducible by construction: with numpy's arcsin, sin, cos,
+        log and exp made to differ in their last bits (as they do between CPUs and numpy
+        versions), it finds the same worst normal and the same maximum to the bit."""
+        key = ("spheremap", "rg16", "sphere")
+        want = packing.measure_normal_error(key[0], key[1], False, 1 << 14)
+        packing.measure_normal_error.cache_clear()
+        packing._normal_grid.cache_clear()
+        for name in ("arcsin", "sin", "cos", "log", "exp", "log10", "power"):
+            exact = getattr(np, name)
+            monkeypatch.setattr(np, name, lambda *a, _f=exact, **k: np.nextafter(
+                _f(*a, **k), np.inf))
+        try:
+            got = packing.measure_normal_error(key[0], key[1], False, 1 << 14)
+        finally:
+            packing.measure_normal_error.cache_clear()
+            packing._normal_grid.cache_clear()
+        assert (got.max, got.worst, got.points) == (want.max, want.worst, want.points)
+        assert abs(got.mean - want.mean) <= 1e-12 * want.mean
 
     @pytest.mark.parametrize("scheme, storage", [("kircher", "rg8"), ("spheremap", "rg8"),
                                                  ("octahedral", "rg8"), ("octahedral", "rg16f"),
                                                  ("spheremap", "rgb10a2")])
     def test_fresh_random_normals_stay_below_the_max(self, scheme, storage):
-        """The maximum is a lower bound of the supremum, within 0.2 % of it (a ten times
-        heavier search gains at most that): random normals stay below it by that margin
-        (spheremap/rg8 with seed 22 here gets 0.06 % over it), and their mean is the grid's."""
+        """The maximum is a lower bound of the supremum, as uncertain as the search's path
+        (``search_margin``): 300,000 random normals stay below it within that margin (they
+        stay 1.3 % or more below it here), and their mean is the grid's within 1 %."""
         rng = np.random.default_rng(zlib.crc32(f"{scheme}/{storage}".encode()))
         n = rng.normal(size=(300000, 3))
         n /= np.linalg.norm(n, axis=1, keepdims=True)
@@ -437,7 +479,7 @@ class TestNormalFigures:
             d = f["decode"](store(f["encode"](m.astype(F32)), storage))
             err = packing.angular_error_deg(m, d)
             mx, mean = packing.NORMAL_ERRORS[(scheme, storage, dom)]
-            assert err.max() <= mx * 1.002
+            assert err.max() <= mx * search_margin(storage)
             assert abs(err.mean() - mean) < 0.01 * mean
 
 
@@ -780,7 +822,7 @@ class TestAgainstGL:
         assert np.allclose(got, f["decode"](read), atol=2e-6)
         err = packing.angular_error_deg(n, got)
         mx, mean = packing.NORMAL_ERRORS[(scheme, storage, domains(scheme)[0])]
-        assert err.max() <= mx * 1.002
+        assert err.max() <= mx * search_margin(storage)
         assert abs(err[:len(grid)].mean() - mean) < 0.02 * mean
 
     def test_perturbation_floor_survives_ceil_does_not(self, gl):

@@ -139,14 +139,15 @@ def test_deep_nesting_is_a_located_error():
     assert err.span.line == C_LINE
 
 
-def test_many_passes_cost_linear_time():
-    import time
+def test_many_passes_compile():
+    """400 passes more than forward's two compile (how their compile time grows with the
+    count is measured by ``python benchmarks/compile_time.py --many-passes``, not here:
+    timings are no pass/fail criterion)."""
     extra = "".join(f"\npass extra{k} {{ draw fullscreen writes color "
                     f"fragment {{ color = vec4(float({k}) * 0.001); }} }}" for k in range(400))
-    t0 = time.perf_counter()
     compiled = compile_source(FORWARD + extra, str(ROOT / "pipelines/forward.pipe"))
     assert len(compiled.technique.passes) == 402          # forward's shadow_maps, shade, 400
-    assert time.perf_counter() - t0 < 10
+    assert [p.name for p in compiled.technique.passes[-2:]] == ["extra398", "extra399"]
 
 
 # -- scenes ----------------------------------------------------------------------------------
