@@ -270,8 +270,8 @@ class Format:
             return half_toward_zero(x)
         if self.kind in (Kind.FLOAT, Kind.DEPTH):
             y = x.astype(np.float32)
-            if self.kind is Kind.DEPTH:
-                y = np.clip(y, 0.0, 1.0)
+            if self.kind is Kind.DEPTH:      # float32 bounds: numpy 1.x widens 0-d arrays
+                y = np.clip(y, np.float32(0.0), np.float32(1.0))
             return flush_denormals(y)
         if self.kind is Kind.UINT:
             return np.asarray(x).astype(np.uint64).astype(self.dtype)

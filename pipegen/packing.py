@@ -298,8 +298,8 @@ class _BitPlanes(_Scheme):
                 return np.zeros(v.shape[:-1], dtype=np.uint32)
             s = 8 - b * (k + 1)
             index = np.zeros(v.shape[:-1], dtype=np.uint32)
-            for c in range(C):
-                index |= ((_codes(v[..., c], 255) >> s) & mask) << (c * b)
+            for c in range(C):     # uint32 throughout (numpy 1.x widens a numpy int k)
+                index |= (((_codes(v[..., c], 255) >> s) & mask) << (c * b)).astype(np.uint32)
             return index
 
         return {"plane_value": plane_value, "unpack": unpack}

@@ -43,6 +43,15 @@ def sample_bits(random_count: int) -> list[int]:
     return out
 
 
+# f32_str is numpy 2's str of a float32; numpy 1.x writes values from 1e6 up to 1e16
+# positionally ("1000000.0" where numpy 2 writes "1e+06"), so the comparisons with numpy's own
+# str hold from numpy 2 on (the package accepts numpy 1.24: its emitted text does not depend
+# on numpy's str, only on f32_str)
+NUMPY_2 = np.lib.NumpyVersion(np.__version__) >= "2.0.0"
+
+
+@pytest.mark.skipif(not NUMPY_2, reason="f32_str is numpy 2's str (numpy 1.x prints 1e6..1e16 "
+                                        "positionally)")
 def test_f32_str_is_numpys_str_of_float32():
     bits = sample_bits(30000)
     values = np.array(bits, dtype=np.uint32).view(np.float32)
@@ -60,8 +69,9 @@ def test_f32_str_is_numpys_str_of_float32():
 ])
 def test_f32_str_examples(x, text):
     assert f32_str(x) == text
-    with np.errstate(over="ignore"):
-        assert str(np.float32(x)) == text
+    if NUMPY_2:
+        with np.errstate(over="ignore"):
+            assert str(np.float32(x)) == text
 
 
 def test_f32_rounds_as_numpy_casts():
