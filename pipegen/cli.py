@@ -19,6 +19,7 @@ from pathlib import Path
 from . import DEFAULT_SIZE
 from .backends import registry
 from .diagnostics import PipegenError
+from .inputs import compile_technique, param_pair
 
 MAX_SIZE = 16384          # per side: GL_MAX_TEXTURE_SIZE of llvmpipe
 DEFAULT_SIZE_TEXT = f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}"
@@ -292,11 +293,10 @@ def graph_path_arg(text: str) -> str:
 
 
 def param_arg(text: str) -> tuple[str, object]:
-    name, sep, value = text.partition("=")
-    if not sep or not name.strip():
-        raise argparse.ArgumentTypeError(
-            f"bad parameter override {text!r}: write NAME=VALUE, e.g. -p lbuffer_scale=0.5")
-    return name.strip(), _literal(value.strip())
+    try:
+        return param_pair(text)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -305,30 +305,6 @@ def parse_size(text: str) -> tuple[int, int]:
         return size_arg(text)
     except argparse.ArgumentTypeError as e:
         raise PipegenError(None, str(e)) from None
-
-
-def parse_params(items: list) -> dict:
-    """``["NAME=VALUE", ...]`` (or already-parsed pairs) -> ``{name: value}``."""
-    params = {}
-    for item in items:
-        if isinstance(item, str):
-            try:
-                item = param_arg(item)
-            except argparse.ArgumentTypeError as e:
-                raise PipegenError(None, str(e)) from None
-        params[item[0]] = item[1]
-    return params
-
-
-def _literal(text: str):
-    for conv in (int, float):
-        try:
-            return conv(text)
-        except ValueError:
-            pass
-    if text in ("true", "false"):
-        return text == "true"
-    return text
 
 
 def _join_negative_sizes(argv: list[str]) -> list[str]:
@@ -477,16 +453,7 @@ def cmd_info(args) -> int:
 
 def _compile(args):
     """Compile ``args.file`` with ``args.param``; a scene file given instead says so."""
-    from .compiler import compile_file
-    path = Path(args.file)
-    if path.suffix.lower() == ".toml":
-        raise _scene_not_technique(path)
-    try:
-        return compile_file(path, parse_params(args.param))
-    except PipegenError:
-        if _looks_like_scene(path):
-            raise _scene_not_technique(path) from None
-        raise
+    return compile_technique(args.file, args.param)
 
 
 def _specialise(args, compiled, scene, say_variant: bool = False):
@@ -568,23 +535,6 @@ def _scene(args, size: bool = True):
     if size and getattr(args, "size", None):
         scene = scene.with_size(*args.size)
     return scene
-
-
-def _looks_like_scene(path: Path) -> bool:
-    import tomllib
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
-        return False
-    return bool({"camera", "objects", "lights"} & set(data))
-
-
-def _scene_not_technique(path: Path) -> PipegenError:
-    return PipegenError(None, f"{path}: this looks like a scene file (.toml), not a technique "
-                              f"(.pipe)",
-                        hint=f"the first argument is the technique; give the scene with "
-                             f"--scene, e.g. pipegen run pipelines/forward.pipe --scene {path} "
-                             f"-o out/forward")
 
 
 if __name__ == "__main__":

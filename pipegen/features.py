@@ -111,7 +111,8 @@ def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]
     Returns (the missed lights, sorted; how many translucent objects miss one).  A float64
     rasterisation of the scene's opaque depth and of each translucent object on its own, at
     the scene's resolution."""
-    from .reference.lighting import _f32, ray_volume_span, volume_grow
+    from .reference.lighting import ray_volume_span, volume_grow
+    from .reference.rounding import as_float32
     from .reference.raster import rasterize, rasterize_each
     if not lights or not scene.has_translucent:
         return [], 0
@@ -132,7 +133,7 @@ def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]
         hit = False
         for i in lights:
             light = scene.lights[i]
-            centre, r = _f32(light.position), float(_f32(light.radius))
+            centre, r = as_float32(light.position), float(as_float32(light.radius))
             d = T - centre
             reaches = np.einsum("ij,ij->i", d, d) < r * r
             if not reaches.any():

@@ -110,20 +110,20 @@ def _value_text(v) -> str:
 
 def parse_axes(items: list) -> dict[str, list]:
     """``["lbuffer_scale=0.5,1.0", ("dsf", True), ...]`` -> ``{name: [values]}``, in order."""
-    from .cli import _literal
+    from .inputs import literal
     axes: dict[str, list] = {}
     for item in items:
         if isinstance(item, tuple):
             name, values = item[0], item[1]
             values = values if isinstance(values, (list, tuple)) else [values]
             if len(values) == 1 and isinstance(values[0], str):
-                values = [_literal(v.strip()) for v in values[0].split(",")]
+                values = [literal(v.strip()) for v in values[0].split(",")]
         else:
             name, sep, text = str(item).partition("=")
             if not sep or not name.strip() or not text.strip():
                 raise PipegenError(None, f"bad parameter axis {item!r}: write NAME=V1,V2,...",
                                    hint="e.g. -p lbuffer_scale=0.5,0.625,1.0")
-            values = [_literal(v.strip()) for v in text.split(",") if v.strip()]
+            values = [literal(v.strip()) for v in text.split(",") if v.strip()]
         name = name.strip()
         axes.setdefault(name, [])
         axes[name] += [v for v in values if v not in axes[name]]
@@ -745,11 +745,11 @@ def _count_arg(text: str) -> int:
 
 
 def cmd_sweep(args) -> int:
-    from .cli import _looks_like_scene
+    from .inputs import looks_like_scene
     from .outdir import OutputDir
     out = OutputDir(args.out, "sweep", args.force)          # before any work
     for f in args.files:
-        if Path(f).suffix.lower() == ".toml" or _looks_like_scene(Path(f)):
+        if Path(f).suffix.lower() == ".toml" or looks_like_scene(Path(f)):
             raise PipegenError(None, f"{f}: this looks like a scene file (.toml), not a "
                                      f"technique (.pipe)",
                                hint="give the scene with --scene")

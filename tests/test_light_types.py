@@ -51,7 +51,8 @@ from pipegen.compiler import compile_file
 from pipegen.ir import DrawKind, Volume
 from pipegen.packing import sort_lights_into_slots
 from pipegen.reference.light_buffer import light_buffer_reference
-from pipegen.reference.lighting import _f32, reference_image
+from pipegen.reference.lighting import reference_image
+from pipegen.reference.rounding import as_float32
 from pipegen.reference.metrics import rgb_error, silhouette_mask
 from pipegen.reference.translucent import reference_composite
 from pipegen.scene import Light, load_scene
@@ -93,11 +94,11 @@ def local_lights_per_point(s) -> np.ndarray:
     for light in s.lights:
         if light.type == "directional":
             continue
-        L = P - _f32(light.position)
+        L = P - as_float32(light.position)
         d2 = np.einsum("...i,...i->...", L, L)
-        inside = gb.coverage & (d2 < float(_f32(light.radius)) ** 2)
+        inside = gb.coverage & (d2 < float(as_float32(light.radius)) ** 2)
         if light.type == "spot":
-            cos_a = (L @ _f32(light.direction)) / np.sqrt(np.maximum(d2, 1e-300))
+            cos_a = (L @ as_float32(light.direction)) / np.sqrt(np.maximum(d2, 1e-300))
             inside &= cos_a > light.cos_outer
         count += inside
     return count

@@ -18,8 +18,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..scene import Scene
-from .lighting import _f32, light_contribution
+from .lighting import light_contribution
 from .raster import GBuffer, rasterize
+from .rounding import as_float32
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
@@ -48,7 +49,7 @@ def shade_light_buffer(gbuffer: GBuffer, scene: Scene) -> np.ndarray:
     D, S = light_buffer_sums(gbuffer, scene)
     albedo, spec = gbuffer.albedo[cov], gbuffer.specular[cov]
     chroma = D / np.maximum(D @ LUMA, 1e-6)[:, None]
-    out[cov] = _f32(scene.ambient) * albedo + albedo * D + (spec * S)[:, None] * chroma
+    out[cov] = as_float32(scene.ambient) * albedo + albedo * D + (spec * S)[:, None] * chroma
     return out
 
 

@@ -26,6 +26,7 @@ from .. import formats
 from ..meshes import light_volume
 from ..scene import Light, Scene
 from .raster import GBuffer, rasterize
+from .rounding import as_float32
 
 if TYPE_CHECKING:
     from .shadows import Shadows
@@ -33,10 +34,6 @@ if TYPE_CHECKING:
 EPS_DIST = 1e-6
 EPS_NORM2 = 1e-12
 EPS_POW = 1e-6
-
-
-def _f32(x) -> np.ndarray:
-    return np.asarray(x, dtype=np.float32).astype(np.float64)
 
 
 def safe_normalize(v: np.ndarray) -> np.ndarray:
@@ -57,18 +54,18 @@ def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
 def light_contribution(light: Light, P: np.ndarray, normal: np.ndarray, camera_pos: np.ndarray,
                        albedo: np.ndarray, specular: np.ndarray, shininess: np.ndarray) -> np.ndarray:
     """One light's contribution (n, 3) at n surface points (flat arrays, float64)."""
-    color = _f32(light.color)
+    color = as_float32(light.color)
     if light.type == "directional":
-        l = np.broadcast_to(-_f32(light.direction), P.shape)
+        l = np.broadcast_to(-as_float32(light.direction), P.shape)
         att = np.ones(len(P))
     else:
-        L = _f32(light.position) - P
+        L = as_float32(light.position) - P
         d2 = np.einsum("ij,ij->i", L, L)
         l = L / np.maximum(np.sqrt(d2), EPS_DIST)[:, None]
-        att = attenuation(d2, float(_f32(light.radius)))
+        att = attenuation(d2, float(as_float32(light.radius)))
         if light.type == "spot":
-            cos_a = np.einsum("ij,j->i", -l, _f32(light.direction))
-            att = att * smoothstep(float(_f32(light.cos_outer)), float(_f32(light.cos_inner)), cos_a)
+            cos_a = np.einsum("ij,j->i", -l, as_float32(light.direction))
+            att = att * smoothstep(float(as_float32(light.cos_outer)), float(as_float32(light.cos_inner)), cos_a)
     n = safe_normalize(normal)
     v = safe_normalize(camera_pos - P)
     h = safe_normalize(l + v)
@@ -92,14 +89,14 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows: Optional[Shadows] = None) -> 
     P, N = gbuffer.position[cov], gbuffer.normal[cov]
     albedo, spec, shin = gbuffer.albedo[cov], gbuffer.specular[cov], gbuffer.shininess[cov]
     cam = np.asarray(scene.camera.position, dtype=np.float64)
-    colour = _f32(scene.ambient) * albedo
+    colour = as_float32(scene.ambient) * albedo
     for i, light in enumerate(scene.lights):
         if light.type == "directional":
             sel = slice(None)
         else:
             # Only points strictly inside the radius receive light (att is exactly 0 elsewhere).
-            L = _f32(light.position) - P
-            r = float(_f32(light.radius))
+            L = as_float32(light.position) - P
+            r = float(as_float32(light.radius))
             sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
         term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
         factor = None if shadows is None else shadows.factor(scene, i, light, P[sel])
@@ -165,7 +162,7 @@ def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False,
         if light.type == "directional":
             count += 1
             continue
-        centre, r = _f32(light.position), float(_f32(light.radius))
+        centre, r = as_float32(light.position), float(as_float32(light.radius))
         if not conservative:
             L = centre - P
             count += np.einsum("ij,ij->i", L, L) < r * r
@@ -190,7 +187,7 @@ def ray_volume_span(light: Light, cam: np.ndarray, u: np.ndarray, grow: float):
     """Where the rays from ``cam`` along the unit directions ``u`` (N, 3) meet the sphere of
     radius ``grow`` x the light's radius around it (float32 centre and radius, as the light
     table holds them): (hit (N,) bool, t_near, t_far)."""
-    centre, r = _f32(light.position), float(_f32(light.radius))
+    centre, r = as_float32(light.position), float(as_float32(light.radius))
     R = r * grow
     oc = centre - cam
     b = u @ oc

@@ -31,7 +31,7 @@ from typing import Optional
 import numpy as np
 
 from .. import shadows as S
-from .lighting import _f32
+from .rounding import as_float32
 from .raster import rasterize_triangles
 
 
@@ -63,9 +63,9 @@ def shadow_maps(scene, tiles: int, width: int, height: int,
         depth = np.ones((h, w))
         if len(pos):
             # drawn with the float32 matrices the runtimes upload
-            frags = rasterize_triangles(pos, nrm, _f32(proj) @ _f32(view), w, h, "none")
+            frags = rasterize_triangles(pos, nrm, as_float32(proj) @ as_float32(view), w, h, "none")
             depth.reshape(-1)[frags.pixel] = frags.depth
-        out[i] = ShadowMap(i, k, (x, y, w, h), _f32(proj @ view), _f32(light.direction),
+        out[i] = ShadowMap(i, k, (x, y, w, h), as_float32(proj @ view), as_float32(light.direction),
                            np.flipud(depth))
     return out
 
@@ -144,11 +144,11 @@ def visibility(scene, light, P: np.ndarray, material: tuple[str, ...] = ("opaque
     if not len(tri) or not len(P):
         return out
     if light.type == "directional":
-        d = -_f32(light.direction)
+        d = -as_float32(light.direction)
         D = np.broadcast_to(d / np.linalg.norm(d), P.shape)
         tmax = np.full(len(P), np.inf)
     else:
-        L = _f32(light.position) - P
+        L = as_float32(light.position) - P
         tmax = np.linalg.norm(L, axis=1)
         D = L / np.maximum(tmax, 1e-300)[:, None]
     v0 = tri[:, 0]

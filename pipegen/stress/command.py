@@ -59,14 +59,14 @@ def add_parser(sub, size_arg, output_note: str):
 
 
 def cmd_stress(args) -> int:
-    from ..cli import _compile
+    from ..inputs import compile_technique
     from ..diagnostics import PipegenError
     from ..outdir import OutputDir, safe_name
     from . import report
     from .cases import build, case_names, random_scene_toml, scene_toml
     from .run import Stress
     t_start = time.perf_counter()
-    compiled = _compile(args)
+    compiled = compile_technique(args.file, args.param)
     size = args.size
     out = OutputDir(Path(args.out) if args.out else Path("build/stress") / compiled.name,
                     "stress", args.force)
