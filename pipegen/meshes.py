@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -169,16 +168,6 @@ class ObjError(ValueError):
     def __init__(self, message: str, line: int = 0):
         super().__init__(message)
         self.line = line
-
-
-def load_obj(path: str | Path, crease_deg: float = 45.0) -> Mesh:
-    """Read ``v``, ``vn`` and ``f`` records into one mesh (all materials together); polygons
-    are split into fans.  Faces without normals get smoothed ones: the area-weighted average
-    of the face normals around the vertex that lie within ``crease_deg`` of the face's own (so
-    a cube stays faceted and a tessellated sphere becomes smooth).  The reader, its checks and
-    the per-material parts are in :mod:`pipegen.objfile` (``read_obj``)."""
-    from .objfile import read_obj
-    return read_obj(path, crease_deg).mesh
 
 
 def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> np.ndarray:

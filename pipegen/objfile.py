@@ -444,3 +444,12 @@ def _isnum(x: str) -> bool:
         return True
     except ValueError:
         return False
+
+
+def load_obj(path: str | Path, crease_deg: float = 45.0) -> Mesh:
+    """Read ``v``, ``vn`` and ``f`` records into one mesh (all materials together); polygons
+    are split into fans.  Faces without normals get smoothed ones: the area-weighted average
+    of the face normals around the vertex that lie within ``crease_deg`` of the face's own (so
+    a cube stays faceted and a tessellated sphere becomes smooth).  ``read_obj`` keeps the
+    per-material parts and reports what it skipped."""
+    return read_obj(path, crease_deg).mesh

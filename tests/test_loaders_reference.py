@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import meshes
+from pipegen import meshes, objfile
 from pipegen.objfile import read_obj
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -180,7 +180,7 @@ def test_obj_normals_and_groups_as_before(tmp_path):
     assert any(f.parent == MODELS / "cornell_box" for f in files)
     for path in files:
         pos, nrm, groups = _reference_obj(path)
-        m = meshes.load_obj(path)
+        m = objfile.load_obj(path)
         np.testing.assert_array_equal(m.positions, pos, err_msg=str(path))
         np.testing.assert_allclose(m.normals, nrm, rtol=0, atol=1e-12, err_msg=str(path))
         np.testing.assert_array_equal(m.groups, groups, err_msg=str(path))

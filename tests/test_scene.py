@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import meshes
+from pipegen import meshes, objfile
 from pipegen.diagnostics import PipegenError
 from pipegen.scene import (Camera, Geometry, assign_layers, default_scene, load_scene, parse_scene,
                            stipple_map, stipple_owner)
@@ -449,7 +449,7 @@ def _ridge_obj(path, normals: str) -> None:
 def test_normal_groups_two_smooth_parts_joined_at_a_crease(tmp_path, normals, expect):
     obj = tmp_path / "ridge.obj"
     _ridge_obj(obj, normals)
-    m = meshes.load_obj(obj)
+    m = objfile.load_obj(obj)
     assert m.triangle_count == 8 * 4 * 2
     left = m.positions.reshape(-1, 3, 3)[:, :, 0].mean(axis=1) < 0
     # each side is one group (smooth, and curved: its normals vary) ...
@@ -495,7 +495,7 @@ def test_obj_loader(tmp_path):
     # a unit cube as quads without normals: triangulated, faceted by the crease angle
     cube = tmp_path / "cube.obj"
     cube.write_text(_CUBE_OBJ)
-    m = meshes.load_obj(cube)
+    m = objfile.load_obj(cube)
     assert m.triangle_count == 12 and len(set(m.groups)) == 6
     fn = meshes.face_normals(m.positions)
     np.testing.assert_allclose(np.einsum("ij,ij->i", fn, m.normals[::3]), 1.0)
@@ -503,7 +503,7 @@ def test_obj_loader(tmp_path):
     # explicit normals with v//vn and negative (relative) indices
     tri = tmp_path / "tri.obj"
     tri.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 2\nf -3//1 -2//1 -1//1\n")
-    m = meshes.load_obj(tri)
+    m = objfile.load_obj(tri)
     np.testing.assert_allclose(m.normals, [[0, 0, 1]] * 3)
     # through a scene, relative to the scene file
     scene = tmp_path / "s.toml"

@@ -11,10 +11,10 @@ sample masks, sample shading, rasterizer discard, primitive restart, polygon mod
 ``GLPipeline(..., transitions=False)`` calls it before every pass.  A pipeline normally sets
 state through ``gl_transitions`` instead (each pass's state lowered once to the slots it
 depends on, only the differences from the previous pass set); it renders bit-identically
-(tests/test_gl_transitions.py).  Both share the GL tables below; ``apply_state`` and
+(tests/test_gl_transitions.py).  Both read the GL tables of ``gl_enums``; ``apply_state`` and
 ``set_scissor`` tell the process-wide ``gl_transitions.TRACKER`` that the state changed.
 
-The GL tables below are keyed by the IR enums' ``.value`` strings.  The colour outputs are
+The GL tables are keyed by the IR enums' ``.value`` strings.  The colour outputs are
 indexed by the pass's ``writes``: ``state.blend_for(name)`` applies to draw buffer
 ``writes.index(name)``.
 
@@ -54,42 +54,10 @@ from typing import Optional, Sequence
 from .. import formats as F
 from .. import ir
 from .gl_context import GL
+from .gl_enums import BLEND_FACTOR, BLEND_OP, COMPARE, CULL, STENCIL_OP
 
 __all__ = ["COMPARE", "STENCIL_OP", "BLEND_OP", "BLEND_FACTOR", "CULL", "apply_state",
            "set_scissor", "reset_state"]
-
-
-COMPARE = {
-    "never": GL.GL_NEVER, "less": GL.GL_LESS, "equal": GL.GL_EQUAL, "lequal": GL.GL_LEQUAL,
-    "greater": GL.GL_GREATER, "notequal": GL.GL_NOTEQUAL, "gequal": GL.GL_GEQUAL,
-    "always": GL.GL_ALWAYS,
-}
-
-STENCIL_OP = {
-    "keep": GL.GL_KEEP, "zero": GL.GL_ZERO, "replace": GL.GL_REPLACE, "incr": GL.GL_INCR,
-    "decr": GL.GL_DECR, "incr_wrap": GL.GL_INCR_WRAP, "decr_wrap": GL.GL_DECR_WRAP,
-    "invert": GL.GL_INVERT,
-}
-
-BLEND_OP = {
-    "add": GL.GL_FUNC_ADD, "sub": GL.GL_FUNC_SUBTRACT, "revsub": GL.GL_FUNC_REVERSE_SUBTRACT,
-    "min": GL.GL_MIN, "max": GL.GL_MAX,
-}
-
-BLEND_FACTOR = {
-    "zero": GL.GL_ZERO, "one": GL.GL_ONE,
-    "src_color": GL.GL_SRC_COLOR, "one_minus_src_color": GL.GL_ONE_MINUS_SRC_COLOR,
-    "dst_color": GL.GL_DST_COLOR, "one_minus_dst_color": GL.GL_ONE_MINUS_DST_COLOR,
-    "src_alpha": GL.GL_SRC_ALPHA, "one_minus_src_alpha": GL.GL_ONE_MINUS_SRC_ALPHA,
-    "dst_alpha": GL.GL_DST_ALPHA, "one_minus_dst_alpha": GL.GL_ONE_MINUS_DST_ALPHA,
-    "constant_color": GL.GL_CONSTANT_COLOR,
-    "one_minus_constant_color": GL.GL_ONE_MINUS_CONSTANT_COLOR,
-    "constant_alpha": GL.GL_CONSTANT_ALPHA,
-    "one_minus_constant_alpha": GL.GL_ONE_MINUS_CONSTANT_ALPHA,
-    "src_alpha_saturate": GL.GL_SRC_ALPHA_SATURATE,
-}
-
-CULL = {"back": GL.GL_BACK, "front": GL.GL_FRONT}
 
 MAX_DRAW_BUFFERS = 8   # GL_MAX_DRAW_BUFFERS on llvmpipe; masks are reset on all of them
 

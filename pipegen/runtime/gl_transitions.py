@@ -172,7 +172,7 @@ def pass_vector(state: ir.PassState, writes: Sequence[str] = (), *,
     The arguments are ``gl_state.apply_state``'s: setting this vector on top of *any* state
     renders exactly what ``apply_state`` followed by the same draw renders.
     """
-    from .gl_state import BLEND_FACTOR, BLEND_OP, COMPARE, CULL, STENCIL_OP
+    from .gl_enums import BLEND_FACTOR, BLEND_OP, COMPARE, CULL, STENCIL_OP
     items: list[tuple[Any, Any]] = list(RESET)
     depth = state.depth
     # A test that always passes and writes nothing is the same as no test (the stencil ops
