@@ -120,7 +120,6 @@ def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
     """``compiled`` specialised for ``scene``: a new ``Compiled`` whose ``specialisation``
     lists the cuts.  ``recompile(params)`` compiles the same source with other parameters
     (used to shrink the light table); without it the table keeps its size."""
-    from .compiler import Compiled
     features = features or scene_features(scene)
     facts = features.facts()
     key = _key(compiled, facts, recompile is not None)
@@ -141,7 +140,10 @@ def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
             verify_ir(tech)
     spec = Specialisation(features, facts, tech.cuts, general, tech,
                           tuple(set_params.items()))
-    out = Compiled(tech, dict(base.params), phases, specialisation=spec)
+    # the compiled technique ``base`` with the scene's IR (and no plans emitted yet): the
+    # compiler's record, without importing the compiler that calls this
+    out = dataclasses.replace(base, technique=tech, params=dict(base.params),
+                              phases_run=phases, specialisation=spec, _plans={})
     _CACHE[key] = out
     return out
 
