@@ -1105,11 +1105,6 @@ def _chord_to_deg(c2: np.ndarray) -> np.ndarray:
     return np.degrees(2.0 * np.arcsin(np.minimum(np.sqrt(c2) * 0.5, 1.0)))
 
 
-def _angle_to_unit_deg(n: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """``angular_error_deg(n, d)`` for unit ``n`` (float64), faster (``_chord_to_deg``)."""
-    return _chord_to_deg(_chord_sq(n, d))
-
-
 # ---- measured error of the normal encodings --------------------------------------------------
 
 NORMAL_GRID = 1 << 20            # Fibonacci normals per domain (whole sphere or hemisphere)

@@ -31,6 +31,7 @@ def pytest_configure(config):
         os.environ.setdefault("LP_NUM_THREADS", "1")
         os.environ.setdefault("POCL_MAX_PTHREAD_COUNT", "1")
 
+
 _GUARDS = "_pipegen_backend_guard"
 
 
