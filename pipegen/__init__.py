@@ -16,10 +16,7 @@ from __future__ import annotations
 
 import importlib
 
-#: Output size (width, height) when nothing else says: the built-in scene is rendered at it and
-#: ``pipegen compile``/``info`` and ``Compiled.report`` state target memory at it.  A scene file
-#: keeps the size it declares; ``--size`` overrides both.
-DEFAULT_SIZE = (1280, 720)
+from .defaults import DEFAULT_SIZE, version as _version  # noqa: F401 (re-exported)
 
 _LAZY = {
     "compile_file": "pipegen.compiler",
@@ -53,46 +50,3 @@ def __getattr__(name: str):
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-def _version() -> str:
-    found = _version_from_metadata_folder()
-    if found:
-        return found
-    try:
-        from importlib.metadata import PackageNotFoundError, version
-        return version("pipegen")
-    except (ImportError, PackageNotFoundError):
-        return "0.1.0+unknown"
-
-
-def _version_from_metadata_folder() -> str | None:
-    """The version in the first ``pipegen-*.dist-info`` (or ``pipegen*.egg-info``) folder on
-    ``sys.path``, the distribution ``importlib.metadata.version`` finds, read without importing
-    importlib.metadata: its import costs ~15 ms, and every ``pipegen compile`` writes the
-    version into the output folder's manifest.  None when not found (then importlib.metadata
-    decides)."""
-    import os
-    import sys
-    for entry in sys.path:
-        folder = entry or "."
-        try:
-            names = os.listdir(folder)
-        except OSError:
-            continue
-        meta = [n for n in names if n.lower().startswith("pipegen-") and n.lower().endswith(
-            ".dist-info")]
-        meta += [n for n in names if n.lower().startswith(("pipegen-", "pipegen.")) and
-                 n.lower().endswith(".egg-info")]
-        for name in meta:
-            inner = "METADATA" if name.lower().endswith(".dist-info") else "PKG-INFO"
-            try:
-                with open(os.path.join(folder, name, inner), encoding="utf-8") as f:
-                    for line in f:
-                        if line.startswith("Version:"):
-                            return line[len("Version:"):].strip() or None
-                        if not line.strip():
-                            break          # the headers end at the first blank line
-            except OSError:
-                continue
-    return None

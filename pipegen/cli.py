@@ -16,7 +16,7 @@ import re
 import sys
 from pathlib import Path
 
-from . import DEFAULT_SIZE
+from .defaults import DEFAULT_SIZE
 from .backends import registry
 from .diagnostics import PipegenError
 from .inputs import compile_technique, param_pair
@@ -116,8 +116,8 @@ class _Version(argparse.Action):
         super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from . import __version__
-        print(f"pipegen {__version__}")
+        from .defaults import version
+        print(f"pipegen {version()}")
         parser.exit()
 
 

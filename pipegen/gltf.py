@@ -471,7 +471,7 @@ def load_gltf(path: str | Path, first_id: int = 1, intensity_scale: float = 1.0)
 def load_gltf_scene(path: str | Path) -> Scene:
     """A glTF file as a whole scene at ``pipegen.DEFAULT_SIZE`` with no ambient light; a file
     without a camera gets :func:`framing_camera`."""
-    from . import DEFAULT_SIZE
+    from .defaults import DEFAULT_SIZE
     path = Path(path)
     try:
         imported = load_gltf(path)

@@ -272,8 +272,8 @@ def _sha256(path: Path) -> str:
 
 
 def _write_manifest(folder: Path, command: str, files: dict[str, str]) -> None:
-    from . import __version__
-    data = {"written_by": f"pipegen {__version__}", "command": command,
+    from .defaults import version
+    data = {"written_by": f"pipegen {version()}", "command": command,
             "note": "files pipegen wrote here; it replaces or removes only these",
             "files": dict(sorted(files.items()))}
     fd, tmp = tempfile.mkstemp(prefix=STAGE_MARK, dir=folder)

@@ -580,7 +580,7 @@ def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", na
     if top.has("gltf"):
         imported = _gltf_reference(top.sub("gltf"), Path(base_dir))
         notes += imported.notes
-    from . import DEFAULT_SIZE
+    from .defaults import DEFAULT_SIZE
     sized = imported is None
     width = top.integer("width", None if sized else DEFAULT_SIZE[0], minimum=1, maximum=16384)
     height = top.integer("height", None if sized else DEFAULT_SIZE[1], minimum=1, maximum=16384)

@@ -202,7 +202,7 @@ def scene_spec(path: Optional[str], size: Optional[tuple[int, int]]) -> dict:
 def load_spec_scene(spec: dict):
     key = (spec["path"], tuple(spec["size"] or ()))
     if key not in _SCENES:
-        from . import DEFAULT_SIZE
+        from .defaults import DEFAULT_SIZE
         from .scene import default_scene, load_scene
         s = load_scene(spec["path"]) if spec["path"] else default_scene().with_size(*DEFAULT_SIZE)
         if spec["size"]:

@@ -111,5 +111,6 @@ def test_the_version_is_read_without_importlib_metadata():
         expected = version("pipegen")
     except PackageNotFoundError:
         pytest.skip("pipegen is not installed")
-    assert pipegen._version_from_metadata_folder() == expected
-    assert pipegen._version() == expected
+    from pipegen import defaults
+    assert defaults._version_from_metadata_folder() == expected
+    assert defaults.version() == expected == pipegen.__version__
