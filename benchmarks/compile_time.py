@@ -80,7 +80,6 @@ args = cli.build_parser(argv[0]).parse_args(argv); mark("cli.build_parser + pars
 from pipegen.outdir import OutputDir
 out = OutputDir(args.out, "compile", args.force); mark("output folder checked")
 import pipegen.compiler; mark("import pipegen.compiler (rest)")
-from pipegen import syntax
 c = cli._compile(args); mark("parse (or load trees), lower, phases")
 c.write(out, ("gl", "cl"), args.size); mark("emit GL + CL, write files")
 c.report(args.size); mark("report")
@@ -91,7 +90,9 @@ print(f"  {'total (after interpreter start)':<34} {1000 * (T[-1][1] - T[0][1]):8
       f"{1000 * (T[-1][2] - T[0][2]):7.1f}")
 print("  imported: numpy", "yes" if "numpy" in sys.modules else "no", "| lark",
       "yes" if "lark" in sys.modules else "no", "| parser loaded:",
-      "yes" if syntax._parser.cache_info().currsize else "no (every syntax tree was cached)")
+      "yes" if "pipegen.syntax_tree" in sys.modules and
+      sys.modules["pipegen.syntax_tree"].lalr_parser.cache_info().currsize
+      else "no (every syntax tree was cached)")
 """
 
 

@@ -1,27 +1,98 @@
-"""The lark half of parsing (``syntax.parse`` is the entry point): the parse tree turned into
-``ast`` nodes with spans, and syntax errors in the user's words.  Imported only when a text
-has to be parsed; a compile whose syntax trees are all cached (``syntax._ast_cache_file``)
+"""The lark half of parsing (``syntax.parse`` is the entry point): the LALR parser (built once
+per grammar and kept in the user's cache folder), the parse tree turned into ``ast`` nodes
+with spans, and syntax errors in the user's words.  Imported only when a text has to be
+parsed; a compile whose syntax trees are all cached (``syntax._ast_cache_file``)
 never imports it, nor lark.
 """
 
 from __future__ import annotations
 
+import functools
+import os
+import sys
 from typing import Optional
 
-from lark import Token, Transformer, Tree, v_args
+import lark
+from lark import Lark, Token, Transformer, Tree, v_args
 from lark.exceptions import (UnexpectedCharacters, UnexpectedEOF, UnexpectedInput,
                              UnexpectedToken, VisitError)
 
 from . import ast
 from .diagnostics import PipegenError, Span
-from .syntax import MAX_NESTING, _parser
+from .package_files import cache_dir, grammar_text, load_cached, save_cached
+
+
+#: How deeply constructs may nest (parse-tree levels: statements, calls, operators; each operator
+#: of a chain like a + b + c is a level; parentheses alone are not).  The shipped techniques use at most 13; every later phase walks the tree
+#: recursively, so the limit keeps them far from Python's recursion limit.
+MAX_NESTING = 100
+
+
+# ---------------------------------------------------------------------------------------------
+# The parser, built once per grammar and cached on disk
+# ---------------------------------------------------------------------------------------------
+
+_OPTIONS = dict(parser="lalr", propagate_positions=True, maybe_placeholders=True)
+_CACHE_FORMAT = "1"          # bump when what is written to the cache changes
+
+
+class _WholeWords:
+    """Lexes a name in every parser state, even where no name can follow.
+
+    The contextual lexer offers each state only the terminals it can shift.  Where keywords
+    are expected but no name (`depth ds less`), ``lesser`` would lex as the keyword ``less``
+    followed by ``er``; with NAME always offered, a word lexes whole and keywords are
+    recognised only as whole words (lark turns an exact keyword match of NAME into the
+    keyword).  The stream itself passes through unchanged.
+    """
+
+    always_accept = ("NAME",)
+
+    def process(self, stream):
+        return stream
+
+
+@functools.cache
+def lalr_parser() -> Lark:
+    """The LALR parser.  Building its tables takes 0.15-0.6 s, so the built parser is kept in
+    the user's cache folder (``package_files.cache_dir()``) and loaded from there (about
+    20 ms) by every later process with the same grammar, lark and Python.  A missing, unreadable,
+    unsafe or stale cache file only means the parser is built again; a read-only install or
+    cache folder only means it is not saved."""
+    grammar = grammar_text()
+    folder = cache_dir()
+    path = _cache_file(folder, grammar) if folder is not None else None
+    if path is not None:
+        parser = load_cached(path, _load_parser)
+        if parser is not None:
+            return parser
+    parser = Lark(grammar, postlex=_WholeWords(), **_OPTIONS)
+    if path is not None:
+        save_cached(parser, path, _save_parser)
+    return parser
+
+
+def _cache_file(folder: str, grammar: str) -> str:
+    import hashlib
+    key = "\0".join([_CACHE_FORMAT, grammar, repr(sorted(_OPTIONS.items())),
+                      repr(_WholeWords.always_accept), lark.__version__,
+                      "%d.%d" % sys.version_info[:2]])
+    return os.path.join(folder, f"parser-{hashlib.sha256(key.encode()).hexdigest()[:32]}.pickle")
+
+
+def _load_parser(f) -> Lark:
+    return Lark.__new__(Lark)._load(f, postlex=_WholeWords())
+
+
+def _save_parser(parser: Lark, f) -> None:
+    parser.save(f, exclude_options={"postlex"})
 
 
 def parse_tree(text: str, filename: str) -> ast.Module:
     """``text`` parsed with the LALR parser and turned into ``ast`` nodes; a syntax error, or
     nesting deeper than ``MAX_NESTING``, is a ``PipegenError`` at its place."""
     try:
-        tree = _parser().parse(text)
+        tree = lalr_parser().parse(text)
     except UnexpectedInput as e:
         raise _syntax_error(e, text, filename) from None
     _check_nesting(tree, text, filename)
@@ -560,7 +631,7 @@ def _spelling(terminal: str) -> str:
         return _TOKEN_CLASSES[terminal]
     if terminal in _OPERATORS:
         return "an operator"
-    for t in _parser().terminals:
+    for t in lalr_parser().terminals:
         if t.name == terminal:
             value = t.pattern.value
             if t.pattern.type == "str":

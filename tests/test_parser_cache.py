@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from lark import Lark
 
-from pipegen import syntax
+from pipegen import syntax, syntax_tree
 from pipegen.diagnostics import PipegenError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -34,7 +34,7 @@ def builds(monkeypatch):
 
 
 def fresh_parser() -> Lark:
-    return syntax._parser.__wrapped__()      # bypass the per-process functools.cache
+    return syntax_tree.lalr_parser.__wrapped__()      # bypass the per-process functools.cache
 
 
 def cached_files(folder: Path) -> list[Path]:

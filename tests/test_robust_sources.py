@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import sources, syntax
+from pipegen import sources, syntax, syntax_tree
 from pipegen.compiler import compile_file, compile_source
 from pipegen.diagnostics import PipegenError, Span
 from pipegen.scene import parse_scene
@@ -124,7 +124,7 @@ def test_long_lines_are_quoted_around_the_column():
 
 
 def test_nesting_up_to_the_limit_compiles_through_every_phase():
-    depth = syntax.MAX_NESTING - 12      # the statement itself sits a few levels down
+    depth = syntax_tree.MAX_NESTING - 12      # the statement itself sits a few levels down
     expr = "-" * depth + "1.0"
     compiled = compile_source(FORWARD.replace("vec3 c = ambient * albedo;",
                                               f"vec3 c = ambient * albedo * {expr};"),

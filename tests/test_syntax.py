@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import ast, syntax
+from pipegen import ast, syntax, syntax_tree
 from pipegen.diagnostics import PipegenError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -67,7 +67,7 @@ def test_grammar_is_package_data():
 
 
 def test_parser_is_cached():
-    assert syntax._parser() is syntax._parser()
+    assert syntax_tree.lalr_parser() is syntax_tree.lalr_parser()
 
 
 @pytest.mark.parametrize("path", sorted(str(p.relative_to(ROOT))

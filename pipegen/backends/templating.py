@@ -1,6 +1,6 @@
 """jinja2 for whole files (glad's generator is the model): the templates ship inside the wheel as
 the ``pipegen.templates`` package (the top-level ``templates/`` folder), are read from it
-(``syntax.package_text``: its folder, or ``importlib.resources`` inside a zip), and render
+(``package_files.package_text``: its folder, or ``importlib.resources`` inside a zip), and render
 with ``StrictUndefined``, ``trim_blocks`` and ``lstrip_blocks``.  Filters are plain Python
 functions registered with ``@template_filter``.
 
@@ -27,24 +27,24 @@ def template_filter(fn: Callable) -> Callable:
 def _load(name: str):
     if "/" in name or "\\" in name or name.startswith("."):
         return None
-    from ..syntax import package_text
+    from ..package_files import package_text
     return package_text("pipegen.templates", name)
 
 
 def _bytecode_cache() -> Optional[jinja2.BytecodeCache]:
-    """Compiled templates kept in the user's pipegen cache folder (``syntax.cache_dir``):
+    """Compiled templates kept in the user's pipegen cache folder (``package_files.cache_dir``):
     compiling every template from source costs a fresh process ~150 ms.  Used only when the
     folder is the user's own and writable by no one else (the cache holds code); otherwise,
     or when it cannot be created, templates are compiled each time."""
     import os
-    from ..syntax import _private, cache_dir
+    from ..package_files import cache_dir, owned_privately
     base = cache_dir()
     if base is None:
         return None
     folder = os.path.join(base, "templates")
     try:
         os.makedirs(folder, mode=0o700, exist_ok=True)
-        if not (_private(os.stat(base)) and _private(os.stat(folder))):
+        if not (owned_privately(os.stat(base)) and owned_privately(os.stat(folder))):
             return None
     except OSError:
         return None
