@@ -37,9 +37,10 @@ def grammar_text() -> str:
 
 
 def cache_dir() -> Optional[str]:
-    """The user's pipegen cache folder (the built parser, syntax trees, compiled templates): ``$PIPEGEN_CACHE_DIR`` (empty: no cache), else
-    ``$XDG_CACHE_HOME/pipegen``, else ``~/.cache/pipegen`` (``%LOCALAPPDATA%\\pipegen\\cache``
-    on Windows).  None when there is no usable home."""
+    """The user's pipegen cache folder (the built parser, syntax trees, compiled templates):
+    ``$PIPEGEN_CACHE_DIR`` (empty: no cache), else ``$XDG_CACHE_HOME/pipegen``, else
+    ``~/.cache/pipegen`` (``%LOCALAPPDATA%\\pipegen\\cache`` on Windows).  None when there is
+    no usable home."""
     explicit = os.environ.get("PIPEGEN_CACHE_DIR")
     if explicit is not None:
         return explicit or None

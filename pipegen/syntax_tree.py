@@ -23,8 +23,9 @@ from .package_files import cache_dir, grammar_text, load_cached, save_cached
 
 
 #: How deeply constructs may nest (parse-tree levels: statements, calls, operators; each operator
-#: of a chain like a + b + c is a level; parentheses alone are not).  The shipped techniques use at most 13; every later phase walks the tree
-#: recursively, so the limit keeps them far from Python's recursion limit.
+#: of a chain like a + b + c is a level; parentheses alone are not).  The shipped techniques use
+#: at most 13; every later phase walks the tree recursively, so the limit keeps them far from
+#: Python's recursion limit.
 MAX_NESTING = 100
 
 

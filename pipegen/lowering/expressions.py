@@ -4,24 +4,21 @@ constructors) into IR expressions.  ``statements._BodyChecker`` adds the stateme
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 from .. import ast, ir
 from ..builtins import (BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, STAGE_INPUTS, TARGET_FUNCTIONS,
                         TYPE_NAMES, Where, binary_type, describe_overloads, resolve_builtin,
                         target_read_type, unary_type)
 from ..diagnostics import Span
-from .names import (_A, _Context, _Local, _Uses, _a, _did_you_mean, _err, _listing,
-                    _reserved_meaning, _shader_type)
-
-if TYPE_CHECKING:
-    from ..lower import _Lowerer
+from .names import (_A, Lowering, _Context, _Local, _Uses, _a, _did_you_mean, _err,
+                    _listing, _reserved_meaning, _shader_type)
 
 
 class _ExprChecker:
     """Type checks the expressions of one function or fragment body and builds their IR."""
 
-    def __init__(self, low: _Lowerer, ctx: _Context):
+    def __init__(self, low: Lowering, ctx: _Context):
         self.low = low
         self.ctx = ctx
         self.scopes: list[dict[str, _Local]] = [{}]

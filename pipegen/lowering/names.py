@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import field
-from typing import Callable, Iterable, Optional
+from typing import Callable, Iterable, Optional, Protocol, Union
 
 from ..records import record
 from .. import ast, ir
 from ..builtins import BUILTINS, STAGE_INPUTS, TARGET_FUNCTIONS, TYPE_NAMES
 from ..diagnostics import PipegenError, Span
+from ..formats import Format
 
 Loader = Callable[[str], str]
 
@@ -168,3 +169,29 @@ class _Local:
     type: ir.Type
     span: Span
     loop_var: bool = False
+
+
+class Lowering(Protocol):
+    """What the checkers of a technique's parts (``expressions``, ``passes``) read from the
+    lowerer that runs them (``lower._Lowerer``): the declarations lowered so far and its readers
+    of numbers, clears and packing constants in declarations.  A protocol, so that the parts
+    need not import the lowerer, which imports them."""
+
+    globals: dict[str, _Global]
+    params: dict[str, ir.Param]
+    targets: dict[str, ir.Target]
+    lights: ir.LightTable
+    packs: dict[str, ast.PackDecl]
+    pack_specs: dict[str, object]
+    pack_options: dict[str, dict]
+    pack_schemes: dict[str, str]
+    signatures: dict[str, _Signature]
+    uses: dict[str, _Uses]
+
+    def number(self, e: ast.Expr, what: str, integer: bool = False) -> Union[int, float]: ...
+
+    def integer(self, e: ast.Expr, what: str, lo: int, hi: Optional[int] = None) -> int: ...
+
+    def clear(self, spec: ast.ClearSpec, target: str, fmt: Format) -> ir.Clear: ...
+
+    def pack_constant(self, pack: ast.Name, const: ast.Name) -> ir.Const: ...

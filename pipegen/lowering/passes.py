@@ -4,16 +4,13 @@ state, clears, repeat groups and the fragment body."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 from .. import ast, ir
 from ..builtins import LIGHT_TYPES, VOLUME_LIGHT_FIELDS
 from .collect import _PassItem
-from .names import _MATERIALS, _Context, _did_you_mean, _err
+from .names import _MATERIALS, Lowering, _Context, _did_you_mean, _err
 from .statements import _BodyChecker
-
-if TYPE_CHECKING:
-    from ..lower import _Lowerer
 
 _SINGLE = (ast.Draw, ast.Writes, ast.Reads, ast.Depth, ast.BlendConstant, ast.Cull, ast.Offset,
            ast.Fragment, ast.RepeatPerLight)
@@ -23,7 +20,7 @@ _STMT_WORD = {ast.Draw: "draw", ast.Writes: "writes", ast.Reads: "reads", ast.De
 
 
 class _PassLowerer:
-    def __init__(self, low: _Lowerer, item: _PassItem):
+    def __init__(self, low: Lowering, item: _PassItem):
         self.low = low
         self.decl = item.decl
         self.name = item.decl.name.name
