@@ -176,6 +176,13 @@ STAGE_INPUTS: dict[str, StageInput] = {
     **_inputs(Where.SCENE, ir.UINT, "object_id", "normal_group", "layer"),
 }
 
+#: Scene inputs constant over an object (its material, ids and stipple layer): both backends
+#: pass them flat, the provoking vertex's value, so that no interpolation noise rounds a value
+#: sitting on a unorm tie (albedo 0.7 = code 178.5) one way on llvmpipe and the other on CL.
+#: The other scene inputs are interpolated perspective-correctly.
+FLAT_SCENE_INPUTS = frozenset({"albedo", "specular", "shininess", "alpha", "object_id",
+                               "normal_group", "layer"})
+
 # Stage inputs a backend passes only to the passes that read them (so adding them changed no
 # other shader): the previous frame's camera.
 PREVIOUS_FRAME_INPUTS = ("prev_view", "prev_proj")

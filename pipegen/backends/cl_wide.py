@@ -56,7 +56,7 @@ from typing import Optional
 
 from ..records import record
 from .. import ir
-from ..builtins import BIT_CAST_BUILTINS
+from ..builtins import BIT_CAST_BUILTINS, FLAT_SCENE_INPUTS, STAGE_INPUTS, Where
 from ..ir import Scalar, Type
 from ..irwalk import child_exprs
 from . import plan as planlib
@@ -105,11 +105,12 @@ _STATE = ("varying_locals", "env", "fixed", "mask", "dyn", "loop_masks", "loops"
 @functools.cache
 def varying_inputs() -> frozenset[str]:
     """The stage inputs that differ per pixel, the fields of ``pgw_in`` (cl_pass.cl.j2):
-    ``frag_coord`` and the scene varyings opencl.py interpolates.  The others are uniform
-    over a triangle: frame values, object id, facing, the light, and the flat varyings
-    (the provoking vertex's material)."""
-    from .opencl import FLAT_VARYINGS, SCENE_VARYINGS    # opencl.py imports this module
-    return frozenset({"frag_coord", *(n for n in SCENE_VARYINGS if n not in FLAT_VARYINGS)})
+    ``frag_coord`` and the scene inputs both backends interpolate.  The others are uniform
+    over a triangle: frame values, facing, the light, and the flat scene inputs (the
+    provoking vertex's material and ids: ``builtins.FLAT_SCENE_INPUTS``)."""
+    return frozenset({"frag_coord", *(name for name, inp in STAGE_INPUTS.items()
+                                      if inp.where is Where.SCENE
+                                      and name not in FLAT_SCENE_INPUTS)})
 
 
 class Unsupported(Exception):

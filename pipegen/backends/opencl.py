@@ -79,7 +79,8 @@ from ..ir import DrawKind, Scalar, Type
 from . import plan as planlib
 from .plan import CLPassCode, PassPlan, Plan
 from . import cl_wide, templating
-from ..builtins import BIT_CAST_BUILTINS, PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
+from ..builtins import (BIT_CAST_BUILTINS, FLAT_SCENE_INPUTS, PREVIOUS_FRAME_INPUTS,
+                        VOLUME_LIGHT_FIELDS)
 from ..float32 import f32
 from ..passes import lower_mix_constant
 from .cstyle import FLT_MIN, CStyleLanguage, texel_select
@@ -153,9 +154,9 @@ SCENE_VARYINGS = {
     "shininess": ("float", "a_material[v].y"),
     "alpha": ("float", "a_material[v].z"),
 }
-# varyings the GLSL backend declares ``flat`` (materials are per object): the provoking vertex's
-# value; the others are perspective-corrected (llvmpipe: LP_INTERP_PERSPECTIVE)
-FLAT_VARYINGS = frozenset({"albedo", "specular", "shininess", "alpha"})
+# the varyings passed flat (builtins.FLAT_SCENE_INPUTS: materials are per object): the provoking
+# vertex's value; the others are perspective-corrected (llvmpipe: LP_INTERP_PERSPECTIVE)
+FLAT_VARYINGS = FLAT_SCENE_INPUTS & frozenset(SCENE_VARYINGS)
 # flat scene inputs -> component of the per-triangle ``tri_flat`` (x is the facing bit; w holds
 # the light index in light draws and the stipple layer in scene draws)
 SCENE_FLAT = {"object_id": "y", "normal_group": "z", "layer": "w"}
