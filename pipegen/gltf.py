@@ -31,8 +31,8 @@ from typing import Optional
 import numpy as np
 
 from . import meshes
-from .scene import (Camera, Light, Material, Scene, SceneObject, _report, assign_layers,
-                    make_object)
+from .scene_model import (Camera, Light, Material, Scene, SceneObject, assign_layers,
+                          make_object, report_notes)
 
 
 class GltfError(ValueError):
@@ -486,7 +486,7 @@ def load_gltf_scene(path: str | Path) -> Scene:
     notes = list(imported.notes)
     if imported.camera is None:
         notes.append(f"{path.name}: no perspective camera; one frames the scene's bounding box")
-    _report(notes)
+    report_notes(notes)
     return Scene(DEFAULT_SIZE[0], DEFAULT_SIZE[1], np.zeros(3), tuple(objects), imported.lights,
                  camera, name=path.stem, notes=tuple(notes))
 
