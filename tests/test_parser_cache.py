@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from lark import Lark
 
-from pipegen import syntax, syntax_tree
+from pipegen import package_files, syntax, syntax_tree
 from pipegen.diagnostics import PipegenError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -112,7 +112,7 @@ def test_the_default_cache_folder_follows_xdg(monkeypatch, tmp_path):
     monkeypatch.delenv("PIPEGEN_CACHE_DIR", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     if os.name != "nt":
-        assert syntax.cache_dir() == str(tmp_path / "pipegen")
+        assert package_files.cache_dir() == str(tmp_path / "pipegen")
 
 
 # -- parsed files ---------------------------------------------------------------------------------
