@@ -103,12 +103,12 @@ def parse_spec(spec: str) -> tuple[str, dict]:
 
 
 def compile_spec(spec: str):
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
     name, params = parse_spec(spec)
     return compile_file(ROOT / f"pipelines/{name}.pipe", params=params or None)
 
 
 def scene_at(path: str, size: str):
-    from pipegen.scene import load_scene
+    from pipegen.scene.load import load_scene
     w, h = (int(v) for v in size.split("x"))
     return load_scene(path).with_size(w, h)

@@ -74,12 +74,12 @@ import sys, time
 T = [("start", time.perf_counter(), time.process_time())]
 def mark(name): T.append((name, time.perf_counter(), time.process_time()))
 import jinja2; mark("import jinja2")
-import pipegen.cli as cli; mark("import pipegen.cli (rest)")
+import pipegen.cli.main as cli; mark("import pipegen.cli.main (rest)")
 argv = ["compile", sys.argv[1], "-o", sys.argv[2], "--force"]
 args = cli.build_parser(argv[0]).parse_args(argv); mark("cli.build_parser + parse_args")
-from pipegen.outdir import OutputDir
+from pipegen.core.outdir import OutputDir
 out = OutputDir(args.out, "compile", args.force); mark("output folder checked")
-import pipegen.compiler; mark("import pipegen.compiler (rest)")
+import pipegen.compiler.driver; mark("import pipegen.compiler.driver (rest)")
 c = cli._compile(args); mark("parse (or load trees), lower, phases")
 c.write(out, ("gl", "cl"), args.size); mark("emit GL + CL, write files")
 c.report(args.size); mark("report")
@@ -90,8 +90,8 @@ print(f"  {'total (after interpreter start)':<34} {1000 * (T[-1][1] - T[0][1]):8
       f"{1000 * (T[-1][2] - T[0][2]):7.1f}")
 print("  imported: numpy", "yes" if "numpy" in sys.modules else "no", "| lark",
       "yes" if "lark" in sys.modules else "no", "| parser loaded:",
-      "yes" if "pipegen.syntax_tree" in sys.modules and
-      sys.modules["pipegen.syntax_tree"].lalr_parser.cache_info().currsize
+      "yes" if "pipegen.frontend.syntax_tree" in sys.modules and
+      sys.modules["pipegen.frontend.syntax_tree"].lalr_parser.cache_info().currsize
       else "no (every syntax tree was cached)")
 """
 
@@ -99,7 +99,7 @@ print("  imported: numpy", "yes" if "numpy" in sys.modules else "no", "| lark",
 def many_passes(repeat: int) -> int:
     """Best of ``repeat`` in-process compiles of forward.pipe plus N trivial passes."""
     sys.path.insert(0, str(ROOT))
-    from pipegen.compiler import compile_source
+    from pipegen.compiler.driver import compile_source
     forward = (ROOT / "pipelines" / "forward.pipe").read_text()
     path = str(ROOT / "pipelines" / "forward.pipe")
     best = {}
@@ -123,7 +123,7 @@ def main() -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--parse-only", action="store_true",
-                    help="time `import pipegen.syntax; parse(file)` in a fresh process")
+                    help="time `import pipegen.frontend.parse; parse(file)` in a fresh process")
     ap.add_argument("--stages", action="store_true",
                     help="where the time of one compile goes (after the timed runs)")
     ap.add_argument("--no-bytecode", action="store_true",
@@ -158,7 +158,7 @@ def main() -> int:
         worst = worst_edited = 0.0
         for name in args.techniques:
             if args.parse_only:
-                cmd = [sys.executable, "-c", "import sys; from pipegen.syntax import parse; "
+                cmd = [sys.executable, "-c", "import sys; from pipegen.frontend.parse import parse; "
                        "parse(open(sys.argv[1]).read(), sys.argv[1])", f"pipelines/{name}.pipe"]
             else:
                 cmd = base + ["compile", f"pipelines/{name}.pipe", "-o", f"{tmp}/{name}"]

@@ -59,8 +59,8 @@ class HandLoop:
     """What both hand loops share: programs, targets, framebuffers, the scene's buffers."""
 
     def __init__(self, plan, scene):
-        from pipegen.runtime import gl_formats as GF
-        from pipegen.runtime.gl_context import GL, get_context
+        from pipegen.runtime.gl import formats as GF
+        from pipegen.runtime.gl.context import GL, get_context
         self.GL, self.GF = GL, GF
         self.ctx = ctx = get_context()
         self.plan, self.scene = plan, scene
@@ -95,7 +95,7 @@ class HandLoop:
                                np.asarray(g.layer, np.float32).reshape(-1, 1)], axis=1)
         self.scene_count = len(data)
         self.scene_vbo = ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())
-        from pipegen.meshes import light_volume
+        from pipegen.scene.meshes import light_volume
         self.meshes = {v: ctx.buffer(np.ascontiguousarray(light_volume(v), np.float32).tobytes())
                        for v in ("sphere", "cone", "quad")}
         self.instances = ctx.buffer(reserve=4 * cap)
@@ -364,7 +364,7 @@ def counting_gl_calls():
         setattr(G, n, wrap(n, f))
     patched = []
     try:
-        from pipegen.runtime import gl_pipeline as GP
+        from pipegen.runtime.gl import pipeline as GP
         for n in ("_CLEAR_TEX", "_CLEAR_FBO_IV", "_CLEAR_FBO_FV"):
             if hasattr(GP, n):
                 patched.append((GP, n, getattr(GP, n)))
@@ -372,7 +372,7 @@ def counting_gl_calls():
     except ImportError:      # pragma: no cover
         pass
     try:
-        from pipegen.runtime import gl_transitions as GT
+        from pipegen.runtime.gl import transitions as GT
         patched.append((GT.TRACKER, "table", GT.TRACKER.table))
         GT.TRACKER.table = GT.TransitionTable()
     except ImportError:      # an older pipegen (before/after figures)
@@ -394,7 +394,7 @@ def uptime() -> str:
 
 
 def compare(tech: str, scene_name: str, size: str, frames: int) -> dict:
-    from pipegen.runtime.gl_pipeline import GLPipeline
+    from pipegen.runtime.gl.pipeline import GLPipeline
     compiled = compile_spec(tech)
     plan = compiled.plan("gl")
     scene = scene_at(str(ROOT / SCENES[scene_name]), size)
@@ -437,7 +437,7 @@ def _cpu() -> float:
 def all_calls(scene_name: str, size: str) -> None:
     """``--all``: PyOpenGL calls per frame of every shipped technique, with state transitions
     (the default) and with all state set before every pass (``transitions=False``)."""
-    from pipegen.runtime.gl_pipeline import GLPipeline
+    from pipegen.runtime.gl.pipeline import GLPipeline
     scene = scene_at(str(ROOT / SCENES[scene_name]), size)
     print(f"PyOpenGL calls per frame, {scene_name} at {size}")
     print(f"{'technique':<20} {'passes run':>10} {'transitions':>11} {'full state':>10}")
@@ -471,7 +471,7 @@ def main() -> int:
                          "size), transitions vs full state")
     args = ap.parse_args()
     os.environ["LP_NUM_THREADS"] = args.threads
-    import pipegen.runtime.gl_context as C
+    from pipegen.runtime.gl import context as C
     print(f"{C.describe()}; PyOpenGL error checking "
           f"{'on' if getattr(C, 'ERROR_CHECKING', True) else 'off'}; "
           f"LP_NUM_THREADS={args.threads}; {args.frames} interleaved frames each",

@@ -7,7 +7,7 @@ Without ``--obj`` it writes two generated OBJ files shaped like the Dabrovic Spo
 measured (no normals, 18 materials, about 2/3 of the faces quads, creased and smooth
 surfaces): 56k triangles, and the same surfaces at twice the resolution, 224k triangles.
 ``--obj`` times your own files instead (the Sponza itself, say).  ``--before`` also times the
-loader as it was before (``pipegen/meshes.py`` at commit caa375c, read with ``git show``: its
+loader as it was before (``pipegen/scene/meshes.py`` at commit caa375c, read with ``git show``: its
 ``load_obj`` plus the scene's transform, which is all that loading an OBJ object did), once
 per file: it takes about 40 µs per triangle.
 
@@ -105,7 +105,7 @@ obj = "{obj.resolve().as_posix()}"
 
 
 def old_meshes():
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{BEFORE_COMMIT}:pipegen/meshes.py"],
+    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{BEFORE_COMMIT}:pipegen/scene/meshes.py"],
                          check=True, capture_output=True, text=True).stdout
     path = Path(tempfile.mkdtemp()) / "meshes_before.py"
     path.write_text(src)
@@ -121,7 +121,7 @@ def main() -> int:
     ap.add_argument("--before", action="store_true", help="also time the loader of commit caa375c")
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    from pipegen.scene import load_scene, make_object, Material, transform_matrix
+    from pipegen.scene.load import load_scene, make_object, Material, transform_matrix
 
     work = Path(tempfile.mkdtemp())
     files = args.obj

@@ -15,7 +15,7 @@
   1.0 with ``dsf = false``, and the default inferred against single-pass ``forward``, all on
   ``examples/scenes/many_lights.toml`` (81 lights) at 1280x720.
 
-Timings come from ``pipegen.sweep.time_job``, as ``pipegen sweep`` takes them: per scene one
+Timings come from ``pipegen.tools.sweep.time_job``, as ``pipegen sweep`` takes them: per scene one
 fresh process, pinned to ``--threads`` CPUs with ``LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT =
 --threads``, one untimed warm-up render per variant and backend, then ``--frames`` rounds
 timing every variant once each, in alternating order; the median.  GL: ``frame()`` to
@@ -73,7 +73,7 @@ def lights_per_pixel(scene_path: Path, size: tuple[int, int]) -> tuple[int, floa
     """(max, mean over lit surface pixels) of the lights whose sphere contains the point."""
     from pipegen.reference.lighting import lights_per_pixel as lpp
     from pipegen.reference.raster import rasterize
-    from pipegen.scene import load_scene
+    from pipegen.scene.load import load_scene
     scene = load_scene(scene_path).with_size(*size)
     gb = rasterize(scene, ("opaque",))
     n = lpp(gb, scene)[gb.coverage]
@@ -83,7 +83,7 @@ def lights_per_pixel(scene_path: Path, size: tuple[int, int]) -> tuple[int, floa
 
 def time_group(scene_path, size, variants, frames, threads):
     """{(name, params as text): {"gl": (wall ms, cpu ms), "cl": ...}} and the timing note."""
-    from pipegen.sweep import scene_spec, time_job
+    from pipegen.tools.sweep import scene_spec, time_job
     job = dict(variants=[dict(file=str(ROOT / f"pipelines/{name}.pipe"), params=params)
                          for name, params in variants],
                scene=scene_spec(scene_path, size), backends=["gl", "cl"], frames=frames,

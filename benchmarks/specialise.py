@@ -59,8 +59,8 @@ def progress(items):
 
 
 def measure(spec: str, scene_name: str, scene, frames: int, compiles: int) -> dict:
-    from pipegen.compiler import compile_file
-    from pipegen.specialise import clear_cache
+    from pipegen.compiler.driver import compile_file
+    from pipegen.compiler.specialise import clear_cache
     name, params = parse_spec(spec)
     path = ROOT / f"pipelines/{name}.pipe"
     params = params or None
@@ -103,7 +103,7 @@ def main() -> int:
     global STAT
     STAT = min if args.stat == "min" else statistics.median
     set_threads(args.threads)
-    from pipegen.diagnostics import PipegenError
+    from pipegen.core.diagnostics import PipegenError
 
     techniques = args.techniques or shipped()
     scenes = {n: scene_at(str(ROOT / f"examples/scenes/{n}.toml"), args.size)

@@ -32,10 +32,10 @@ def paste_titled(sheet: Image.Image, rows: list, w: int, h: int) -> None:
 
 
 def main() -> int:
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
     from pipegen.reference.metrics import error_image, heat_map, rgb_error, to_top_down
     from pipegen.reference.translucent import reference_composite
-    from pipegen.scene import load_scene
+    from pipegen.scene.load import load_scene
 
     scene = load_scene(ROOT / "examples/scenes/edges.toml").with_size(384, 216)
     ref, _ = reference_composite(scene)

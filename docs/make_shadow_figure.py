@@ -39,10 +39,10 @@ def _stretch(atlas: np.ndarray, tiles: int = 2) -> np.ndarray:
 
 
 def main() -> int:
-    from pipegen.accuracy import scene_reference
-    from pipegen.compiler import compile_file
+    from pipegen.proof.accuracy import scene_reference
+    from pipegen.compiler.driver import compile_file
     from pipegen.reference.metrics import rgb_error, to_top_down
-    from pipegen.scene import load_scene
+    from pipegen.scene.load import load_scene
 
     scene = load_scene(ROOT / "examples/scenes/shadows.toml").with_size(320, 180)
     ref = scene_reference(scene).rgb

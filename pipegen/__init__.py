@@ -16,20 +16,20 @@ from __future__ import annotations
 
 import importlib
 
-from .defaults import DEFAULT_SIZE, version as _version  # noqa: F401 (re-exported)
+from pipegen.core.defaults import DEFAULT_SIZE, version as _version  # noqa: F401 (re-exported)
 
 _LAZY = {
-    "compile_file": "pipegen.compiler",
-    "compile_source": "pipegen.compiler",
-    "Compiled": "pipegen.compiler",
-    "load_scene": "pipegen.scene",
-    "parse_scene": "pipegen.scene",
-    "default_scene": "pipegen.scene",
-    "Scene": "pipegen.scene",
-    "save_pngs": "pipegen.outputs",
-    "write_render": "pipegen.outputs",
-    "OutputDir": "pipegen.outdir",
-    "PipegenError": "pipegen.diagnostics",
+    "compile_file": "pipegen.compiler.driver",
+    "compile_source": "pipegen.compiler.driver",
+    "Compiled": "pipegen.compiler.driver",
+    "load_scene": "pipegen.scene.load",
+    "parse_scene": "pipegen.scene.load",
+    "default_scene": "pipegen.scene.load",
+    "Scene": "pipegen.scene.load",
+    "save_pngs": "pipegen.views.outputs",
+    "write_render": "pipegen.views.outputs",
+    "OutputDir": "pipegen.core.outdir",
+    "PipegenError": "pipegen.core.diagnostics",
 }
 
 __all__ = sorted([*_LAZY, "DEFAULT_SIZE", "__version__"])

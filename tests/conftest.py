@@ -24,7 +24,7 @@ def pytest_configure(config):
       other.  What a test renders does not depend on the thread count (tiles are independent
       and each keeps its primitive order).
     Both are defaults: a variable set by the user wins."""
-    from pipegen.runtime.cl_context import default_cache_dir
+    from pipegen.runtime.cl.context import default_cache_dir
     os.environ.setdefault("POCL_CACHE_DIR", default_cache_dir("pytest"))
     if os.environ.get("PYTEST_XDIST_WORKER") and int(os.environ.get(
             "PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
@@ -46,12 +46,12 @@ def _guard(item) -> pytest.MonkeyPatch:
     mp = pytest.MonkeyPatch()
     if item.get_closest_marker("gl") is None:
         import moderngl
-        from pipegen.runtime import gl_context, gl_pipeline
+        from pipegen.runtime.gl import context as gl_context, pipeline as gl_pipeline
         for module in (gl_context, gl_pipeline):
             mp.setattr(module, "get_context", _refuse("gl"))
         mp.setattr(moderngl, "create_standalone_context", _refuse("gl"))
     if item.get_closest_marker("cl") is None:
-        from pipegen.runtime import cl_context
+        from pipegen.runtime.cl import context as cl_context
         mp.setattr(cl_context, "get_context", _refuse("cl"))
     return mp
 

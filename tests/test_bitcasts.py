@@ -21,9 +21,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipegen.compiler import compile_source
+from pipegen.compiler.driver import compile_source
 from pipegen.reference import bitcasts as B
-from pipegen.scene import default_scene
+from pipegen.scene.load import default_scene
 
 SRC = """
 technique bitcasts "bit casts and half packing on every backend"
@@ -98,8 +98,8 @@ def test_model_on_known_values():
 
 def test_builtins_type_like_glsl():
     """Vector forms keep the size; packHalf2x16 takes a vec2; no implicit conversions."""
-    from pipegen import ir
-    from pipegen.builtins import resolve_builtin
+    from pipegen.ir import nodes as ir
+    from pipegen.ir.builtins import resolve_builtin
     assert resolve_builtin("floatBitsToUint", [ir.VEC3]) == ir.Type(ir.Scalar.UINT, 3)
     assert resolve_builtin("floatBitsToInt", [ir.FLOAT]) == ir.INT
     assert resolve_builtin("uintBitsToFloat", [ir.UVEC4]) == ir.VEC4
@@ -121,7 +121,7 @@ def test_emitted_text():
     assert "packHalf2x16(" in frag and "floatBitsToInt(" in frag
     cl = c.plan("cl").passes[0].code.fragment
     assert "pg_pack_half2x16(" in cl and "as_uint3(" in cl and "as_float3(" in cl
-    from pipegen.backends.opencl import emit_cl
+    from pipegen.backends.opencl.emit import emit_cl
     f64 = emit_cl(c.technique, "f64").passes[0].code.fragment
     assert "convert_float2(" in f64 and "convert_double2(pg_unpack_half2x16(" in f64
     plain = compile_source("""

@@ -43,11 +43,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.compiler import compile_file
+from pipegen.compiler.driver import compile_file
 from pipegen.reference import post
 from pipegen.reference.lighting import to_rgba8
 from pipegen.reference.metrics import rgb_error
-from pipegen.scene import load_scene
+from pipegen.scene.load import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 PIPE = ROOT / "pipelines/deferred_calver.pipe"
@@ -231,7 +231,7 @@ def test_depth_of_field_keeps_the_focal_plane_sharp():
 @pytest.mark.parametrize("params", [TONEMAP[1], FOG[0], FOG[1], DOF[2], ALL[0]], ids=str)
 def test_check_gl_against_cl(params, tmp_path):
     pytest.importorskip("pyopencl")
-    from pipegen.check import check
+    from pipegen.proof.check import check
     result = check(compiled(_key(params)), scene(), tmp_path)
     assert result.passed, "\n" + result.table() + f"\nfirst divergence: {result.first_divergence}"
 

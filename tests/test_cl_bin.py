@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _frame(source: str, scene, size, device: bool, monkeypatch):
     from pipegen import compile_source
-    from pipegen.runtime import cl_bin
+    from pipegen.runtime.cl import bin as cl_bin
     monkeypatch.setenv("PIPEGEN_CL_DEVICE_BIN", "1" if device else "0")
     assert cl_bin.enabled() is device
     pipe = compile_source(source).pipeline("cl", size)
@@ -68,7 +68,7 @@ def test_device_bins_of_multisampled_passes(monkeypatch):
 
 def test_box_tiles_bound_the_entries():
     """The tile lists are sized by the boxes' tiles: never fewer than binning writes."""
-    from pipegen.runtime import cl_bin, cl_setup
+    from pipegen.runtime.cl import bin as cl_bin, setup as cl_setup
     rng = np.random.default_rng(7)
     clip = rng.uniform(-1.5, 1.5, (300 * 3, 4)).astype(np.float32)
     clip[:, 3] = rng.uniform(0.5, 2.0, len(clip)).astype(np.float32)

@@ -161,15 +161,15 @@ def _kernels() -> str:
 
 @pytest.fixture(scope="module")
 def prog():
-    from pipegen.backends import opencl as clgen
-    from pipegen.runtime import cl_context
+    from pipegen.backends.opencl import emit as clgen
+    from pipegen.runtime.cl import context as cl_context
     pre = clgen.templating.render("cl_prelude.cl.j2", tile=clgen.TILE, enums=clgen._enum_defines())
     return cl_context.build_program("#define PG_LIBRARY_BUILTINS\n" + pre + _kernels())
 
 
 def _run(prog, name, args, width, dtype=np.uint32):
     import pyopencl as cl
-    from pipegen.runtime import cl_context
+    from pipegen.runtime.cl import context as cl_context
     ctx, q = cl_context.get_context()
     mf = cl.mem_flags
     n = len(args[0])

@@ -1,7 +1,7 @@
 """Window depth of the OpenCL reference against llvmpipe (Mesa 22.3.6), code for code.
 
 llvmpipe's depth is not the exact plane through the three vertices rounded once: it is a float32
-plane whose errors the reference reproduces (``pipegen/runtime/cl_setup.py``, ``depth_plane``,
+plane whose errors the reference reproduces (``pipegen/runtime/cl/setup.py``, ``depth_plane``,
 ``clip_triangles``, ``window_coords``; the raster kernel in ``templates/cl_pass.cl.j2``):
 
 - window positions: ``fma(x * (1/w), W/2, W/2)`` for shader vertices (draw's LLVM path uses
@@ -31,12 +31,12 @@ pytest.importorskip("pyopencl")
 pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
 from cl_util import TriScene, make_pass, make_plan, target  # noqa: E402
-from pipegen.runtime import cl_setup as CS  # noqa: E402
-from pipegen.runtime.cl_pipeline import CLPipeline  # noqa: E402
+from pipegen.runtime.cl import setup as CS  # noqa: E402
+from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
 
 try:
-    from pipegen.runtime.gl_context import get_context
-    from pipegen.runtime.gl_pipeline import GLPipeline
+    from pipegen.runtime.gl.context import get_context
+    from pipegen.runtime.gl.pipeline import GLPipeline
     _CTX = get_context()
     _ERR = None
 except Exception as e:  # pragma: no cover - machines without EGL
@@ -342,7 +342,7 @@ def test_msaa_sample_depth_matches_llvmpipe_through_its_resolve():
 def test_d24_resolve_round_trip():
     """The d24 resolve round trip is the identity on codes that survive float32 exactly and
     moves the others by at most one code."""
-    from pipegen.runtime.cl_pipeline import d24_resolve
+    from pipegen.runtime.cl.pipeline import d24_resolve
     codes = np.arange(0, 1 << 24, 97, dtype=np.uint32)
     out = d24_resolve(codes).astype(np.int64)
     assert np.abs(out - codes).max() == 1

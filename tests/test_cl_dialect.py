@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import pytest
 
-from pipegen import ir
-from pipegen.backends.opencl import OpenCLLanguage, cl_format, emit_cl, pass_program, state_values
-from pipegen.compiler import compile_source
+from pipegen.ir import nodes as ir
+from pipegen.backends.opencl.emit import (
+    OpenCLLanguage, cl_format, emit_cl, pass_program, state_values)
+from pipegen.compiler.driver import compile_source
 
 F, I, U, B = ir.FLOAT, ir.INT, ir.UINT, ir.BOOL
 V2, V3, V4 = ir.VEC2, ir.VEC3, ir.VEC4
@@ -109,7 +110,7 @@ def test_emit_cl_plan():
 
 
 def test_formats_have_layouts():
-    from pipegen.formats import FORMATS
+    from pipegen.core.formats import FORMATS
     for name in FORMATS:
         f = cl_format(name)
         assert f["storage"] and f["load"] and f["store"]

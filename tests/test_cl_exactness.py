@@ -26,11 +26,11 @@ pytest.importorskip("pyopencl")
 pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
 from cl_util import TriScene, make_pass, make_plan, quad, target  # noqa: E402
-from pipegen.compare import compare_target, ulp_distance  # noqa: E402
-from pipegen.compiler import compile_file, compile_source  # noqa: E402
-from pipegen.runtime import cl_setup as CS  # noqa: E402
-from pipegen.runtime.cl_pipeline import CLPipeline  # noqa: E402
-from pipegen.scene import load_scene  # noqa: E402
+from pipegen.proof.compare import compare_target, ulp_distance  # noqa: E402
+from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
+from pipegen.runtime.cl import setup as CS  # noqa: E402
+from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
+from pipegen.scene.load import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -48,7 +48,7 @@ EXACT = _host_has_fma()
 @pytest.fixture(scope="module")
 def gl_available():
     try:
-        from pipegen.runtime.gl_context import get_context
+        from pipegen.runtime.gl.context import get_context
         get_context()
     except Exception as exc:   # no EGL / llvmpipe here: the CL-only tests still run
         pytest.skip(f"no OpenGL context: {exc}")
@@ -274,7 +274,7 @@ def test_blend_counts_count_blended_fragments_per_pixel():
 def test_check_uses_per_pixel_blend_counts(gl_available):
     """``pipegen check`` holds each pixel of a light accumulation target to 1 + P(x, y)
     with P from the CL backend's blend counts."""
-    from pipegen.check import check
+    from pipegen.proof.check import check
     compiled = compile_file(ROOT / "pipelines/deferred.pipe")
     scene = load_scene(ROOT / "examples/scenes/mixed_lights.toml").with_size(160, 90)
     result = check(compiled, scene)
@@ -336,8 +336,8 @@ def test_unorm8_and_d24_codes_round_like_convert_sat_rte():
     of 20,000 d24 edges, on specials (NaN, infinities, signed zeros, denormals) and on 10^6
     random floats; and the codes round half to even (numpy's float32 arithmetic)."""
     import pyopencl as cl
-    from pipegen.backends import opencl
-    from pipegen.runtime import cl_context
+    from pipegen.backends.opencl import emit as opencl
+    from pipegen.runtime.cl import context as cl_context
 
     rng = np.random.default_rng(7)
     f32 = np.float32

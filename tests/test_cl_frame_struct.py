@@ -2,8 +2,7 @@
 matrices column-major, float32 the rounding of the float64 values, inverses derived."""
 import numpy as np
 
-from pipegen.runtime.cl_pipeline import (FRAME64_DTYPE, FRAME_DTYPE, _frame_structs,
-                                         _put_matrices)
+from pipegen.runtime.cl.pipeline import FRAME64_DTYPE, FRAME_DTYPE, _frame_structs, _put_matrices
 
 
 def _mats(seed):

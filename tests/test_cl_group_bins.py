@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _render(technique: str, scene_name: str, grouped: bool, monkeypatch):
     from pipegen import compile_file, load_scene
-    import pipegen.runtime.cl_geometry as G
+    from pipegen.runtime.cl import geometry as G
     if not grouped:
         monkeypatch.setattr(G.DrawGeometry, "_group_bins", lambda *a, **k: None)
     else:

@@ -29,7 +29,7 @@ def _same(a: dict, b: dict) -> None:
 def test_renders_in_a_row_match_fresh_pipelines_and_full_argument_setting(technique,
                                                                           monkeypatch):
     from pipegen import compile_file
-    from pipegen.runtime import cl_context
+    from pipegen.runtime.cl import context as cl_context
     compiled = compile_file(ROOT / "pipelines" / f"{technique}.pipe")
     first, second = _scene("mixed_lights"), _scene("street_lamps")
     reused = compiled.pipeline("cl", (96, 54))
@@ -43,8 +43,8 @@ def test_renders_in_a_row_match_fresh_pipelines_and_full_argument_setting(techni
 def test_typed_arguments_take_numpy_scalars_only():
     """A Python number has no OpenCL type to declare: ``set_args`` refuses it."""
     import pyopencl as cl
-    from pipegen.backends import opencl as clgen
-    from pipegen.runtime import cl_context
+    from pipegen.backends.opencl import emit as clgen
+    from pipegen.runtime.cl import context as cl_context
     kern = cl.Kernel(cl_context.build_program(clgen.bin_program()), "pg_bin_starts")
     ctx, _ = cl_context.get_context()
     bufs = [cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=64) for _ in range(4)]

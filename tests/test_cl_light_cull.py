@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _render(technique: str, scene, culled: bool, monkeypatch):
     from pipegen import compile_file
-    from pipegen.runtime import cl_geometry as G
+    from pipegen.runtime.cl import geometry as G
     if not culled:
         monkeypatch.setattr(G.DrawGeometry, "_light_cull", lambda self, key: "none")
     else:
@@ -62,7 +62,7 @@ def test_cull_auto_at_set_up_in_the_float64_evaluation(monkeypatch):
     """The float64 evaluation sets triangles up in numpy (``cl_setup.setup_triangles``, which
     culls per triangle too): the same values as culling per pass."""
     from pipegen import compile_file, load_scene
-    from pipegen.runtime import cl_geometry as G
+    from pipegen.runtime.cl import geometry as G
     scene = load_scene(ROOT / "examples" / "scenes" / "stress_overlap.toml")
     compiled = compile_file(ROOT / "pipelines" / "deferred_calver.pipe")
     culled = compiled.pipeline("cl", (97, 61), precision="f64").render(scene)

@@ -18,8 +18,8 @@ pytestmark = [pytest.mark.cl]
 from cl_util import FLAT_COLOR, TriScene, fullscreen, make_pass, make_plan, pixel_quad, quad, target  # noqa: E402
 from pipegen.reference import fixed_function as ff  # noqa: E402
 from pipegen.reference.raster import rasterize_triangles  # noqa: E402
-from pipegen.runtime.cl_pipeline import CLPipeline  # noqa: E402
-from pipegen.scene import Camera  # noqa: E402
+from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
+from pipegen.scene.load import Camera  # noqa: E402
 
 _PIPES: dict = {}
 
@@ -333,7 +333,7 @@ def test_half_store_rounds_toward_zero_like_llvmpipe():
 @pytest.mark.parametrize("fmt", ["r8", "rg8", "rgba16", "r16f", "rg32f", "rgb10a2", "r32ui",
                                  "rgba8ui"])
 def test_store_matches_oracle(fmt):
-    from pipegen import formats as F
+    from pipegen.core import formats as F
     f = F.get(fmt)
     rng = np.random.default_rng(11)
     if f.is_integer:

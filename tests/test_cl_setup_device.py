@@ -59,10 +59,10 @@ def test_switch_rows_cover_every_pair():
 @pytest.mark.parametrize("cull,samples,smooth,center,scissor,depth_clamp", SWITCHES)
 def test_device_setup_matches_numpy_setup(cull, samples, smooth, center, scissor, depth_clamp):
     import pyopencl as cl
-    from pipegen.runtime import cl_context
-    from pipegen.runtime.cl_setup import setup_triangles
-    from pipegen.runtime.cl_geometry import select_triangles
-    from pipegen.runtime.cl_setup_device import HOST_FIELDS, DeviceRows, DeviceSetup
+    from pipegen.runtime.cl import context as cl_context
+    from pipegen.runtime.cl.setup import setup_triangles
+    from pipegen.runtime.cl.geometry import select_triangles
+    from pipegen.runtime.cl.setup_device import HOST_FIELDS, DeviceRows, DeviceSetup
     ctx, queue = cl_context.get_context()
     rng = np.random.default_rng(len(SWITCHES) + SWITCHES.index(
         (cull, samples, smooth, center, scissor, depth_clamp)))
@@ -111,8 +111,8 @@ def test_device_setup_matches_numpy_setup(cull, samples, smooth, center, scissor
 
 @pytest.mark.parametrize("technique", ["deferred", "light_prepass", "lidr_transparent"])
 def test_frames_with_and_without_device_setup_are_identical(technique, monkeypatch):
-    from pipegen.compiler import compile_file
-    from pipegen.scene import load_scene
+    from pipegen.compiler.driver import compile_file
+    from pipegen.scene.load import load_scene
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     # the ground plane crosses the near and side planes: both set-up paths run
     scene = load_scene(os.path.join(root, "examples", "scenes", "many_lights.toml"))
@@ -132,8 +132,8 @@ def test_frames_reusing_buffers_are_identical_to_fresh_ones(technique):
     (``cl_context.FramePool``: vertex outputs, set-up fields, cut varyings, not the full-screen
     draws kept across frames): frames of two scenes with different triangle counts, in turn,
     give what a fresh pipeline gives each scene, and buffers were in fact handed out again."""
-    from pipegen.compiler import compile_file
-    from pipegen.scene import load_scene
+    from pipegen.compiler.driver import compile_file
+    from pipegen.scene.load import load_scene
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     compiled = compile_file(os.path.join(root, "pipelines", f"{technique}.pipe"))
     scenes = [load_scene(os.path.join(root, "examples", "scenes", f"{n}.toml")).with_size(96, 54)

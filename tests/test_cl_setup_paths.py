@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipegen.runtime import cl_setup as CS
+from pipegen.runtime.cl import setup as CS
 
 _SPECIAL = np.array([0.0, -0.0, 1.0, -1.0, 2.0, np.inf, -np.inf, np.nan, 1e-45, 2.0 ** -126,
                      2.0 ** -25, 2.0 ** -24, 3.4028235e38], np.float32)

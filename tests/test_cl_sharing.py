@@ -18,7 +18,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from pipegen.runtime import cl_setup as CS
+from pipegen.runtime.cl import setup as CS
 from pipegen.backends.plan import draw_from_dict, plan_from_dict
 from pipegen.runtime.draws import LightSelection, light_filter, light_type
 

@@ -17,9 +17,9 @@ pytest.importorskip("pyopencl")
 pytestmark = [pytest.mark.cl]
 
 from cl_util import TriScene, fullscreen, make_pass, make_plan, pixel_quad, target  # noqa: E402
-from pipegen import formats as F  # noqa: E402
+from pipegen.core import formats as F  # noqa: E402
 from pipegen.reference import fixed_function as ff  # noqa: E402
-from pipegen.runtime.cl_pipeline import CLPipeline  # noqa: E402
+from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
 
 W = H = 16
 PER_PIXEL = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"

@@ -1,6 +1,6 @@
 """Differential tests: whole techniques on the OpenCL reference vs OpenGL (llvmpipe).
 
-Every target of every shipped technique is compared with ``pipegen.compare.compare_target``
+Every target of every shipped technique is compared with ``pipegen.proof.compare.compare_target``
 (the tolerances of DESIGN.md §7 from ``formats.py``, edge pixels admitted and bounded).  A
 second technique exercises the OpenCL dialect on inputs that are bit-identical on both backends
 (derived from ``frag_coord`` with exactly rounded operations), so its results must agree to a
@@ -18,10 +18,10 @@ pytest.importorskip("pyopencl")
 
 pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
-from pipegen import formats as F  # noqa: E402
-from pipegen.compare import compare_target  # noqa: E402
-from pipegen.compiler import compile_file, compile_source  # noqa: E402
-from pipegen.scene import load_scene  # noqa: E402
+from pipegen.core import formats as F  # noqa: E402
+from pipegen.proof.compare import compare_target  # noqa: E402
+from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
+from pipegen.scene.load import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
@@ -31,7 +31,7 @@ TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr
 @pytest.fixture(scope="module")
 def gl_available():
     try:
-        from pipegen.runtime.gl_context import get_context
+        from pipegen.runtime.gl.context import get_context
         get_context()
     except Exception as exc:   # no EGL / llvmpipe here: the CL-only tests still run
         pytest.skip(f"no OpenGL context: {exc}")

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.backends import cl_wide, opencl
-from pipegen.compiler import compile_file, compile_source
-from pipegen.scene import load_scene
+from pipegen.backends.opencl import wide as cl_wide, emit as opencl
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.scene.load import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -285,7 +285,7 @@ def test_wide_half_decoding_is_exact(f16c):
     F16C, else selects) gives the prelude's ``pg_half_bits_to_float`` bits for all 65536
     codes (NaN payloads and half denormals included)."""
     import pyopencl as cl
-    from pipegen.runtime import cl_context
+    from pipegen.runtime.cl import context as cl_context
 
     src = (opencl.prelude_source() + ("" if f16c else "\n#undef __F16C__\n")
            + cl_wide.wide_helpers() + """

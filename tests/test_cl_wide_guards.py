@@ -16,9 +16,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipegen.backends import cl_wide
-from pipegen.compiler import compile_source
-from pipegen.scene import default_scene
+from pipegen.backends.opencl import wide as cl_wide
+from pipegen.compiler.driver import compile_source
+from pipegen.scene.load import default_scene
 
 pytestmark = pytest.mark.cl
 pytest.importorskip("pyopencl")

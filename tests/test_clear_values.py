@@ -12,7 +12,7 @@ import types
 import numpy as np
 import pytest
 
-from pipegen import formats as F
+from pipegen.core import formats as F
 
 NAN = float("nan")
 
@@ -71,7 +71,7 @@ def test_clear_codes_depth_and_stencil():
 def _cl_fill(fmt, color=None, depth=None, stencil=None, f64=False):
     """The byte patterns the CL runtime fills a target with (enqueue calls captured)."""
     cl = pytest.importorskip("pyopencl")
-    from pipegen.runtime import cl_targets as CT
+    from pipegen.runtime.cl import targets as CT
     log = []
     mp = pytest.MonkeyPatch()
     mp.setattr(cl, "enqueue_fill_buffer",
@@ -90,7 +90,7 @@ def _cl_fill(fmt, color=None, depth=None, stencil=None, f64=False):
 
 @pytest.mark.parametrize("name", sorted(F.FORMATS))
 def test_gl_and_cl_clear_the_same_bytes(name):
-    from pipegen.runtime import gl_formats as GF
+    from pipegen.runtime.gl import formats as GF
     fmt = F.get(name)
     if fmt.is_color:
         odd = 0.0 if fmt.is_integer else NAN     # (NaN has no integer part)

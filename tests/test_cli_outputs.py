@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import pipegen.compiler
-from pipegen.cli import main
-from pipegen.outdir import MANIFEST
+import pipegen.compiler.driver
+from pipegen.cli.main import main
+from pipegen.core.outdir import MANIFEST
 
 ROOT = Path(__file__).resolve().parents[1]
 FORWARD = str(ROOT / "pipelines/forward.pipe")
@@ -84,7 +84,7 @@ def test_compile_keeps_check_output_and_user_files(tmp_path, capsys):
     build = tmp_path / "build"
     check_dir = build / "check" / "forward"
     # what `pipegen check` leaves: a folder with its own manifest
-    from pipegen.outdir import OutputDir
+    from pipegen.core.outdir import OutputDir
     with OutputDir(check_dir, "check").staging() as tmp:
         (tmp / "error_color.png").write_bytes(b"png")
     assert main(["compile", FORWARD, "-o", str(build)]) == 0      # no --force needed
@@ -110,8 +110,8 @@ def test_compile_keeps_check_output_and_user_files(tmp_path, capsys):
 @pytest.fixture
 def gl_as_cl(monkeypatch):
     """``check`` with the GL pipeline standing in for CL: this tests only the output folder."""
-    real = pipegen.compiler.Compiled.pipeline
-    monkeypatch.setattr(pipegen.compiler.Compiled, "pipeline",
+    real = pipegen.compiler.driver.Compiled.pipeline
+    monkeypatch.setattr(pipegen.compiler.driver.Compiled, "pipeline",
                         lambda self, backend="gl", size=None: real(self, "gl", size))
 
 
@@ -136,8 +136,8 @@ def no_work(monkeypatch):
     """Fail the test if anything is compiled or rendered."""
     def refuse(*a, **k):
         raise AssertionError("work was done before the output folder was checked")
-    monkeypatch.setattr(pipegen.compiler, "compile_file", refuse)
-    monkeypatch.setattr(pipegen.compiler.Compiled, "pipeline", refuse)
+    monkeypatch.setattr(pipegen.compiler.driver, "compile_file", refuse)
+    monkeypatch.setattr(pipegen.compiler.driver.Compiled, "pipeline", refuse)
 
 
 @pytest.mark.parametrize("command", ["run", "compile", "check"])

@@ -11,8 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import graph, specialise
-from pipegen.cli import main
+from pipegen.views import graph
+from pipegen.compiler import specialise
+from pipegen.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "examples/scenes"
@@ -313,7 +314,7 @@ def test_general_build_says_what_unused_shadow_maps_cost():
     none where lights cast shadows, none for the specialised variant (compile --scene), none
     for a technique without shadow maps."""
     from pipegen import compile_file, load_scene
-    from pipegen.cli import unused_cost_note
+    from pipegen.cli.main import unused_cost_note
     small, shadows = load_scene(scene("small")), load_scene(scene("shadows"))
     forward = compile_file(tech("forward"))
     note = unused_cost_note(forward, small)

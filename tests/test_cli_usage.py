@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import pipegen
-from pipegen.cli import MAX_SIZE, main
+from pipegen.cli.main import MAX_SIZE, main
 
 ROOT = Path(__file__).resolve().parents[1]
 FORWARD = str(ROOT / "pipelines/forward.pipe")

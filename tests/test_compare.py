@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from pipegen import formats
-from pipegen.compare import EDGE_MIN, compare_target, ulp_distance
+from pipegen.core import formats
+from pipegen.proof.compare import EDGE_MIN, compare_target, ulp_distance
 
 RGBA8 = formats.get("rgba8")
 

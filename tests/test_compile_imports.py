@@ -20,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = sorted(str(p.relative_to(ROOT)) for p in (ROOT / "pipelines").glob("*.pipe"))
 
 #: Never imported by ``pipegen compile FILE -o DIR`` (without --scene).
-FORBIDDEN = ("numpy", "moderngl", "pyopencl", "PIL", "matplotlib", "pipegen.scene",
-             "pipegen.sweep", "pipegen.stress", "pipegen.runtime")
+FORBIDDEN = ("numpy", "moderngl", "pyopencl", "PIL", "matplotlib", "pipegen.scene.load",
+             "pipegen.tools.sweep", "pipegen.tools.stress", "pipegen.runtime")
 
 PROBE = r"""
 import json, sys, traceback
@@ -41,7 +41,7 @@ class Recorder:
         return None
 
 sys.meta_path.insert(0, Recorder())
-from pipegen.cli import main
+from pipegen.cli.main import main
 report = []
 for i, technique in enumerate(techniques):
     rc = main(["compile", technique, "-o", f"{out}/{i}", "--force"])
@@ -79,7 +79,7 @@ def test_with_every_syntax_tree_cached_a_compile_imports_no_lark(tmp_path):
     """The second compile of the same files loads their trees (syntax.parse's cache): neither
     lark nor the transformer (syntax_tree.py) is imported, the parser not loaded."""
     env = {**os.environ, "PIPEGEN_CACHE_DIR": str(tmp_path / "cache")}
-    forbidden = FORBIDDEN + ("lark", "pipegen.syntax_tree")
+    forbidden = FORBIDDEN + ("lark", "pipegen.frontend.syntax_tree")
     first = run_probe(TECHNIQUES, tmp_path / "1", forbidden, env, stop=False)
     assert "lark" in first["report"][0]["loaded"]       # an empty cache: parsed
     second = run_probe(TECHNIQUES, tmp_path / "2", forbidden, env)
@@ -99,8 +99,8 @@ def test_the_probe_sees_an_import_when_there_is_one(tmp_path):
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     [row] = result["report"]
-    assert "numpy" in row["loaded"] and "pipegen.scene" in row["loaded"]
-    assert "pipegen/scene.py" in result["stacks"]["numpy"]
+    assert "numpy" in row["loaded"] and "pipegen.scene.load" in row["loaded"]
+    assert "pipegen/scene/load.py" in result["stacks"]["numpy"]
 
 
 def test_the_version_is_read_without_importlib_metadata():
@@ -111,6 +111,6 @@ def test_the_version_is_read_without_importlib_metadata():
         expected = version("pipegen")
     except PackageNotFoundError:
         pytest.skip("pipegen is not installed")
-    from pipegen import defaults
+    from pipegen.core import defaults
     assert defaults._version_from_metadata_folder() == expected
     assert defaults.version() == expected == pipegen.__version__

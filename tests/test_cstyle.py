@@ -8,11 +8,12 @@ import struct
 import numpy as np
 import pytest
 
-from pipegen import ir
+from pipegen.ir import nodes as ir
 from pipegen.backends.cstyle import FLT_MIN, CStyleLanguage
 from pipegen.backends.glsl import GLSLLanguage
-from pipegen.ir import (BOOL, FLOAT, INT, MAT4, UINT, VEC2, VEC3, VEC4, Binary, Call, Const,
-                        Construct, Swizzle, Ternary, Type, Unary, Var)
+from pipegen.ir.nodes import (
+    BOOL, FLOAT, INT, MAT4, UINT, VEC2, VEC3, VEC4, Binary, Call, Const, Construct, Swizzle,
+    Ternary, Type, Unary, Var)
 
 a, b, c = (Var(n, FLOAT) for n in "abc")
 u, w = Var("u", UINT), Var("w", UINT)

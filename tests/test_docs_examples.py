@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import syntax
-from pipegen.compiler import compile_source
-from pipegen.diagnostics import PipegenError
-from pipegen.scene import parse_scene
+from pipegen.frontend import parse as syntax
+from pipegen.compiler.driver import compile_source
+from pipegen.core.diagnostics import PipegenError
+from pipegen.scene.load import parse_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
@@ -100,10 +100,10 @@ def test_toml_example_loads(path, line, tag, code):
 
 
 def test_scene_docs_list_every_key_the_loader_accepts():
-    """docs/scenes.md has a table row for every key pipegen/scene.py checks for."""
+    """docs/scenes.md has a table row for every key pipegen/scene/load.py checks for."""
     import inspect
 
-    from pipegen import scene as scene_mod
+    from pipegen.scene import load as scene_mod
     text = (ROOT / "docs/scenes.md").read_text()
     documented = set(re.findall(r"^\| `([a-z_]+)` \|", text, re.M))
     source = inspect.getsource(scene_mod)
@@ -111,7 +111,7 @@ def test_scene_docs_list_every_key_the_loader_accepts():
     for keys in re.findall(r"check_keys\(\{([^}]*)\}", source) + \
             re.findall(r'"(?:point|spot|directional)": \{([^}]*)\}', source):
         accepted |= set(re.findall(r'"([a-z_]+)"', keys))
-    assert accepted, "no check_keys calls found in pipegen/scene.py"
+    assert accepted, "no check_keys calls found in pipegen/scene/load.py"
     assert accepted <= documented | {"camera", "objects", "lights"}, \
         sorted(accepted - documented)
 

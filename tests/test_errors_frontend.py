@@ -8,8 +8,10 @@ import types
 
 import pytest
 
-from pipegen import ir, lower, syntax
-from pipegen.diagnostics import PipegenError
+from pipegen.ir import nodes as ir
+from pipegen.frontend.lower import lowerer as lower
+from pipegen.frontend import parse as syntax
+from pipegen.core.diagnostics import PipegenError
 
 BASE = """\
 technique t "error fixture"
@@ -273,7 +275,7 @@ CASES = [
 
 @pytest.fixture
 def packing(monkeypatch):
-    """A stand-in for pipegen.packing (another part of the project)."""
+    """A stand-in for pipegen.packing.schemes (another part of the project)."""
     @dataclasses.dataclass
     class Spec:
         functions_source: str
@@ -286,9 +288,9 @@ def packing(monkeypatch):
         return Spec(f"vec4 {name}_value(uint i) {{ return vec4(float(i)); }}",
                     {"capacity": (ir.INT, 4)})
 
-    mod = types.ModuleType("pipegen.packing")
+    mod = types.ModuleType("pipegen.packing.schemes")
     mod.build, mod.SCHEMES = build, ("bitplanes", "channel_slots")
-    monkeypatch.setitem(sys.modules, "pipegen.packing", mod)
+    monkeypatch.setitem(sys.modules, "pipegen.packing.schemes", mod)
 
 
 def front_end(source: str, params=None, files=None):

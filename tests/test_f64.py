@@ -26,13 +26,13 @@ pytest.importorskip("pyopencl")
 
 pytestmark = pytest.mark.cl
 
-from pipegen import formats  # noqa: E402
+from pipegen.core import formats  # noqa: E402
 from pipegen.backends.plan import plan_from_dict  # noqa: E402
-from pipegen.compare import compare_target  # noqa: E402
-from pipegen.compiler import compile_file, compile_source  # noqa: E402
-from pipegen.diagnostics import PipegenError  # noqa: E402
-from pipegen.precision import quantize_targets  # noqa: E402
-from pipegen.scene import load_scene  # noqa: E402
+from pipegen.proof.compare import compare_target  # noqa: E402
+from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
+from pipegen.core.diagnostics import PipegenError  # noqa: E402
+from pipegen.proof.precision import quantize_targets  # noqa: E402
+from pipegen.scene.load import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
@@ -315,11 +315,11 @@ def test_f64_plan_is_plain_data_and_f32_kernels_unchanged():
 @pytest.mark.gl
 def test_cli_check_and_run_with_precision_f64(tmp_path, capsys):
     try:
-        from pipegen.runtime.gl_context import get_context
+        from pipegen.runtime.gl.context import get_context
         get_context()
     except Exception as exc:   # no EGL / llvmpipe here
         pytest.skip(f"no OpenGL context: {exc}")
-    from pipegen.cli import main
+    from pipegen.cli.main import main
     tech = str(ROOT / "pipelines/forward.pipe")
     scene = str(ROOT / "examples/scenes/small.toml")
     assert main(["check", tech, "--scene", scene, "--precision", "f64",
@@ -371,7 +371,7 @@ def test_builtins_and_bool_vectors_in_double(small):
     q = quantize_targets(compiled.technique, f64)["color"]
     assert np.abs(q.astype(int) - f32["color"].astype(int)).max() <= 1
     # the dynamic-state programs (the tests' mode) build in double too
-    from pipegen.runtime.cl_pipeline import CLPipeline
+    from pipegen.runtime.cl.pipeline import CLPipeline
     pipe = CLPipeline(compiled.pipeline("cl", precision="f64").plan, dynamic_state=True)
     assert np.array_equal(pipe.render(scene)["color"], f64["color"])
 
@@ -380,7 +380,7 @@ def test_error_split_total_precision_algorithm(small):
     """Two references per image: the scene reference (total error) and the technique's own
     float64 evaluation (precision error); inferred lighting's low-resolution L-buffer is
     what its algorithm gives up, not precision."""
-    from pipegen.precision import error_split
+    from pipegen.proof.precision import error_split
     from pipegen.reference.lighting import reference_image
     ref, gb = reference_image(small)
     compiled = compile_file(ROOT / "pipelines/inferred.pipe")

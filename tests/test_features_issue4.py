@@ -2,7 +2,7 @@
 ``draw lights as quad``, and light-type filters on ``repeat per light``.
 
 Front-end and host-side tests run everywhere; the render tests draw on both backends (OpenGL
-on llvmpipe, OpenCL on PoCL) and compare them with ``pipegen.compare.compare_target`` and with
+on llvmpipe, OpenCL on PoCL) and compare them with ``pipegen.proof.compare.compare_target`` and with
 the float64 references where there is one.
 """
 
@@ -15,14 +15,14 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from pipegen import formats as F
-from pipegen.compare import compare_target
-from pipegen.compiler import compile_source
-from pipegen.diagnostics import PipegenError
-from pipegen.ir import CompareFunc, CullMode, Volume
-from pipegen.meshes import light_volume
+from pipegen.core import formats as F
+from pipegen.proof.compare import compare_target
+from pipegen.compiler.driver import compile_source
+from pipegen.core.diagnostics import PipegenError
+from pipegen.ir.nodes import CompareFunc, CullMode, Volume
+from pipegen.scene.meshes import light_volume
 from pipegen.runtime import draws
-from pipegen.scene import Light, load_scene
+from pipegen.scene.load import Light, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -296,7 +296,7 @@ def test_scissor_rect_of_a_directional_light(mixed):
 def backends():
     pytest.importorskip("pyopencl")
     try:
-        from pipegen.runtime.gl_context import get_context
+        from pipegen.runtime.gl.context import get_context
         get_context()
     except Exception as exc:   # no EGL / llvmpipe here
         pytest.skip(f"no OpenGL context: {exc}")
@@ -334,7 +334,7 @@ pass g {
 @pytest.mark.cl
 def test_stippled_layers_match_the_reference(backends):
     from pipegen.reference.translucent import stippled_gbuffer
-    from pipegen.scene import stipple_map
+    from pipegen.scene.load import stipple_map
     scene = load_scene(ROOT / "examples/scenes/translucent_layers.toml")
     schema = "lights[16] { position: vec3, radius: float, color: vec3 }"
     c = compile_source(technique(STIPPLE, schema, targets="target ids : rgba8ui clear 0")
@@ -574,7 +574,7 @@ pass resolve {
 def test_deferred_mixed_lights_agree(mixed, backends):
     """Calver-style deferred lighting on mixed_lights: directional quads, spot cones and
     point spheres (cull auto, depth clamp) agree between the backends."""
-    from pipegen.check import check
+    from pipegen.proof.check import check
     c = compiles(DEFERRED_MIXED, targets="target gpos : rgba32f clear 0\n"
                                          "target gnormal : rgba16f clear 0\n"
                                          "target accum : rgba16f clear 0")

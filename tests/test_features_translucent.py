@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import features
-from pipegen.compiler import compile_file, compile_source
-from pipegen.scene import load_scene, parse_scene
+from pipegen.compiler import features
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.scene.load import load_scene, parse_scene
 
 from scenes_for_tests import WALL, plane, planes_scene
 

@@ -1,4 +1,4 @@
-"""pipegen.float32 gives numpy's float32 results without numpy, bit for bit: the rounding
+"""pipegen.core.float32 gives numpy's float32 results without numpy, bit for bit: the rounding
 (``f32``), the text of a literal (``f32_str`` == ``str(numpy.float32(x))``), and through them
 the constant folds (opt_fold_constants, lower_mix_constant) that used numpy before.  The
 references below are the numpy formulas the compiler used until it stopped importing numpy."""
@@ -13,8 +13,8 @@ import struct
 import numpy as np
 import pytest
 
-from pipegen import ir
-from pipegen.float32 import f32, f32_str
+from pipegen.ir import nodes as ir
+from pipegen.core.float32 import f32, f32_str
 from pipegen.passes import lower_mix_constant, opt_fold_constants
 
 RNG = random.Random(20261201)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipegen import formats as F
+from pipegen.core import formats as F
 
 RNG = np.random.default_rng(7)
 
@@ -70,7 +70,7 @@ def test_scale_bits16():
 
 
 def test_opencl_layouts_are_derived():
-    from pipegen.backends.opencl import cl_format
+    from pipegen.backends.opencl.emit import cl_format
     for name, f in F.FORMATS.items():
         d = cl_format(name)
         assert d["storage"] and d["load"] and d["store"] and d["name"] == name
@@ -84,7 +84,7 @@ def test_opencl_layouts_are_derived():
 
 
 def test_opencl_prelude_conversions_follow_the_table():
-    from pipegen.backends.opencl import scaled16_conversions
+    from pipegen.backends.opencl.emit import scaled16_conversions
     (conv,) = scaled16_conversions()
     assert conv["name"] == "rgb10a2"
     assert conv["expr"] == "c.xyz >> 6, ((c.w >> 2) * 3u + 8192u) >> 14"
@@ -117,8 +117,8 @@ GL_SPELLING = {   # format -> (internal format, transfer format, transfer type)
 def test_gl_spelling_is_derived_from_properties():
     pytest.importorskip("OpenGL")
     try:
-        from pipegen.runtime import gl_formats as GF
-        from pipegen.runtime.gl_context import GL
+        from pipegen.runtime.gl import formats as GF
+        from pipegen.runtime.gl.context import GL
     except Exception as exc:   # pragma: no cover - no EGL platform
         pytest.skip(f"PyOpenGL unavailable: {exc}")
     assert set(GL_SPELLING) == set(F.FORMATS)

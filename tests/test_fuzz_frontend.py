@@ -28,8 +28,8 @@ from pathlib import Path
 
 import pytest
 
-from pipegen.compiler import compile_file, compile_source
-from pipegen.diagnostics import PipegenError
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.core.diagnostics import PipegenError
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = sorted((ROOT / "pipelines").glob("*.pipe"))

@@ -15,13 +15,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from pipegen.ir import Size
+from pipegen.ir.nodes import Size
 from pipegen.reference import fixed_function as FF
 from pipegen.runtime import draws
 
 try:
-    from pipegen.runtime.gl_context import get_context
-    from pipegen.runtime.gl_pipeline import GLPipeline
+    from pipegen.runtime.gl.context import get_context
+    from pipegen.runtime.gl.pipeline import GLPipeline
     _CTX = get_context()
     _ERR = None
 except Exception as e:  # pragma: no cover - machines without EGL
@@ -69,7 +69,7 @@ def fs(outputs: str, body: str, extra: str = "") -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# a tiny scene with the Scene API (pipegen.scene), independent of scene files
+# a tiny scene with the Scene API (pipegen.scene.load), independent of scene files
 # ---------------------------------------------------------------------------------------------
 
 
@@ -344,7 +344,7 @@ def test_light_volumes_instanced_with_types():
 
 def test_light_sets_from_cpu_sort():
     """``in slots[k]``: passes draw only the lights of set k of sort_lights_into_slots."""
-    from pipegen.packing import sort_lights_into_slots
+    from pipegen.packing.schemes import sort_lights_into_slots
     scene = _lights_scene()
     sets, dropped = sort_lights_into_slots([l.position for l in scene.lights],
                                            [l.radius for l in scene.lights], 2)
@@ -503,8 +503,8 @@ def test_bad_shader_names_the_pass():
 
 
 def test_real_scene_if_available():
-    """With pipegen.scene: the default scene's geometry and lights go through unchanged."""
-    scene_mod = pytest.importorskip("pipegen.scene")
+    """With pipegen.scene.load: the default scene's geometry and lights go through unchanged."""
+    scene_mod = pytest.importorskip("pipegen.scene.load")
     scene = scene_mod.default_scene().with_size(32, 18)
     frag = fs("flat in uvec2 v_ids;\nlayout(location = 0) out uvec4 o_id;\n",
               "o_id = uvec4(v_ids.x, 0u, 0u, 0u);", extra="in vec3 v_albedo;\n")
@@ -548,9 +548,9 @@ def test_depth_only_pass_without_fragment_shader(samples):
 def test_errors_left_by_other_moderngl_code_do_not_break_the_runtime():
     """moderngl never checks glGetError: an error a user's own call leaves pending must not
     surface from the runtime's next (PyOpenGL-checked) call."""
-    from pipegen.compiler import compile_source
-    from pipegen.runtime.gl_context import GL, get_context
-    from pipegen.scene import default_scene
+    from pipegen.compiler.driver import compile_source
+    from pipegen.runtime.gl.context import GL, get_context
+    from pipegen.scene.load import default_scene
     ctx = get_context()
     ctx.enable_direct(0xFFFF)            # GL_INVALID_ENUM, left pending by moderngl
     compiled = compile_source('technique t "x"\ntarget color : rgba8\n'

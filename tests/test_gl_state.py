@@ -1,6 +1,6 @@
 """GL fixed-function state vs the numpy oracle (moderngl's tests/test_blend.py, generalised).
 
-Every test renders a tiny target (16x16) through ``pipegen.runtime.gl_state`` and compares
+Every test renders a tiny target (16x16) through ``pipegen.runtime.gl.state`` and compares
 the codes with ``pipegen.reference.fixed_function``: colours within ``Format.tolerance`` (one
 blended pass), stencil exactly, depth exactly (the oracle models llvmpipe's d24 conversion).
 Per-pixel random sources come from a float texture read with ``texelFetch`` by a full-screen
@@ -20,15 +20,15 @@ import zlib
 import numpy as np
 import pytest
 
-from pipegen import formats as F
+from pipegen.core import formats as F
 from pipegen.backends.plan import state_from_dict
 from pipegen.reference import fixed_function as FF
 
 try:
     import moderngl
-    from pipegen.runtime.gl_context import GL, get_context
-    from pipegen.runtime import gl_formats as GF
-    from pipegen.runtime import gl_state as GS
+    from pipegen.runtime.gl.context import GL, get_context
+    from pipegen.runtime.gl import formats as GF
+    from pipegen.runtime.gl import state as GS
     _CTX = get_context()
     _ERR = None
 except Exception as e:  # pragma: no cover - machines without EGL
@@ -205,7 +205,7 @@ def assert_codes(fmt, got, exp, passes=1, what=""):
     f = F.get(fmt)
     tol = f.tolerance(passes)
     if tol.units == "ulp":
-        from pipegen.compare import ulp_distance
+        from pipegen.proof.compare import ulp_distance
         err = ulp_distance(np.asarray(got), np.asarray(exp).astype(got.dtype), tol.abs_floor)
     else:
         err = np.abs(np.asarray(got).astype(np.int64) - np.asarray(exp).astype(np.int64))

@@ -1,4 +1,4 @@
-"""GL state transitions (``pipegen.runtime.gl_transitions``) render exactly what full state does.
+"""GL state transitions (``pipegen.runtime.gl.transitions``) render exactly what full state does.
 
 * every shipped technique, on scenes with point, spot and directional lights and with shadow
   maps: a pipeline that sets only the differences between passes (the default) and one that
@@ -22,16 +22,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import formats as F
-from pipegen import ir
-from pipegen.compiler import compile_file
-from pipegen.scene import load_scene
+from pipegen.core import formats as F
+from pipegen.ir import nodes as ir
+from pipegen.compiler.driver import compile_file
+from pipegen.scene.load import load_scene
 
 try:
-    from pipegen.runtime.gl_context import GL, get_context
-    from pipegen.runtime import gl_state as GS
-    from pipegen.runtime import gl_transitions as GT
-    from pipegen.runtime.gl_pipeline import GLPipeline
+    from pipegen.runtime.gl.context import GL, get_context
+    from pipegen.runtime.gl import state as GS
+    from pipegen.runtime.gl import transitions as GT
+    from pipegen.runtime.gl.pipeline import GLPipeline
     _CTX = get_context()
     _ERR = None
 except Exception as e:  # pragma: no cover - machines without EGL
@@ -211,7 +211,7 @@ def _junk(rng: random.Random) -> None:
 def stencil_fbo():
     """GL reports the stencil reference clamped to the bound draw framebuffer's stencil bits:
     queries run with a d24s8 attachment bound."""
-    from pipegen.runtime import gl_formats as GF
+    from pipegen.runtime.gl import formats as GF
     tex = GF.create_texture("d24s8", 4, 4)
     ids = np.zeros(1, np.uint32)
     GL.glCreateFramebuffers(1, ids)
@@ -369,7 +369,7 @@ def test_gl_errors_are_reported(plans, debug):
 
 def _count_calls(fn) -> Counter:
     import OpenGL.GL as G
-    from pipegen.runtime import gl_pipeline as GP
+    from pipegen.runtime.gl import pipeline as GP
     counts: Counter = Counter()
 
     def wrap(name, f):

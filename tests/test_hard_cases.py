@@ -6,7 +6,7 @@ Two kinds of test:
 - small techniques written here (full-screen passes, a few pixels) where the exact expected
   codes are known: unorm ties, NaN/inf into every kind of format, the guarded builtins,
   1..256 lights accumulated in rgba8 / rgba16f / rgba32f, depth fighting in d24 vs d32f;
-- ``pipegen stress`` cases on shipped techniques (``pipegen.stress``): the error of every
+- ``pipegen stress`` cases on shipped techniques (``pipegen.tools.stress``): the error of every
   target against the technique's float64 evaluation within the bound of docs/stress.md
   (store + blends + arithmetic + measured position and read propagation), GL and CL within
   DESIGN.md §7's tolerance, no NaN/inf on either backend.
@@ -28,12 +28,12 @@ pytest.importorskip("pyopencl")
 
 pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
-from pipegen import formats as F  # noqa: E402
-from pipegen.compiler import compile_file, compile_source  # noqa: E402
-from pipegen.scene import Light, default_scene  # noqa: E402
-from pipegen.stress import bounds as B  # noqa: E402
-from pipegen.stress import cases as C  # noqa: E402
-from pipegen.stress.run import Stress, compare_values  # noqa: E402
+from pipegen.core import formats as F  # noqa: E402
+from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
+from pipegen.scene.load import Light, default_scene  # noqa: E402
+from pipegen.tools.stress import bounds as B  # noqa: E402
+from pipegen.tools.stress import cases as C  # noqa: E402
+from pipegen.tools.stress.run import Stress, compare_values  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZE = (32, 24)
@@ -189,7 +189,7 @@ def test_lights_accumulated_in_rgba8_rgba16f_rgba32f(base, n):
     scene = dataclasses.replace(base.with_size(4, 2), lights=lights)
     f64 = compiled.pipeline("cl", precision="f64").render(scene)
     got = _render(compiled, scene)
-    from pipegen.stress.bounds import plan_targets
+    from pipegen.tools.stress.bounds import plan_targets
     info = plan_targets(compiled)
     for key in ("a8", "h", "f"):
         t = info[key]
@@ -197,7 +197,7 @@ def test_lights_accumulated_in_rgba8_rgba16f_rgba32f(base, n):
         for b in ("gl", "cl"):
             row = compare_values(key, t.format, b, got[b][key], f64[key], bound, False)
             assert row.passed, (n, key, b, row.worst_ratio)
-    from pipegen.check import compare_targets
+    from pipegen.proof.check import compare_targets
     assert all(r.passed for r in compare_targets(compiled, got["gl"], got["cl"], n))
     # alpha counts the lights exactly in the float targets (integers below 2048)
     assert np.all(got["cl"]["f"][..., 3] == n) and np.all(got["gl"]["h"][..., 3] == n)
@@ -296,7 +296,7 @@ def test_shared_edges_of_light_volumes_light_no_pixel_twice(base):
     (a pixel on an edge two volume triangles share is covered by one of them: the fill rule),
     so the CL run's per-pixel blend count never exceeds the blend steps of the frame
     (``check.blend_steps``), and GL agrees with CL within §7."""
-    from pipegen.check import blend_steps, compare_targets
+    from pipegen.proof.check import blend_steps, compare_targets
     compiled = compile_file(ROOT / "pipelines" / "deferred.pipe")
     (case,) = C.build(base, ["lights_1"])
     cl = compiled.pipeline("cl")

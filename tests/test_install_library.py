@@ -119,7 +119,7 @@ def _clean_env(tmp: Path) -> dict:
 @pytest.mark.slow
 def test_installed_pipegen_compiles_a_technique_outside_the_repo(installed, tmp_path):
     python = installed / ("python.exe" if os.name == "nt" else "python")
-    where = _run([str(python), "-c", "import pipegen, pipegen.sources as s; "
+    where = _run([str(python), "-c", "import pipegen, pipegen.core.sources as s; "
                   "print(pipegen.__file__); print(s.library_dir())"],
                  env=_clean_env(tmp_path), cwd=tmp_path).stdout.split("\n")
     venv = installed.parent.resolve()

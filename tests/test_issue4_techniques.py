@@ -26,12 +26,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.compiler import compile_file
+from pipegen.compiler.driver import compile_file
 from pipegen.reference.light_buffer import light_buffer_reference
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.metrics import rgb_error
 from pipegen.reference.translucent import reference_composite
-from pipegen.scene import load_scene
+from pipegen.scene.load import load_scene
 
 pytestmark = [pytest.mark.gl]
 

@@ -40,15 +40,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import features, ir
-from pipegen.accuracy import scene_reference
+from pipegen.compiler import features
+from pipegen.ir import nodes as ir
+from pipegen.proof.accuracy import scene_reference
 from pipegen.backends.plan import draw_from_dict
-from pipegen.compiler import compile_file, compile_source
-from pipegen.diagnostics import PipegenError
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.core.diagnostics import PipegenError
 from pipegen.reference.metrics import dilate, rgb_error
 from pipegen.reference.translucent import reference_composite
 from pipegen.runtime import draws
-from pipegen.scene import load_scene, parse_scene
+from pipegen.scene.load import load_scene, parse_scene
 
 from scenes_for_tests import WALL, plane, planes_scene
 
@@ -242,7 +243,7 @@ def test_front_face_count_bounds_the_lights_along_the_ray():
 @pytest.mark.cl
 def test_check_gl_against_cl_on_translucent_layers(tmp_path):
     pytest.importorskip("pyopencl")
-    from pipegen.check import check
+    from pipegen.proof.check import check
     s = scene("translucent_layers").with_size(96, 54)
     result = check(compiled(), s, tmp_path)
     assert result.passed, "\n" + result.table() + f"\nfirst divergence: {result.first_divergence}"

@@ -47,15 +47,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.compiler import compile_file
-from pipegen.ir import DrawKind, Volume
-from pipegen.packing import sort_lights_into_slots
+from pipegen.compiler.driver import compile_file
+from pipegen.ir.nodes import DrawKind, Volume
+from pipegen.packing.schemes import sort_lights_into_slots
 from pipegen.reference.light_buffer import light_buffer_reference
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.rounding import as_float32
 from pipegen.reference.metrics import rgb_error, silhouette_mask
 from pipegen.reference.translucent import reference_composite
-from pipegen.scene import Light, load_scene
+from pipegen.scene.load import Light, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
@@ -286,7 +286,7 @@ CHECKS = [(t, "street_lamps") for t in TECHNIQUES] + [
 @pytest.mark.parametrize("technique, name", CHECKS)
 def test_check_gl_against_cl(technique, name, tmp_path):
     pytest.importorskip("pyopencl")
-    from pipegen.check import check
+    from pipegen.proof.check import check
     result = check(compiled(technique), scene(name), tmp_path)
     assert result.passed, "\n" + result.table() + f"\nfirst divergence: {result.first_divergence}"
 

@@ -13,13 +13,13 @@ import numpy as np
 import pygltflib as gl
 import pytest
 
-from pipegen import meshes
-from pipegen.diagnostics import PipegenError
-from pipegen.gltf import (GltfError, framing_camera, load_gltf, pbr_material, punctual_light)
-from pipegen.objfile import MtlMaterial, parse_mtl, read_obj
-from pipegen.scene import SceneLoadWarning, load_scene, parse_scene
+from pipegen.scene import meshes
+from pipegen.core.diagnostics import PipegenError
+from pipegen.scene.gltf import GltfError, framing_camera, load_gltf, pbr_material, punctual_light
+from pipegen.scene.obj import MtlMaterial, parse_mtl, read_obj
+from pipegen.scene.load import SceneLoadWarning, load_scene, parse_scene
 
-pytestmark = pytest.mark.filterwarnings("ignore::pipegen.scene.SceneLoadWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::pipegen.scene.load.SceneLoadWarning")
 
 ROOT = Path(__file__).resolve().parents[1]
 CORNELL = ROOT / "examples" / "models" / "cornell_box"

@@ -2,7 +2,7 @@
 them gave, on every shipped mesh: the procedural primitives, the OBJ files in
 examples/models/, the OBJ meshes the scene tests write, and a Sponza-shaped generated file.
 
-``_reference_*`` below are the functions of pipegen/meshes.py at commit caa375c, verbatim but
+``_reference_*`` below are the functions of pipegen/scene/meshes.py at commit caa375c, verbatim but
 for names: a Python loop over vertices for smoothing and a union-find loop for groups."""
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import meshes, objfile
-from pipegen.objfile import read_obj
+from pipegen.scene import meshes, obj as objfile
+from pipegen.scene.obj import read_obj
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "examples" / "models"

@@ -8,9 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import builtins, ir, lower, syntax, verify
-from pipegen.diagnostics import PipegenError
-from pipegen.formats import FORMATS
+from pipegen.ir import builtins, nodes as ir, verify
+from pipegen.frontend.lower import lowerer as lower
+from pipegen.frontend import parse as syntax
+from pipegen.core.diagnostics import PipegenError
+from pipegen.core.formats import FORMATS
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -48,7 +50,7 @@ def value_of(body: str, decls: str = "", draw: str = "draw scene") -> ir.Expr:
     return p.body[0].init
 
 
-# A stand-in for pipegen.packing (written by another part of the project): just enough for the
+# A stand-in for pipegen.packing.schemes (written by another part of the project): just enough for the
 # front end's side of the contract (internals.md, "Packing schemes").
 _STUB_SOURCES = {
     "bitplanes": "vec4 {n}_plane_value(uint index) {{ return vec4(float({n}_low(index))); }}\n"
@@ -77,9 +79,9 @@ def packing(monkeypatch):
         consts = {"capacity": (ir.INT, 4), "blend_constant": (ir.FLOAT, 0.25)}
         return _StubSpec(_STUB_SOURCES[scheme].format(n=name), consts, 4, 0.002, ("stub",))
 
-    mod = types.ModuleType("pipegen.packing")
+    mod = types.ModuleType("pipegen.packing.schemes")
     mod.build, mod.SCHEMES, mod.calls = build, tuple(_STUB_SOURCES), calls
-    monkeypatch.setitem(sys.modules, "pipegen.packing", mod)
+    monkeypatch.setitem(sys.modules, "pipegen.packing.schemes", mod)
     return mod
 
 

@@ -8,11 +8,11 @@ import inspect
 import numpy as np
 import pytest
 
-from pipegen import ir, irwalk, verify
+from pipegen.ir import nodes as ir, walk as irwalk, verify
 from pipegen.backends.cstyle import CStyleLanguage
 from pipegen.backends.glsl import GLSLLanguage, emit_gl
-from pipegen.backends.opencl import OpenCLLanguage, emit_cl
-from pipegen.compiler import compile_source
+from pipegen.backends.opencl.emit import OpenCLLanguage, emit_cl
+from pipegen.compiler.driver import compile_source
 from pipegen.passes import lower_mix_constant
 
 SOURCE = """
@@ -114,9 +114,9 @@ def test_mix_bit_exact_with_llvmpipe():
     lerped and 11644 of the 61440 values of ``b`` differed)."""
     pytest.importorskip("pyopencl")
     from pathlib import Path
-    from pipegen.scene import load_scene
+    from pipegen.scene.load import load_scene
     try:
-        from pipegen.runtime.gl_context import get_context
+        from pipegen.runtime.gl.context import get_context
         get_context()
     except Exception as exc:   # pragma: no cover - no EGL here
         pytest.skip(f"no OpenGL context: {exc}")

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.compiler import compile_source
-from pipegen.diagnostics import PipegenError
-from pipegen.scene import Camera, load_scene, parse_scene
+from pipegen.compiler.driver import compile_source
+from pipegen.core.diagnostics import PipegenError
+from pipegen.scene.load import Camera, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -129,7 +129,7 @@ KILLZONE2 = ROOT / "examples" / "techniques" / "killzone2_gbuffer.pipe"
 
 
 def test_killzone2_example_compiles_with_the_new_builtins():
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
     c = compile_file(KILLZONE2)
     gl = c.plan("gl").passes[0].code.fragment
     assert "packHalf2x16(" in gl and "uniform mat4 u_prev_proj;" in gl
@@ -144,7 +144,7 @@ def test_killzone2_example_on_a_moving_camera(scenes):
     """GL and CL agree exactly on every target; the G-buffer decodes to numpy's motion (within
     the 8-bit step) and the view normal (within the half and 8-bit rounding); the lit image is
     deferred.pipe's to 2 codes (same lighting, another G-buffer)."""
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
     still, moving = scenes
     c = compile_file(KILLZONE2)
     got = {b: c.pipeline(b).render(moving) for b in ("gl", "cl")}

@@ -1,4 +1,4 @@
-"""``pipegen.outdir.OutputDir``: pipegen never deletes or overwrites a file it did not write; a
+"""``pipegen.core.outdir.OutputDir``: pipegen never deletes or overwrites a file it did not write; a
 failure leaves the previous outputs intact; a foreign non-empty folder is refused unless forced;
 a path that cannot be a folder is reported before any work."""
 
@@ -7,8 +7,8 @@ import os
 
 import pytest
 
-from pipegen.diagnostics import PipegenError
-from pipegen.outdir import MANIFEST, OutputDir, foreign_entries, read_manifest, safe_name
+from pipegen.core.diagnostics import PipegenError
+from pipegen.core.outdir import MANIFEST, OutputDir, foreign_entries, read_manifest, safe_name
 
 
 def write(out: OutputDir, files: dict[str, str]) -> None:

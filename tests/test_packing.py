@@ -12,8 +12,10 @@ import re
 import numpy as np
 import pytest
 
-from pipegen import formats, ir, packing
-from pipegen.diagnostics import PipegenError, Span
+from pipegen.core import formats
+from pipegen.ir import nodes as ir
+from pipegen.packing import schemes as packing
+from pipegen.core.diagnostics import PipegenError, Span
 
 F32 = np.float32
 SPAN = Span("t.pipe", 3, 1)
@@ -89,9 +91,9 @@ class TestBuild:
 
     @pytest.mark.parametrize("scheme, options, target", ALL_OPTIONS)
     def test_parses_with_the_front_end(self, scheme, options, target):
-        syntax = pytest.importorskip("pipegen.syntax")
+        syntax = pytest.importorskip("pipegen.frontend.parse")
         if not hasattr(syntax, "parse"):
-            pytest.skip("pipegen.syntax.parse not there yet")
+            pytest.skip("pipegen.frontend.parse.parse not there yet")
         spec = build(scheme, options, target, name="pk")
         module = syntax.parse('technique t "x"\n' + spec.functions_source, "packing.pipe")
         names = [getattr(item.name, "name", item.name) for item in module.items

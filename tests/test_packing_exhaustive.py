@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import formats, packing
+from pipegen.core import formats
+from pipegen.packing import schemes as packing
 
 F32 = np.float32
 ROOT = Path(__file__).resolve().parents[1]
@@ -410,8 +411,8 @@ class TestNormalFigures:
                 assert f"max {hmx:.4g}, mean {hmean:.4g} degrees" in notes
 
     def test_the_compile_report_prints_the_table(self):
-        from pipegen.compiler import compile_file
-        from pipegen.report import render_report
+        from pipegen.compiler.driver import compile_file
+        from pipegen.views.report import render_report
         text = render_report(compile_file(ROOT / "pipelines" / "inferred.pipe"))
         mx, mean = packing.NORMAL_ERRORS[("kircher", "rg16f", "hemisphere")]
         assert f"error bound   {mx:.4g} degrees (max angular error, measured)" in text
@@ -563,7 +564,7 @@ class Runner:
         import os
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
         from OpenGL import GL
-        from pipegen.runtime.gl_formats import gl_format
+        from pipegen.runtime.gl.formats import gl_format
         g = gl_format(name)
         while GL.glGetError() != GL.GL_NO_ERROR:    # PyOpenGL checks glGetError after each
             pass                                    # call: clear what moderngl left
@@ -863,8 +864,8 @@ def cl_unpack(tmp_path, technique, a, b, v):
     ``v`` (N, 4) float32 with PoCL: (N, 9) uint32."""
     pytest.importorskip("pyopencl")
     import pyopencl as cl
-    from pipegen.compiler import compile_file
-    from pipegen.runtime.cl_context import build_program, get_context
+    from pipegen.compiler.driver import compile_file
+    from pipegen.runtime.cl.context import build_program, get_context
     out_dir = tmp_path / technique
     compile_file(ROOT / "pipelines" / f"{technique}.pipe").write(out_dir)
     source = next(p.read_text() for p in sorted((out_dir / "cl").glob("*.cl"))

@@ -12,8 +12,9 @@ from pathlib import Path
 import pytest
 from lark import Lark
 
-from pipegen import package_files, syntax, syntax_tree
-from pipegen.diagnostics import PipegenError
+from pipegen.core import package_files
+from pipegen.frontend import parse as syntax, syntax_tree
+from pipegen.core.diagnostics import PipegenError
 
 ROOT = Path(__file__).resolve().parents[1]
 SOURCES = sorted(ROOT.glob("pipelines/**/*.pipe"))

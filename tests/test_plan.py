@@ -7,11 +7,11 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import ir
+from pipegen.ir import nodes as ir
 from pipegen.backends import registry
-from pipegen.backends.plan import (CLPassCode, GLPassCode, Plan, plan_from_dict,
-                                   state_from_dict, state_to_dict)
-from pipegen.compiler import compile_file, compile_source
+from pipegen.backends.plan import (
+    CLPassCode, GLPassCode, Plan, plan_from_dict, state_from_dict, state_to_dict)
+from pipegen.compiler.driver import compile_file, compile_source
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((ROOT / "pipelines").glob("*.pipe"))
@@ -95,8 +95,8 @@ def test_cull_auto_inside_a_repeat_group_agrees_across_backends(tmp_path):
     """Regression: CL drew light 0's volume for every light of a repeat group under
     ``cull auto`` (an index array was taken for a mask): 78 codes off at light 1."""
     pytest.importorskip("pyopencl")
-    from pipegen.check import check
-    from pipegen.scene import load_scene
+    from pipegen.proof.check import check
+    from pipegen.scene.load import load_scene
     scene = load_scene(ROOT / "examples/scenes/small.toml")
     assert len(scene.lights) >= 2
     result = check(compile_source(CULL_AUTO_REPEAT), scene, tmp_path)

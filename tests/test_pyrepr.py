@@ -66,7 +66,7 @@ def test_pyrepr_writes_what_it_wrote_before_on_random_data():
 @pytest.mark.parametrize("technique", ["deferred_calver", "inferred", "lidr_bitplanes"])
 def test_pyrepr_writes_what_it_wrote_before_on_plans(technique):
     from pathlib import Path
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
     root = Path(__file__).resolve().parents[1]
     compiled = compile_file(root / "pipelines" / f"{technique}.pipe")
     for backend in ("gl", "cl"):

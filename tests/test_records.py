@@ -7,7 +7,7 @@ from typing import Optional
 
 import pytest
 
-from pipegen.records import record
+from pipegen.core.records import record
 
 
 @record(frozen=True)

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import meshes, objfile
-from pipegen.diagnostics import PipegenError
-from pipegen.scene import (Camera, Geometry, assign_layers, default_scene, load_scene, parse_scene,
-                           stipple_map, stipple_owner)
+from pipegen.scene import meshes, obj as objfile
+from pipegen.core.diagnostics import PipegenError
+from pipegen.scene.load import (
+    Camera, Geometry, assign_layers, default_scene, load_scene, parse_scene, stipple_map,
+    stipple_owner)
 
 SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 

@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import shadows as S
-from pipegen.compiler import compile_file, compile_source
-from pipegen.diagnostics import PipegenError
+from pipegen.scene import shadows as S
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.core.diagnostics import PipegenError
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.metrics import error_image, rgb_error
 from pipegen.reference.shadows import ExactShadows, MappedShadows, shadow_factor, shadow_maps
-from pipegen.scene import load_scene, parse_scene
+from pipegen.scene.load import load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "examples/scenes/shadows.toml"
@@ -186,7 +186,7 @@ def _render(renders, technique, taps, backend):
 @pytest.mark.cl
 @pytest.mark.parametrize("technique", ["forward", "deferred_calver"])
 def test_check_gl_against_cl(technique, tmp_path):
-    from pipegen.check import check
+    from pipegen.proof.check import check
     c = compile_file(ROOT / f"pipelines/{technique}.pipe",
                      params={"pcf_taps": 16, "shadow_size": ATLAS})
     result = check(c, scene(), tmp_path)

@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import formats as F
-from pipegen.compiler import compile_source
+from pipegen.core import formats as F
+from pipegen.compiler.driver import compile_source
 
 ROOT = Path(__file__).resolve().parents[1]
 W, H = 160, 96
@@ -124,7 +124,7 @@ def test_snorm_quantize_follows_llvmpipe():
 
 
 def test_snorm_opencl_layout():
-    from pipegen.backends.opencl import cl_format
+    from pipegen.backends.opencl.emit import cl_format
     f = cl_format("rg16_snorm")
     assert f["cls"] == "snorm" and f["storage"] == "short2" and f["reg"] == "uint4"
     assert "convert_int4_rte" in f["encode"] and "-1.0f" in f["read"]
@@ -132,7 +132,7 @@ def test_snorm_opencl_layout():
 
 
 def test_snorm_blending_is_refused():
-    from pipegen.diagnostics import PipegenError
+    from pipegen.core.diagnostics import PipegenError
     src = """
 technique t "x"
 target n : rg8_snorm
@@ -147,11 +147,11 @@ pass p { draw fullscreen writes n blend n add(one, one) fragment { n = vec4(0.5)
 def probe():
     pytest.importorskip("pyopencl")
     try:
-        from pipegen.runtime.gl_context import get_context
+        from pipegen.runtime.gl.context import get_context
         get_context()
     except Exception as exc:   # pragma: no cover - no EGL here
         pytest.skip(f"no OpenGL context: {exc}")
-    from pipegen.scene import load_scene
+    from pipegen.scene.load import load_scene
     compiled = compile_source(SNORM_PROBE)
     scene = load_scene(ROOT / "examples/scenes/small.toml")
     gl = compiled.pipeline("gl").render(scene)
@@ -189,7 +189,7 @@ def test_snorm_samples_agree(probe):
     """Bilinear samples of snorm targets: llvmpipe filters the decoded texels like float ones
     (fused lerps, x then y), bit-exactly where the host has FMA (test_cl_exactness.py)."""
     compiled, _, gl, cl = probe
-    from pipegen.compare import compare_target
+    from pipegen.proof.compare import compare_target
     exact = " fma " in Path("/proc/cpuinfo").read_text().replace("\n", " ") \
         if Path("/proc/cpuinfo").exists() else False
     for name in ("s8", "s16"):
@@ -201,7 +201,7 @@ def test_snorm_samples_agree(probe):
 
 @BOTH
 def test_snorm_probe_passes_check(probe):
-    from pipegen.check import check
+    from pipegen.proof.check import check
     compiled, scene, _, _ = probe
     result = check(compiled, scene)
     assert result.passed, [r.row() for r in result.rows if not r.passed]

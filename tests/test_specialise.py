@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import ir, verify as ir_verify
-from pipegen.compiler import compile_file, compile_source
-from pipegen.diagnostics import PipegenError
-from pipegen.features import capabilities, mismatches, scene_features
-from pipegen.scene import Light, load_scene
-from pipegen.specialise import SCENE_PHASES, clear_cache, specialise, verify
+from pipegen.ir import nodes as ir, verify as ir_verify
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.core.diagnostics import PipegenError
+from pipegen.compiler.features import capabilities, mismatches, scene_features
+from pipegen.scene.load import Light, load_scene
+from pipegen.compiler.specialise import SCENE_PHASES, clear_cache, specialise, verify
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "examples/scenes"

@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen import formats as F
-from pipegen.scene import default_scene, load_scene
-from pipegen.stress import bounds as B
-from pipegen.stress import cases as C
+from pipegen.core import formats as F
+from pipegen.scene.load import default_scene, load_scene
+from pipegen.tools.stress import bounds as B
+from pipegen.tools.stress import cases as C
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
@@ -72,8 +72,8 @@ pass shade {
 @pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_technique_passes_ci_stress(name):
     pytest.importorskip("pyopencl")
-    from pipegen.compiler import compile_file
-    from pipegen.stress import stress
+    from pipegen.compiler.driver import compile_file
+    from pipegen.tools.stress import stress
     compiled = compile_file(ROOT / "pipelines" / f"{name}.pipe")
     results = stress(compiled, default_scene(), cases="ci", size=CI_SIZE)
     assert [r.case for r in results] == [c for c in C.CASES if c in C.GROUPS["ci"]]
@@ -96,8 +96,8 @@ def test_shipped_technique_passes_ci_stress(name):
 @pytest.mark.cl
 def test_fragile_formula_fails_where_it_cancels_and_passes_once_stable():
     pytest.importorskip("pyopencl")
-    from pipegen.compiler import compile_source
-    from pipegen.stress import stress
+    from pipegen.compiler.driver import compile_source
+    from pipegen.tools.stress import stress
     cases = "base,far_1e3,far_1e4"       # base: in-process, the others are what fails
     fragile = {r.case: r for r in stress(compile_source(FRAGILE), cases=cases, size=CI_SIZE)}
     stable = {r.case: r for r in stress(compile_source(FRAGILE, params={"stable": True}),
@@ -195,7 +195,7 @@ def test_cases_build_what_they_say():
     r_out = np.float32(cases["radius_plus_ulp"].lights[0].radius)
     assert np.nextafter(r_in, np.float32(1e9)) == np.float32(cases["radius_exact"].lights[0].radius)
     assert np.nextafter(r_out, np.float32(0)) == np.float32(cases["radius_exact"].lights[0].radius)
-    from pipegen.features import scene_features
+    from pipegen.compiler.features import scene_features
     assert scene_features(cases["camera_in_light"]).camera_inside
     far = cases["far_1e4"]
     assert np.max(np.abs(far.camera.position)) > 5000
@@ -226,7 +226,7 @@ def test_random_search_shrinks_to_a_minimal_failing_scene(monkeypatch):
     loads as a scene of 2 lights; the same seed gives the same scene."""
     pytest.importorskip("hypothesis")
     import types
-    from pipegen.stress import search
+    from pipegen.tools.stress import search
 
     @dataclasses.dataclass
     class Result:

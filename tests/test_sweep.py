@@ -18,9 +18,9 @@ from pathlib import Path
 
 import pytest
 
-from pipegen.diagnostics import PipegenError
-from pipegen.sweep import (COLUMNS, csv_text, declared_axes, pareto_front, parse_axes,
-                           plan_variants)
+from pipegen.core.diagnostics import PipegenError
+from pipegen.tools.sweep import (
+    COLUMNS, csv_text, declared_axes, pareto_front, parse_axes, plan_variants)
 
 ROOT = Path(__file__).resolve().parents[1]
 INFERRED = str(ROOT / "pipelines/inferred.pipe")
@@ -54,7 +54,7 @@ def test_axes_parse_values_and_merge():
 
 
 def test_declared_axes_are_allowed_values_and_bools():
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
     tech = compile_file(INFERRED).technique
     axes = declared_axes(tech)
     assert axes["lbuffer_scale"] == [0.5, 0.625, 0.75, 1.0] and set(axes["dsf"]) == {True, False}
@@ -103,7 +103,7 @@ def test_csv_has_the_required_columns_first():
 
 
 def test_help_shows_examples_and_defaults(capsys):
-    from pipegen.cli import main
+    from pipegen.cli.main import main
     with pytest.raises(SystemExit) as e:
         main(["sweep", "--help"])
     assert e.value.code == 0
@@ -237,7 +237,7 @@ def test_lidr_sweep_trades_capacity_for_error(tmp_path):
 @pytest.mark.cl
 def test_dask_local_cluster_gives_the_local_pool_results():
     distributed = pytest.importorskip("distributed")
-    from pipegen.sweep import run_sweep
+    from pipegen.tools.sweep import run_sweep
 
     kw = dict(scene=str(ROOT / "examples/scenes/edges.toml"), size=(64, 36),
               axes=parse_axes(["lbuffer_scale=0.5,1.0", "dsf=true"]), frames=0,

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from pipegen import ast, syntax, syntax_tree
-from pipegen.diagnostics import PipegenError
+from pipegen.frontend import ast, parse as syntax, syntax_tree
+from pipegen.core.diagnostics import PipegenError
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.compiler import compile_file
+from pipegen.compiler.driver import compile_file
 from pipegen.reference.lighting import lights_per_pixel, reference_image
-from pipegen.scene import load_scene
+from pipegen.scene.load import load_scene
 
 pytestmark = [pytest.mark.gl]
 

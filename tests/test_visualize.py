@@ -1,4 +1,4 @@
-"""Pictures of targets (pipegen/visualize.py): what they show, checked on pixel values.
+"""Pictures of targets (pipegen/views/visualize.py): what they show, checked on pixel values.
 
 Most tests picture synthetic codes through the real techniques' declarations (compiling is
 cheap, rendering is not); one renders a tiny frame end to end through ``write_render``.
@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from pipegen import formats, packing
-from pipegen.compiler import compile_file, compile_source
-from pipegen.visualize import (DEPTH_FAR, category_color, compose, target_label,
-                               target_panels, target_views, to_rgb8, write_pictures)
+from pipegen.core import formats
+from pipegen.packing import schemes as packing
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.views.visualize import (
+    DEPTH_FAR, category_color, compose, target_label, target_panels, target_views, to_rgb8,
+    write_pictures)
 
 ROOT = Path(__file__).resolve().parent.parent
 NEAR, FAR = 0.5, 40.0
@@ -257,8 +259,8 @@ def test_compose_puts_legends_under_the_panels(lidr):
 
 @pytest.mark.gl
 def test_run_writes_a_contact_sheet(tmp_path):
-    from pipegen.outputs import write_render
-    from pipegen.scene import load_scene
+    from pipegen.views.outputs import write_render
+    from pipegen.scene.load import load_scene
 
     compiled = compile_file(ROOT / "pipelines/lidr_bitplanes.pipe")
     scene = load_scene(ROOT / "examples/scenes/small.toml").with_size(64, 36)

@@ -46,9 +46,9 @@ from __future__ import annotations
 import math
 from typing import Callable, Optional, Sequence, Union
 
-from .. import ir
-from ..float32 import f32, f32_str
-from ..ir import BOOL, FLOAT, INT, Scalar, Type
+from pipegen.ir import nodes as ir
+from pipegen.core.float32 import f32, f32_str
+from pipegen.ir.nodes import BOOL, FLOAT, INT, Scalar, Type
 
 FLT_MIN = 2.0 ** -126   # smallest normal float32: the normalize() guard
 

@@ -35,13 +35,13 @@ from __future__ import annotations
 
 from typing import Optional
 
-from .. import ir
-from ..ir import DrawKind, Scalar, Type, Volume
-from . import plan as planlib
-from .plan import GLPassCode, Plan
-from . import templating
-from ..builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
-from .cstyle import FLT_MIN, CStyleLanguage, texel_select
+from pipegen.ir import nodes as ir
+from pipegen.ir.nodes import DrawKind, Scalar, Type, Volume
+from pipegen.backends import plan as planlib
+from pipegen.backends.plan import GLPassCode, Plan
+from pipegen.backends import templating
+from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
+from pipegen.backends.cstyle import FLT_MIN, CStyleLanguage, texel_select
 
 # GLSL keywords, reserved words and the builtin functions this backend emits: user identifiers
 # with these names get a trailing "_" (a local named `texture` would hide texture()).

@@ -19,12 +19,12 @@ from __future__ import annotations
 from dataclasses import field, replace
 from typing import Any, Mapping, Optional, Union
 
-from ..records import record
-from .. import formats as F
-from .. import ir
+from pipegen.core.records import record
+from pipegen.core import formats as F
+from pipegen.ir import nodes as ir
 # the code queries, here for the emitters (they live in the backend-neutral core)
-from ..codefacts import (CodeFacts, code_exprs, code_facts, may_discard,  # noqa: F401
-                         pass_functions, sampled_targets, stage_inputs)
+from pipegen.ir.facts import (
+    CodeFacts, code_exprs, code_facts, may_discard, pass_functions, sampled_targets, stage_inputs)
 
 
 # ---- the typed plan ------------------------------------------------------------------------

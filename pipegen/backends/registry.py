@@ -12,8 +12,8 @@ from __future__ import annotations
 import importlib
 from typing import Callable
 
-from ..records import record
-from .plan import CLPassCode, GLPassCode, PassPlan, Plan, cl_preludes
+from pipegen.core.records import record
+from pipegen.backends.plan import CLPassCode, GLPassCode, PassPlan, Plan, cl_preludes
 
 
 def _gl_files(stem: str, p: PassPlan) -> dict[str, str]:
@@ -58,7 +58,7 @@ class Backend:
     def check_precision(self, precision: str) -> None:
         """A ``PipegenError`` when this backend cannot evaluate at ``precision``."""
         if precision not in self.precisions:
-            from ..diagnostics import PipegenError
+            from pipegen.core.diagnostics import PipegenError
             others = [b.name for b in BACKENDS.values() if precision in b.precisions]
             raise PipegenError(None, f"the {self.name} backend has no precision {precision!r} "
                                      f"(it offers {', '.join(self.precisions)})",
@@ -70,7 +70,7 @@ class Backend:
 
     def module_source(self, plan: Plan) -> str:
         """Source of the generated pipeline module holding ``plan`` as a literal."""
-        from . import templating
+        from pipegen.backends import templating
 
         def safe(s: str) -> str:
             return s.replace("\\", "/").replace('"""', "'''")
@@ -86,10 +86,10 @@ def _resolve(path: str):
 BACKENDS: dict[str, Backend] = {b.name: b for b in (
     Backend("gl", "GL (llvmpipe)", "moderngl on the system's OpenGL (Mesa llvmpipe without a GPU)",
             "pipegen.backends.glsl:emit_gl",
-            "pipegen.runtime.gl_pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files),
+            "pipegen.runtime.gl.pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files),
     Backend("cl", "CL (PoCL)", "the OpenCL software reference on PoCL's CPU device",
-            "pipegen.backends.opencl:emit_cl",
-            "pipegen.runtime.cl_pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files,
+            "pipegen.backends.opencl.emit:emit_cl",
+            "pipegen.runtime.cl.pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files,
             plan_files=cl_preludes, precisions=("f32", "f64")),
 )}
 

@@ -27,7 +27,7 @@ def template_filter(fn: Callable) -> Callable:
 def _load(name: str):
     if "/" in name or "\\" in name or name.startswith("."):
         return None
-    from ..package_files import package_text
+    from pipegen.core.package_files import package_text
     return package_text("pipegen.templates", name)
 
 
@@ -37,7 +37,7 @@ def _bytecode_cache() -> Optional[jinja2.BytecodeCache]:
     folder is the user's own and writable by no one else (the cache holds code); otherwise,
     or when it cannot be created, templates are compiled each time."""
     import os
-    from ..package_files import cache_dir, owned_privately
+    from pipegen.core.package_files import cache_dir, owned_privately
     base = cache_dir()
     if base is None:
         return None

@@ -13,8 +13,8 @@ from __future__ import annotations
 import dataclasses
 from typing import Optional
 
-from .. import ir
-from .cull_unread import reads
+from pipegen.ir import nodes as ir
+from pipegen.passes.cull_unread import reads
 
 
 def run(tech: ir.Technique) -> ir.Technique:

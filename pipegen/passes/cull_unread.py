@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from .. import ir
+from pipegen.ir import nodes as ir
 
 
 def _stencil_writes(f: ir.StencilFace) -> bool:

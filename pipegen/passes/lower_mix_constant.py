@@ -16,8 +16,8 @@ from __future__ import annotations
 
 from typing import Optional
 
-from .. import ir, irwalk
-from ..float32 import f32
+from pipegen.ir import nodes as ir, walk as irwalk
+from pipegen.core.float32 import f32
 
 
 def run(tech: ir.Technique) -> ir.Technique:

@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 import operator
 
-from .. import ir, irwalk
-from ..float32 import f32
+from pipegen.ir import nodes as ir, walk as irwalk
+from pipegen.core.float32 import f32
 
 _ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul}
 _COMPARE = {"==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from .. import ir, irwalk
+from pipegen.ir import nodes as ir, walk as irwalk
 
 
 def run(tech: ir.Technique) -> ir.Technique:

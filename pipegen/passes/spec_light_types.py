@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Optional
 
-from .. import ir, irwalk
+from pipegen.ir import nodes as ir, walk as irwalk
 
 TYPE_CODES = {"point": 0, "spot": 1, "directional": 2}
 TYPE_NAMES = {v: k for k, v in TYPE_CODES.items()}

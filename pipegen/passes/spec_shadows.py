@@ -2,7 +2,7 @@
 specialisation).
 
 With ``tech.scene`` set and ``tech.scene.shadows`` false, every light's ``shadow_tile`` field
-holds -1 (``pipegen/shadows.py``: no light casts a shadow), so each read of it folds to the
+holds -1 (``pipegen/scene/shadows.py``: no light casts a shadow), so each read of it folds to the
 constant -1.0.  Then, in the functions and passes where a read folded, constants are folded
 (``opt_fold_constants``) and the statements after a top-level ``return`` dropped, so
 ``common/shadows.pipe``'s ``shadow_factor`` becomes ``return 1.0``; a shadow-map pass's depth
@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from .. import ir, irwalk
-from . import opt_fold_constants
+from pipegen.ir import nodes as ir, walk as irwalk
+from pipegen.passes import opt_fold_constants
 
 
 def run(tech: ir.Technique) -> ir.Technique:
@@ -80,7 +80,7 @@ def _until_return(body: tuple) -> tuple:
 
 def _targets_read(tech: ir.Technique, p: ir.Pass) -> set[str]:
     """The targets the code of pass ``p`` (its body and the functions it reaches) reads."""
-    from ..codefacts import pass_functions
+    from pipegen.ir.facts import pass_functions
     out: set[str] = set()
     for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]:
         for e in irwalk.walk_exprs(stmts):

@@ -7,7 +7,7 @@ feature switches).
 
 from __future__ import annotations
 
-from .. import ir, irwalk
+from pipegen.ir import nodes as ir, walk as irwalk
 
 
 def run(tech: ir.Technique) -> ir.Technique:

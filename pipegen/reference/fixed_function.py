@@ -43,7 +43,7 @@ from typing import Any, Mapping, Optional, Sequence
 
 import numpy as np
 
-from .. import formats as F
+from pipegen.core import formats as F
 
 __all__ = [
     "compare", "unorm_store", "half_store", "store", "load", "depth_codes", "depth_test",

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..scene import Scene
-from .lighting import light_contribution
-from .raster import GBuffer, rasterize
-from .rounding import as_float32
+from pipegen.scene.load import Scene
+from pipegen.reference.lighting import light_contribution
+from pipegen.reference.raster import GBuffer, rasterize
+from pipegen.reference.rounding import as_float32
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 

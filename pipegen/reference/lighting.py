@@ -22,14 +22,14 @@ from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
-from .. import formats
-from ..meshes import light_volume
-from ..scene import Light, Scene
-from .raster import GBuffer, rasterize
-from .rounding import as_float32
+from pipegen.core import formats
+from pipegen.scene.meshes import light_volume
+from pipegen.scene.load import Light, Scene
+from pipegen.reference.raster import GBuffer, rasterize
+from pipegen.reference.rounding import as_float32
 
 if TYPE_CHECKING:
-    from .shadows import Shadows
+    from pipegen.reference.shadows import Shadows
 
 EPS_DIST = 1e-6
 EPS_NORM2 = 1e-12

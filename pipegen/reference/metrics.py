@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .lighting import to_rgba8
-from .raster import rasterize, rasterize_each
+from pipegen.reference.lighting import to_rgba8
+from pipegen.reference.raster import rasterize, rasterize_each
 
 
 def to_top_down(image_codes_bottom_up: np.ndarray) -> np.ndarray:

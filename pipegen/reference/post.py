@@ -36,8 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lighting import reference_image
-from .raster import GBuffer
+from pipegen.reference.lighting import reference_image
+from pipegen.reference.raster import GBuffer
 
 # The gather pattern of deferred_calver.pipe (dof_tap): axes, diagonals, then a ring of radius
 # 1/2 turned by 22.5 degrees; a tap count n takes the first n.  Window coordinates (y up).

@@ -2,7 +2,7 @@
 ``shadow_factor`` computes, with exact arithmetic.
 
 ``shadow_maps(scene, tiles, width, height)`` rasterises the scene's opaque objects from every
-shadow-casting light (``pipegen.shadows``: the same projections and tiles as the runtimes) into
+shadow-casting light (``pipegen.scene.shadows``: the same projections and tiles as the runtimes) into
 a float64 depth map of its tile's size (``reference/raster.py``: GL coverage, depth ``less``
 against 1.0, no culling, as the shadow passes draw); ``shadow_factor(smap, P, pcf_taps, bias)``
 is the fraction of the PCF taps that see ``P`` lit:
@@ -30,9 +30,9 @@ from typing import Optional
 
 import numpy as np
 
-from .. import shadows as S
-from .rounding import as_float32
-from .raster import rasterize_triangles
+from pipegen.scene import shadows as S
+from pipegen.reference.rounding import as_float32
+from pipegen.reference.raster import rasterize_triangles
 
 
 @dataclass

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import math
 
-from ..backends.plan import Plan
-from ..diagnostics import PipegenError
-from ..shadows import shadow_lights
+from pipegen.backends.plan import Plan
+from pipegen.core.diagnostics import PipegenError
+from pipegen.scene.shadows import shadow_lights
 
 
 def check_light_capacity(lights: int, plan: Plan) -> None:

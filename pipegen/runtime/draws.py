@@ -21,8 +21,8 @@ from typing import Iterator, Optional, Sequence
 
 import numpy as np
 
-from .. import ir
-from ..backends.plan import PassPlan, Plan
+from pipegen.ir import nodes as ir
+from pipegen.backends.plan import PassPlan, Plan
 
 LIGHT_TYPE_CODES = {0: "point", 1: "spot", 2: "directional"}
 
@@ -96,7 +96,7 @@ class LightSelection:
         """The CPU-sorted sets of ``pack``, over the lights its draws take: the light types
         of the draws ``in pack[k]`` (a directional light drawn elsewhere takes no place)."""
         if pack not in self.sets:
-            from ..packing import sort_lights_into_slots
+            from pipegen.packing.schemes import sort_lights_into_slots
             slots = int(self.plan.light_sets.get(pack, 4))
             types = set()
             for p in self.plan.passes:
@@ -200,7 +200,7 @@ def shadow_casters(draw: ir.Draw, lights: Sequence) -> list[int]:
     light order: the shadow-casting lights of its types whose tile (``shadows.shadow_lights``
     order) fits the ``N x N`` atlas (``common.check_shadow_capacity`` refuses a scene with
     more)."""
-    from ..shadows import shadow_lights
+    from pipegen.scene.shadows import shadow_lights
     order = shadow_lights(lights)
     cap = draw.shadow_tiles * draw.shadow_tiles
     return [i for k, i in enumerate(order)
@@ -211,7 +211,7 @@ def shadow_view(scene, light: int, draw: ir.Draw, width: int, height: int):
     """A shadow-map draw of light ``light``: (tile rectangle (x, y, w, h) in the depth
     target of ``width x height``, view, projection) -- the float64 matrices of
     ``shadows.light_view_proj``, which the runtimes upload as float32 like a camera's."""
-    from .. import shadows as S
+    from pipegen.scene import shadows as S
     lights = scene.lights
     k = S.tile_of(lights, light)
     view, proj = S.light_view_proj(scene, lights[light])
@@ -283,7 +283,7 @@ _UNIT_MESHES: dict = {}
 
 def _unit_mesh(volume: str) -> np.ndarray:
     if volume not in _UNIT_MESHES:
-        from ..meshes import light_volume
+        from pipegen.scene.meshes import light_volume
         _UNIT_MESHES[volume] = np.asarray(light_volume(volume), np.float64)
     return _UNIT_MESHES[volume]
 

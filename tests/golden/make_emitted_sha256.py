@@ -20,7 +20,7 @@ def emitted_hashes() -> dict[str, str]:
     shipped technique (the generated pipeline modules are left out: they hold the plan, whose
     spelling may change without changing what runs)."""
     sys.path.insert(0, str(ROOT))
-    from pipegen.compiler import compile_file
+    from pipegen.compiler.driver import compile_file
 
     out: dict[str, str] = {}
     here = os.getcwd()

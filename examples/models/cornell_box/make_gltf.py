@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pygltflib as gl
 
-from pipegen.objfile import read_obj
+from pipegen.scene.obj import read_obj
 
 HERE = Path(__file__).resolve().parent
 

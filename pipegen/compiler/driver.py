@@ -1,0 +1,149 @@
+"""Compilation as a readable sequence of named phases (Granite's ``RenderGraph::bake()``).
+
+    parse → lower → validate → specialise → fold → prune → emit
+
+and, compiled for a scene (``compile_file(..., scene=)``, ``specialise.py``), the scene phases
+after ``prune``: assume_scene → spec_light_types → fold → prune → cull_empty_draws →
+cull_unread.
+
+Each phase after ``lower`` is a ``run(ir) -> ir`` from ``pipegen.passes``; with
+``verify_each=True`` (the tests' setting) the IR verifier runs after every phase.  Nothing here
+imports moderngl or pyopencl: ``pipegen compile`` works on any machine; ``Compiled.pipeline``
+imports a runtime only when asked to render.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import field
+from pathlib import Path
+from typing import TYPE_CHECKING, Callable, Optional
+
+from pipegen.core.records import record
+from pipegen.ir import nodes as ir, verify
+from pipegen.frontend.lower import lowerer as lower
+from pipegen.frontend import parse as syntax
+from pipegen.core.diagnostics import PipegenError
+from pipegen.backends import registry
+from pipegen.backends.plan import Plan
+
+if TYPE_CHECKING:
+    from pipegen.compiler.specialise import Specialisation
+from pipegen.passes import opt_fold_constants, opt_unused_functions, specialise_params
+
+Phase = tuple[str, Callable[[ir.Technique], ir.Technique]]
+
+PHASES: tuple[Phase, ...] = (
+    ("specialise", specialise_params.run),
+    ("fold", opt_fold_constants.run),
+    ("prune", opt_unused_functions.run),
+)
+
+
+@record
+class Compiled:
+    """A compiled technique: the optimised IR plus everything emitted from it (lazily)."""
+
+    technique: ir.Technique
+    params: dict
+    phases_run: list[str] = field(default_factory=list)
+    specialisation: Optional["Specialisation"] = None    # set when compiled for a scene
+    _plans: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def name(self) -> str:
+        return self.technique.name
+
+    def plan(self, backend: str) -> Plan:
+        """The typed plan for ``backend`` (a name in ``backends.registry.BACKENDS``)."""
+        if backend not in self._plans:
+            self._plans[backend] = registry.get(backend).emit(self.technique)
+        return self._plans[backend]
+
+    def pipeline(self, backend: str = "gl", size: Optional[tuple[int, int]] = None,
+                 precision: str = "f32"):
+        """A runnable pipeline: ``.render(scene) -> {target: numpy array}``.
+
+        ``precision="f64"`` (CL): the float64 evaluation of the technique, whose ``render``
+        gives ``{target: float64 values}`` (unquantised; docs/internals.md); a backend without
+        it raises a ``PipegenError``."""
+        b = registry.get(backend)
+        if precision == "f32":
+            return b.runtime_class()(self.plan(backend), size)
+        b.check_precision(precision)
+        key = (backend, precision)
+        if key not in self._plans:
+            self._plans[key] = b.emit(self.technique, precision)
+        return b.runtime_class()(self._plans[key], size)
+
+    def report(self, output_size: tuple[int, int] = (1280, 720)) -> str:
+        from pipegen.views.report import render_report
+        return render_report(self, output_size)
+
+    def mismatches(self, scene) -> list:
+        """What this technique will not render of ``scene`` (``features.Mismatch`` list:
+        light types it cannot draw, translucent objects, light-index capacity)."""
+        from pipegen.compiler.features import mismatches
+        return mismatches(self.technique, scene)
+
+    def specialise(self, scene, verify_each: bool = False) -> "Compiled":
+        """This technique compiled for what ``scene`` calls for (``specialise.py``); the
+        light table is shrunk only by ``compile_file(..., scene=)``, which can recompile."""
+        from pipegen.compiler.specialise import specialise
+        return specialise(self, scene, verify_each=verify_each)
+
+    def write(self, out_dir, backends: tuple[str, ...] = ("gl", "cl"),
+              output_size: Optional[tuple[int, int]] = None, force: bool = False) -> Path:
+        """Write shaders, pipeline modules and the report (targets sized for ``output_size``,
+        default ``pipegen.DEFAULT_SIZE``) into ``out_dir`` (a path or an ``outdir.OutputDir``).
+        Everything is generated into a staging folder first, so a failure leaves the previous
+        outputs untouched; only files pipegen wrote there before are replaced or removed, and a
+        folder holding other files is refused unless ``force`` (``outdir.py``)."""
+        from pipegen.compiler.emit_files import write_outputs
+        from pipegen.core.outdir import as_output_dir
+        out = as_output_dir(out_dir, "compile", force)
+        with out.staging() as tmp:
+            write_outputs(self, tmp, backends, output_size)
+        return out.path
+
+
+def compile_source(text: str, filename: str = "<string>", params: Optional[dict] = None,
+                   verify_each: bool = False) -> Compiled:
+    module = syntax.parse(text, filename)
+    tech = lower.lower(module, filename, params=params)
+    return _run_phases(tech, params or {}, verify_each)
+
+
+def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
+                 verify_each: bool = False, scene=None) -> Compiled:
+    """Compile a ``.pipe`` file; with ``scene``, specialised for what the scene calls for
+    (``specialise.py``: cuts with reasons, guards, a cached variant per scene-feature key)."""
+    from pipegen.core.sources import MAX_SOURCE_BYTES, read_source
+    p = Path(path)
+    try:
+        text = read_source(str(p))     # bad UTF-8: a PipegenError at the byte
+    except FileNotFoundError:
+        raise PipegenError(None, f"no such file: {p}",
+                           hint="pass the path of a .pipe file, e.g. pipelines/forward.pipe") \
+            from None
+    except OSError as e:
+        raise PipegenError(None, f"cannot read {p}: {e.strerror or e}",
+                           hint=f"pass a .pipe file (a regular file of at most "
+                                f"{MAX_SOURCE_BYTES >> 20} MiB)") from None
+    compiled = compile_source(text, str(p), params, verify_each)
+    if scene is None:
+        return compiled
+    from pipegen.compiler.specialise import specialise
+    return specialise(compiled, scene, verify_each=verify_each,
+                      recompile=lambda ps: compile_source(text, str(p), ps, verify_each))
+
+
+def _run_phases(tech: ir.Technique, params: dict, verify_each: bool) -> Compiled:
+    run = ["lower", "validate"]
+    verify.verify(tech)
+    for name, phase in PHASES:
+        tech = phase(tech)
+        run.append(name)
+        if verify_each:
+            verify.verify(tech)
+    return Compiled(tech, dict(params), run)

@@ -1,0 +1,173 @@
+"""``pipegen check``: render a technique on both backends and compare every target.
+
+Tolerances come from ``formats.py`` (DESIGN.md §7): unorm targets may differ by 1 + P codes
+where P counts the blend steps into the target, float targets by ulps, and packed light-index
+or ID targets and stencil must be exact.  P is per pixel where the CL backend counted the
+fragments it blended into each pixel (``CLPipeline.last_blend_counts``: a light-volume pass
+blends once per overlapping light); otherwise ``blend_steps`` counts blended passes (once per
+light in repeat groups) for the whole target.  When a target disagrees, both backends are re-run
+capturing every target after every pass, and the first pass whose outputs diverge is named.
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from pipegen.core import formats
+from pipegen.backends import registry
+from pipegen.backends.plan import plan_from_dict
+from pipegen.proof.compare import TargetComparison, compare_target
+from pipegen.views.outputs import packed_channels, target_hints
+from pipegen.views.visualize import save_png
+
+
+@dataclass
+class CheckResult:
+    technique: str
+    rows: list[TargetComparison]
+    first_divergence: Optional[str] = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return all(r.passed for r in self.rows)
+
+    def table(self) -> str:
+        header = ("target", "format", "max error", "rmse", "tolerance", "over", "edges/bound",
+                  "")
+        rows = [header] + [r.row() for r in self.rows]
+        widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
+        lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+        return "\n".join(lines)
+
+
+def blend_steps(plan, target: str, lights: int) -> int:
+    """How many times per frame a target is blended into (repeat groups: once per light)."""
+    n = 0
+    for p in plan_from_dict(plan).passes:
+        if target in p.writes and p.state.blend_for(target).enabled:
+            n += lights if p.repeat_group is not None else 1
+    return n
+
+
+def compare_targets(compiled, gl: dict, cl: dict, lights: int,
+                    only: Optional[set] = None,
+                    counts: Optional[dict] = None) -> list[TargetComparison]:
+    """One comparison per target; ``counts``: per-pixel blend counts ``{target: (H, W)}`` (the
+    CL backend's ``last_blend_counts``), P of a target that has none is ``blend_steps``."""
+    tech = compiled.technique
+    plan = compiled.plan("gl")
+    hints = target_hints(tech)
+    packed = packed_channels(tech)
+    rows = []
+    for key in sorted(gl):
+        base, _, aspect = key.partition(".")
+        if only is not None and base not in only:
+            continue
+        fmt = tech.target(base).format
+        channels = packed.get(base, ()) if not aspect else ()
+        exact = aspect == "stencil" or (hints.get(base) == "index" and all(channels))
+        tol = formats.Tolerance("exact", 0) if exact else None
+        if key not in cl:
+            raise AssertionError(f"the CL backend returned no {key!r}")
+        p = blend_steps(plan, base, lights)
+        per_pixel = (counts or {}).get(base) if not aspect else None
+        if per_pixel is not None and per_pixel.shape == gl[key].shape[:2]:
+            p = per_pixel
+        rows.append(compare_target(key, fmt, gl[key], cl[key], p,
+                                   tolerance=tol, exact_channels=channels))
+    return rows
+
+
+# what ``check`` compares: the system's GL against the software reference, which counts the
+# fragments it blends per pixel (``last_blend_counts``) for the per-pixel tolerance
+CHECKED = ("gl", "cl")
+
+
+def check(compiled, scene, out_dir: Optional[Path] = None,
+          progress: Callable[[str], None] = lambda msg: None) -> CheckResult:
+    gl_pipe, cl_pipe = (compiled.pipeline(b) for b in CHECKED)
+    progress(f"rendering on {registry.get(CHECKED[0]).title}")
+    gl = gl_pipe.render(scene)
+    progress(f"rendering on {registry.get(CHECKED[1]).title}")
+    cl = cl_pipe.render(scene)
+    result = CheckResult(compiled.name, compare_targets(
+        compiled, gl, cl, len(scene.lights), counts=getattr(cl_pipe, "last_blend_counts", None)))
+    if out_dir is not None:
+        write_error_images(result.rows, out_dir)
+    if not result.passed:
+        progress("localising the first divergent pass")
+        result.first_divergence = first_divergent_pass(compiled, gl_pipe, cl_pipe, scene)
+    return result
+
+
+def first_divergent_pass(compiled, gl_pipe, cl_pipe, scene) -> Optional[str]:
+    """Replay both backends pass by pass; the first pass after which a target it wrote
+    (colour, depth or stencil) differs beyond tolerance."""
+    _, gl_caps = gl_pipe.render(scene, capture_passes=True)
+    _, cl_caps = cl_pipe.render(scene, capture_passes=True)
+    passes = {p.name: p for p in compiled.technique.passes}
+    for g, c in zip(gl_caps, cl_caps):
+        assert (g["pass"], g["light"]) == (c["pass"], c["light"]), "backends ran different passes"
+        p = passes[g["pass"]]
+        written = set(p.writes) | ({p.depth_target} if p.depth_target else set())
+        rows = compare_targets(compiled, g["targets"], c["targets"], len(scene.lights), written,
+                               counts=c.get("blend_counts"))
+        bad = [r.name for r in rows if not r.passed]
+        if bad:
+            where = g["pass"] if g["light"] is None else f"{g['pass']} (light {g['light']})"
+            return f"{where}: {', '.join(bad)}"
+    return None
+
+
+def error_image(row: TargetComparison) -> np.ndarray:
+    """Black: equal; grey ramp: within tolerance; red: over tolerance; yellow: admitted edge."""
+    e = row.error_map
+    tol = row.tolerance.limit if row.limit_map is None else row.limit_map
+    limit = np.maximum(tol, 1)
+    img = np.zeros(e.shape + (3,), np.uint8)
+    within = (e > 0) & (e <= tol)
+    ratio = e / limit
+    img[within] = (60 + 120 * np.minimum(ratio[within], 1.0))[:, None].astype(np.uint8)
+    over = e > tol
+    img[over] = (255, 40, 40)
+    return img
+
+
+def write_error_images(rows: list[TargetComparison], out_dir) -> None:
+    """``error_<target>.png`` per row into ``out_dir`` (a path or an ``outdir.OutputDir``):
+    replaces only the files pipegen wrote there, refuses a folder holding others."""
+    from pipegen.core.outdir import as_output_dir, safe_name
+    with as_output_dir(out_dir, "check").staging() as tmp:
+        for r in rows:
+            save_png(tmp / safe_name(f"error_{r.name}", ".png"), error_image(r))
+
+
+def main_check(compiled, scene, out_dir: Path, mismatches: Optional[list] = None) -> int:
+    """``pipegen check``; ``mismatches``: what the technique will not render of the scene
+    (``Compiled.mismatches``, already printed as warnings), recalled under the table: GL and
+    CL agreeing says nothing about what neither draws."""
+    def say(msg: str) -> None:
+        print(f"  … {msg}", file=sys.stderr)
+
+    result = check(compiled, scene, out_dir, say)
+    print(f"{compiled.name} on {scene.width}x{scene.height}, {len(scene.lights)} lights: "
+          + " vs ".join(registry.get(b).title for b in CHECKED))
+    print(result.table())
+    print(f"error images: {out_dir}/error_<target>.png")
+    if mismatches:
+        n = len(mismatches)
+        print(f"note: {n} thing{'s' if n != 1 else ''} in this scene the technique does not "
+              f"render, on either backend (the warnings above):")
+        for m in mismatches:
+            print(f"  {m.message}")
+    if result.passed:
+        print("all targets agree")
+        return 0
+    print(f"DISAGREE; first divergent pass: {result.first_divergence or 'not localised'}")
+    return 1

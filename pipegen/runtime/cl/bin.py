@@ -1,0 +1,157 @@
+"""Binning set-up triangles into screen tiles on the OpenCL device.
+
+``cl_setup.bin_pairs`` and ``bins_from_pairs`` in numpy cost ~0.2 us a triangle in a dozen
+passes over small arrays (light_prepass at 640x360: its 7,022 scene and 14,009 light-volume
+triangles 3-4 ms a frame, on the host before the first raster kernel, with the edge tests'
+rows of the set-up read back for them), while per triangle binning is a loop over its box's
+tiles.  ``templates/cl_bin.cl.j2`` runs that loop where the set-up triangles already are, and
+gives the same tile lists: the same (triangle, tile) pairs, each tile's triangles in
+submission order (tests/test_cl_bin.py compares them with the numpy binning's).
+
+``DeviceBinner(ctx, queue).bin(...)`` queues the kernels and a non-blocking read of two
+numbers (the tiles with triangles, the entries) and returns ``DeviceBins`` at once: the
+host waits only when it launches the raster kernel, which needs the number of tiles, after
+every pass of the frame is prepared.  ``$PIPEGEN_CL_DEVICE_BIN=0`` bins every draw in numpy
+instead, for comparisons.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Optional
+
+import numpy as np
+
+from pipegen.backends.opencl import emit as clgen
+from pipegen.backends.opencl.emit import SUBPIXEL
+from pipegen.runtime.cl import context as cl_context
+
+__all__ = ["DeviceBinner", "DeviceBins", "enabled"]
+
+_PER_RUN = 1024        # triangles a work-item bins, at most 8 work-items (PoCL: 2 threads)
+_RUNS = 8
+
+
+def enabled() -> bool:
+    """Whether draws are binned on the device (``$PIPEGEN_CL_DEVICE_BIN=0``: in numpy)."""
+    return os.environ.get("PIPEGEN_CL_DEVICE_BIN", "1") != "0"
+
+
+def box_tiles(bbox: np.ndarray, tile: int) -> int:
+    """The tiles the boxes (N, 4: inclusive x0, y0, x1, y1) cover, summed: at least the
+    entries binning makes (the edge tests drop some)."""
+    t = np.asarray(bbox) // tile          # one int32 pass (an int64 copy first: 8x slower)
+    return int(np.dot((t[:, 2] - t[:, 0] + 1).astype(np.int64), t[:, 3] - t[:, 1] + 1))
+
+
+class DeviceBins:
+    """A pass's tile lists built on the device: ``tile_list`` (the tiles with triangles, one
+    work-group each), ``tile_start``/``tile_tris`` (CSR, rows of the geometry's buffers), as
+    ``cl_geometry.Bins`` has them; ``ntiles`` and ``entries`` wait for the binning."""
+
+    def __init__(self, queue, tiles_x: int, triangles: int, tile_list, tile_start, tile_tris,
+                 summary: np.ndarray, event, index: Optional[np.ndarray], ntiles_all: int):
+        self.queue = queue
+        self.tiles_x = tiles_x
+        self.triangles = triangles
+        self.tile_list, self.tile_start, self.tile_tris = tile_list, tile_start, tile_tris
+        self._summary, self._event = summary, event
+        self._index = index
+        self._ntiles_all = ntiles_all
+
+    def _counts(self) -> np.ndarray:
+        if self._event is not None:
+            self._event.wait()
+            self._event = None
+        return self._summary
+
+    @property
+    def ntiles(self) -> int:
+        return int(self._counts()[0])
+
+    @property
+    def entries(self) -> int:
+        return int(self._counts()[1])
+
+    @property
+    def host(self) -> tuple:
+        """(tiles with triangles, tile_start, tile_tris as triangle indices), read back (tests
+        compare them with the numpy binning's ``Bins.host``)."""
+        import pyopencl as cl
+        n, m = self.ntiles, self.entries
+        active = np.empty(max(n, 1), np.int32)
+        start = np.empty(self._ntiles_all + 1, np.int32)
+        rows = np.empty(max(m, 1), np.int32)
+        cl.enqueue_copy(self.queue, active, self.tile_list)
+        cl.enqueue_copy(self.queue, start, self.tile_start)
+        cl.enqueue_copy(self.queue, rows, self.tile_tris)
+        tris = rows[:m]
+        if self._index is not None and len(self._index):
+            triangle_of = np.full(int(self._index.max()) + 1, -1, np.int32)
+            triangle_of[self._index] = np.arange(len(self._index), dtype=np.int32)
+            tris = triangle_of[tris]
+        return active[:n], start, tris if m else np.zeros(1, np.int32)
+
+
+class DeviceBinner:
+    """Queues ``cl_bin.cl.j2``'s kernels (built once) for a draw's triangles."""
+
+    def __init__(self, ctx, queue):
+        self.ctx, self.queue = ctx, queue
+        self._kernels = None
+
+    def _kernels_once(self):
+        import pyopencl as cl
+        if self._kernels is None:
+            prog = cl_context.build_program(clgen.bin_program())
+            self._kernels = tuple(cl.Kernel(prog, name) for name in
+                                  ("pg_bin_count", "pg_bin_starts", "pg_bin_write"))
+        return self._kernels
+
+    def bin(self, bufs: dict, rows: np.ndarray, bbox: np.ndarray, samples: Optional[int],
+            width: int, height: int, tile: int, triangles: int,
+            index: Optional[np.ndarray] = None, pool=None, edge_test_tiles: int = 4):
+        """Queue the binning of the triangles in buffer rows ``rows`` (int32, submission
+        order; ``bbox``: their boxes on the host, to size the lists) of the set-up buffers
+        ``bufs`` (``a``, ``b``, ``c``, ``bbox``) for a ``width`` x ``height`` pass with
+        ``samples`` per pixel (None: any); ``index``: the row of each triangle of the
+        geometry (``host`` maps rows back through it).  ``pool``: a ``FramePool`` for bins
+        that last one frame (None: buffers of their own)."""
+        import pyopencl as cl
+        mf = cl.mem_flags
+        count_k, starts_k, write_k = self._kernels_once()
+        tiles_x = (width + tile - 1) // tile
+        ntiles = tiles_x * ((height + tile - 1) // tile)
+        n = len(rows)
+        runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
+        per = (n + runs - 1) // runs
+
+        def buf(nbytes, flags=mf.READ_WRITE):
+            return pool.buffer(nbytes, flags) if pool is not None else \
+                cl.Buffer(self.ctx, flags, size=max(16, int(nbytes)))
+
+        rows_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                             hostbuf=np.ascontiguousarray(rows, np.int32))
+        counts = buf(runs * ntiles * 4)
+        tile_start = buf((ntiles + 1) * 4)
+        tile_list = buf(ntiles * 4)
+        tile_tris = buf(box_tiles(bbox, tile) * 4)
+        summary_buf = buf(8)
+        # the corners that maximise an edge function: the pixel centre with one sample, else
+        # the extreme sample positions any pattern could use (as bin_pairs)
+        lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (1, SUBPIXEL - 1)
+        head = [np.int32(n), np.int32(per), np.int32(tiles_x), np.int32(ntiles),
+                np.int32(width), np.int32(height), np.int32(tile), np.int32(edge_test_tiles),
+                np.int32(lo), np.int32(hi), rows_buf, bufs["bbox"], bufs["a"], bufs["b"],
+                bufs["c"]]
+        cl_context.set_args(count_k, *head, counts)
+        cl.enqueue_nd_range_kernel(self.queue, count_k, (runs,), (1,))
+        cl_context.set_args(starts_k, np.int32(runs), np.int32(ntiles), counts, tile_start,
+                            tile_list, summary_buf)
+        cl.enqueue_nd_range_kernel(self.queue, starts_k, (1,), (1,))
+        cl_context.set_args(write_k, *head, counts, tile_tris)
+        cl.enqueue_nd_range_kernel(self.queue, write_k, (runs,), (1,))
+        summary = np.zeros(2, np.int32)
+        event = cl.enqueue_copy(self.queue, summary, summary_buf, is_blocking=False)
+        return DeviceBins(self.queue, tiles_x, triangles, tile_list, tile_start, tile_tris,
+                          summary, event, index, ntiles)

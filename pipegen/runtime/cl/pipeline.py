@@ -1,0 +1,485 @@
+"""Run a compiled plan on the OpenCL software reference (pyopencl on PoCL's CPU device).
+
+``CLPipeline(plan, size=None).render(scene) -> {target: codes}`` returns the same arrays as
+``GLPipeline``: GL row order (row 0 = window y 0, the bottom row), ``formats.Format.dtype``
+codes, ``(H, W)`` for one channel and ``(H, W, C)`` otherwise; a d24s8 target ``ds`` gives
+24-bit depth codes under ``"ds"`` and the stencil under ``"ds.stencil"``.
+``render(..., capture_passes=True)`` returns ``(targets, captures)`` with one entry
+``{"pass", "light", "targets", "blend_counts"}`` after every executed pass (per light inside
+repeat groups).
+
+``last_blend_counts`` (after ``render``): ``{target: (H, W) uint32}`` in GL row order, for every
+colour target some pass blended into this frame, how many fragments were blended into each
+pixel (counted by the raster kernel where it applies the blend: after discard, depth and
+stencil; once per fragment whatever its samples), read from the device when first asked
+for after a frame (a frame's count buffers stay until the next frame's first blended pass
+zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P
+codes/ulps per pixel from it (DESIGN.md §7).
+
+Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` and
+``cl_bin.py`` for the set-up and binning kernels, ``cl_setup.py`` for the numpy set-up and
+binning they replace):
+
+    pg_vertex (CL) -> pg_setup, pg_clip_setup (CL) -> pg_bin_* (CL) -> pg_raster (CL)
+
+Every vertex and set-up kernel of a frame is queued before its first raster kernel
+(``render``), so no host stage waits behind a raster kernel on the in-order queue.
+
+Targets live in device buffers in GL row order for the whole frame; clears write the codes of
+``Format.quantize`` (the same the GL runtime clears with).  Passes of one ``repeat_group`` run
+once per light in turn (the group's passes for light 0, then for light 1, ...; a pass whose
+light filter or ``repeat_types`` excludes the light is skipped for it), the light index
+reaching the fragment function as ``in->light``; light draws instance the pass's light list
+(``draws.LightSelection``: types, CPU-sorted ``light_set`` via
+``packing.sort_lights_into_slots``), ``scissor`` light draws clip each
+light's triangles to ``draws.scissor_rect``, ``cull auto`` light draws keep
+each light's front or back faces as ``draws.light_runs`` chooses.  All as ``GLPipeline`` does
+(``draws.schedule`` orders the passes of both).
+
+Multisampled targets (4 samples, llvmpipe's positions) keep one plane per sample; the passes
+that read them, and ``render``'s result, see the resolve llvmpipe's blit computes (colour: the
+average of the samples stored like a fragment output; depth, stencil, integers: sample 0,
+d24 depth codes through llvmpipe's float round trip, ``d24_resolve``).
+
+Set-up triangles are cached per frame and shared by the passes that draw the same geometry
+under the same raster state (``_geometry``): a scene draw is set up once for every pass of
+the plan drawing it under that state, with the union of their varyings (a pass reading fewer
+gets varying and plane buffers cut from the shared ones); a light draw sets up all lights of
+its light list at once, culled only where every pass drawing them culls the same faces, and
+each pass (each light of a repeat group) draws its lights' consecutive range of triangles
+with its own cull mode; the full-screen triangle is kept across frames.  Per-triangle
+results do not depend on which other triangles or varyings are set up with them, so sharing
+changes no value.  Bins are per pass, built on
+the device from the triangles the pass draws (its lights' ranges, the faces its cull mode
+keeps); a ``repeat per light`` group's bins are found for all its lights in one numpy sort.
+A frame does the host work of all its passes (set-up read-backs, queuing the binning)
+before it queues their clears, resolves and raster kernels in pass order, without waiting
+(on 2 cores, host work done while a raster kernel runs gets a third of them, and the next
+kernel waits for it); target and blend-count buffers are reused from frame to frame
+(cleared as before).
+
+The float64 evaluation (a plan emitted with ``precision="f64"``, ``Compiled.pipeline("cl",
+precision="f64")``): the same schedule, coverage and primitive order, the technique's
+arithmetic in double and every target stored unquantised (``cl_targets``); ``render``
+returns ``{target: float64 values}`` (docs/internals.md, "The float64 evaluation").  The
+frame's matrices, camera and ambient reach the fragment function in double
+(``FRAME64_DTYPE``), the light table as doubles of the scene's float32 table.
+
+``CLPipeline(..., dynamic_state=True)`` is for tests: every pass program reads its
+fixed-function state from a kernel argument instead of baked constants, so one compiled program
+serves all the states a parametrised test sweeps (production plans bake the state).
+``last_timings`` holds per-pass times (ms) of the latest render: ``vertex``, ``setup``,
+``bin``, ``raster`` (kernel times from OpenCL profiling events, read at the end of the frame;
+host stages from the clock; a pass that reused cached geometry or bins has no
+vertex/setup or bin entry), ``triangles`` and ``tile_entries``.  ``profile = []`` makes the
+next frames append ``(pass, light, host_s, device_s)`` per pass execution, draining the queue
+around each pass as ``GLPipeline.profile`` drains the GPU: ``host_s`` from the start of the
+pass to its raster kernel's launch (the first pass of a frame also waits there for the
+frame's vertex and set-up kernels), ``device_s`` from there until the queue is empty.  ``preset(name, codes)``
+starts later renders with a target holding given codes (tests).
+
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from typing import Optional
+
+import numpy as np
+
+from pipegen.ir import nodes as ir
+from pipegen.backends.opencl import emit as clgen
+from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
+from pipegen.runtime.cl import context as cl_context
+from pipegen.runtime import draws
+from pipegen.runtime.common import (
+    check_light_capacity, check_param_overrides, check_scene_facts, check_shadow_capacity)
+from pipegen.runtime.cl.geometry import DrawGeometry, ShadowView
+from pipegen.runtime.cl.targets import TargetStore, d24_resolve, device_buffer
+
+__all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
+
+# host image of the prelude's pg_frame struct
+FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
+                        ("inv_view", "<f4", (16,)), ("inv_proj", "<f4", (16,)),
+                        ("camera_pos", "<f4", (4,)), ("ambient", "<f4", (4,)),
+                        ("output_size", "<f4", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
+                        ("light_fields", "<u4"), ("pad", "<u4"),
+                        # the previous frame's camera: in the struct of programs that read it
+                        ("prev_view", "<f4", (16,)), ("prev_proj", "<f4", (16,))])
+assert FRAME_DTYPE.itemsize == 448
+# host image of the prelude's pg_frame64 (the float64 evaluation), padded to its alignment
+FRAME64_DTYPE = np.dtype([("view", "<f8", (16,)), ("proj", "<f8", (16,)),
+                          ("inv_view", "<f8", (16,)), ("inv_proj", "<f8", (16,)),
+                          ("camera_pos", "<f8", (4,)), ("ambient", "<f8", (4,)),
+                          ("output_size", "<f8", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
+                          ("light_fields", "<u4"), ("pad", "<u4"), ("pad2", "<u4", (4,)),
+                          ("prev_view", "<f8", (16,)), ("prev_proj", "<f8", (16,))])
+assert FRAME64_DTYPE.itemsize == 896
+
+
+def _put_matrices(fr: np.ndarray, f8: Optional[np.ndarray], **mats) -> None:
+    """Write 4x4 matrices (row-major as numpy holds them) into the frame structs: ``fr``
+    (``FRAME_DTYPE``) as float32, ``f8`` (``FRAME64_DTYPE``, or None without the float64
+    evaluation) as float64, both column-major as the prelude's ``mat4`` reads them."""
+    for name, m in mats.items():
+        m = np.asarray(m, np.float64)
+        fr[name] = m.astype(np.float32).T.reshape(16)
+        if f8 is not None:
+            f8[name] = m.T.reshape(16)
+
+
+def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
+                   output_size: tuple[int, int], num_lights: int, light: int,
+                   light_fields: int, f64: bool) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """The ``pg_frame`` struct of a camera, and its ``pg_frame64`` with ``f64`` (else None):
+    ``inv_view``/``inv_proj`` are the inverses of ``view``/``proj``, ``prev_*`` the previous
+    frame's camera."""
+    fr = np.zeros((), FRAME_DTYPE)
+    f8 = np.zeros((), FRAME64_DTYPE) if f64 else None
+    _put_matrices(fr, f8, view=view, proj=proj, inv_view=np.linalg.inv(view),
+                  inv_proj=np.linalg.inv(proj), prev_view=prev_view, prev_proj=prev_proj)
+    for s, t in ((fr, np.float32), (f8, np.float64)):
+        if s is None:
+            continue
+        s["camera_pos"][:3] = np.asarray(camera_pos, t)
+        s["ambient"][:3] = np.asarray(ambient, t)
+        s["output_size"][:2] = output_size
+        s["num_lights"], s["light"], s["light_fields"] = num_lights, light, light_fields
+    return fr, f8
+
+
+class CLPipeline:
+    def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None,
+                 cache_dir: Optional[str] = None, dynamic_state: bool = False,
+                 tile: int = clgen.TILE):
+        plan = plan_from_dict(plan)
+        assert plan.backend in ("cl", ""), "CLPipeline needs a plan from emit_cl"
+        # a pass without code (a plan written by hand) has no fragment function
+        self.plan = plan = replace(plan, passes=tuple(
+            p if p.code is not None else replace(p, code=CLPassCode("", None))
+            for p in plan.passes))
+        self.size = size
+        self.precision = plan.precision
+        self.f64 = plan.precision == "f64"       # the float64 evaluation
+        self.dynamic_state = dynamic_state
+        self.tile = tile
+        self.ctx, self.queue = cl_context.get_context(
+            cache_dir, key=f"{plan.technique}:{plan.source}")
+        self.targets_spec = {t.name: t for t in plan.targets}
+        self.store = TargetStore(self.ctx, self.queue, plan)
+        self._programs: dict[int, object] = {}
+        self.last_timings: list[dict] = []
+        self._blend_counts: Optional[dict[str, np.ndarray]] = {}
+        self._blend_count_bufs: dict = {}
+        self.geometry = DrawGeometry(self)
+        self._presets: dict = {}
+        self._scene = None
+        self._selection: Optional[draws.LightSelection] = None
+        self._dummy = self._buffer(np.zeros(4, np.int32))
+        self._zeros4 = self._buffer(np.zeros((1, 4), np.float32))
+        self._events: list = []
+        self._kernels: dict = {}
+        self._int2s: dict = {}
+        self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
+        self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
+        for k in range(len(plan.passes)):
+            self._program(k)
+
+    def release(self) -> None:
+        """Drop the device buffers this pipeline holds (targets, blend counts, set-up geometry,
+        frame and light tables) as ``GLPipeline.release`` does; the compiled programs stay in
+        the process's cache.  The pipeline is unusable afterwards."""
+        self.store = None
+        self.geometry = None
+        self._kernels = {}
+        self._events = []
+        for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf"):
+            if hasattr(self, name):
+                setattr(self, name, None)
+        self._scene = None
+
+    # -- programs ---------------------------------------------------------------------------------
+    def _program(self, k: int):
+        prog = self._programs.get(k)
+        if prog is None:
+            src = self.source(k)
+            prog = cl_context.build_program(src)
+            self._programs[k] = prog
+        return prog
+
+    def _kernel(self, k: int, name: str):
+        """Kernel objects are cached: pyopencl builds an argument invoker per Kernel object."""
+        import pyopencl as cl
+        kern = self._kernels.get((k, name))
+        if kern is None:
+            kern = self._kernels[(k, name)] = cl.Kernel(self._program(k), name)
+        return kern
+
+    @property
+    def dropped_lights(self) -> dict[str, list[int]]:
+        """Per channel_slots pack, the lights of the last scene no light set could take."""
+        return self._selection.dropped if self._selection else {}
+
+    def source(self, k: int) -> str:
+        p = self.plan.passes[k]
+        if self.dynamic_state or p.code is None or not p.code.kernel or self.tile != clgen.TILE:
+            return clgen.pass_program(self.plan, p, dynamic=self.dynamic_state, tile=self.tile)
+        return p.code.kernel
+
+    # -- buffers and targets ----------------------------------------------------------------------
+    def _buffer(self, array: np.ndarray):
+        return device_buffer(self.ctx, array)
+
+    @property
+    def _targets(self) -> dict:
+        return self.store.targets
+
+    def preset(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None) -> None:
+        """Start the next renders with target ``name`` holding ``codes`` (GL row order, like
+        the arrays ``render`` returns) instead of its clear value; ``stencil`` for d24s8.  In
+        the float64 evaluation ``codes`` are values (as its ``render`` returns them)."""
+        self._presets[name] = (np.asarray(codes), None if stencil is None else np.asarray(stencil))
+
+    def prepare(self, scene) -> None:
+        """Allocate and clear every target for a frame of ``scene``."""
+        self._out = self.output_size(scene)
+        self.store.prepare(*self._out)
+        for name, (codes, stencil) in self._presets.items():
+            self.store.write(name, codes, stencil)
+
+    # -- frame --------------------------------------------------------------------------------------
+    def output_size(self, scene) -> tuple[int, int]:
+        if self.size is not None:
+            return int(self.size[0]), int(self.size[1])
+        return int(scene.width), int(scene.height)
+
+    def target_size(self, name: str, out_w: int, out_h: int) -> tuple[int, int]:
+        return self.targets_spec[name].resolve(out_w, out_h)
+
+    def _frame(self, scene, light: int = 0) -> np.ndarray:
+        """The frame's ``pg_frame`` struct; sets ``_frame64_np`` (its ``pg_frame64``) with the
+        float64 evaluation."""
+        out_w, out_h = self._out
+        cam = scene.camera
+        view = cam.view_matrix()
+        proj = cam.projection(out_w / out_h)
+        prev = getattr(scene, "prev_camera", cam)
+        fr, f8 = _frame_structs(view, proj, prev.view_matrix(), prev.projection(out_w / out_h),
+                                cam.position, scene.ambient, (out_w, out_h), len(scene.lights),
+                                light, len(self.plan.lights.fields), self.f64)
+        self._view, self._proj = view, proj
+        if f8 is not None:
+            self._frame64_np = f8
+        return fr
+
+    # -- rendering ----------------------------------------------------------------------------------
+    def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
+        """Render one frame: ``{target: codes}``, or ``(targets, captures)`` with
+        ``capture_passes`` (see the module docstring)."""
+        check_param_overrides(self.plan, params)
+        self._use_scene(scene)
+        self.prepare(scene)
+        self.last_timings = []
+        self.geometry.begin_frame()
+        self._events = []
+        self._frame_np = self._frame(scene)
+        self._frame_buf = self._buffer(self._frame_np)
+        self._frame64_buf = self._buffer(self._frame64_np) if self.f64 else None
+        captures: list[dict] = []
+        runs = self._selection.schedule()
+        self._shadows = {}
+        for k, light in runs:      # every vertex kernel before the first raster kernel
+            self._prefetch(k, light)
+        self.geometry.clip_pending()
+        if self.profile is None and not capture_passes:
+            # every pass's host work (set-up read-backs, bins) first, then the frame's
+            # device work queued in one go: host work done while a raster kernel runs gets a
+            # third of the 2 cores PoCL's 2 threads share with it, and the next kernel waits
+            # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
+            # frames interleaved in one process, medians of 15: light_prepass 37.9 -> 35.0
+            # ms, inferred 30.8 -> 27.3, deferred_calver and deferred within 2 %)
+            prepared = [(k, light, self._prepare_pass(k, light)) for k, light in runs]
+            for k, light, launch in prepared:
+                self._run_pass(k, light, launch)
+        else:       # pass by pass: drained around each (profile), or read after each
+            for k, light in runs:
+                self._run_pass_observed(k, light, captures if capture_passes else None)
+        result = self.store.read_all()
+        self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
+        self.queue.finish()
+        for timing, ev in self._events:          # raster kernels run while the host goes on
+            timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
+        self._events = []
+        return (result, captures) if capture_passes else result
+
+    def _run_pass_observed(self, k: int, light: Optional[int], captures: Optional[list]):
+        """One pass execution on its own: with ``profile``, the queue drained before and after
+        it; with ``captures``, its targets and blend counts read after it."""
+        if self.profile is None:
+            self._run_pass(k, light)
+        else:
+            self.queue.finish()                 # each pass charged its own work
+            t0 = time.perf_counter()
+            self._run_pass(k, light)
+            t1 = time.perf_counter()
+            self.queue.finish()
+            self.profile.append((self.plan.passes[k].name, light, t1 - t0,
+                                 time.perf_counter() - t1))
+        if captures is not None:
+            captures.append({"pass": self.plan.passes[k].name, "light": light,
+                             "targets": self.store.read_all(),
+                             "blend_counts": self.store.read_blend_counts()})
+
+    @property
+    def last_blend_counts(self) -> dict[str, np.ndarray]:
+        """The last frame's blend counts (see the module docstring), read on first use."""
+        if self._blend_counts is None:
+            self._blend_counts = self.store.read_blend_counts(self._blend_count_bufs)
+        return self._blend_counts
+
+    def _use_scene(self, scene) -> None:
+        if self._scene is scene:
+            return
+        check_scene_facts(self.plan, scene)
+        check_light_capacity(len(scene.lights), self.plan)
+        check_shadow_capacity(self.plan, scene)
+        self._scene = scene
+        self._selection = draws.LightSelection(self.plan, list(scene.lights))
+        self.geometry.use_scene()
+        capacity = max(1, self.plan.lights.capacity)
+        fields = [list(f) for f in self.plan.lights.fields]
+        table = (np.asarray(scene.light_table(fields, capacity), np.float32) if fields
+                 else np.zeros((0, 4), np.float32))
+        self._lights_buf = self._buffer(table.reshape(-1, 4) if table.size
+                                        else np.zeros((1, 4), np.float32))
+        if self.f64:     # the fragment function's light table in double
+            self._lights64_buf = self._buffer(table.reshape(-1, 4).astype(np.float64)
+                                              if table.size else np.zeros((1, 4), np.float64))
+
+    def _prefetch(self, k: int, light: Optional[int]) -> None:
+        """Queue the vertex work of a pass execution (``DrawGeometry.prefetch``)."""
+        p = self.plan.passes[k]
+        lights = None
+        if p.draw.kind is ir.DrawKind.LIGHTS:
+            lights = self._selection.instance(p, light)
+            if not lights:
+                return
+        width, height = self._pass_size(p)
+        shadow = self._shadow_view(p, light, width, height) if p.draw.shadow else None
+        self.geometry.prefetch(k, p, width, height, lights, shadow)
+
+    def _run_pass(self, k: int, light: Optional[int], launch=None) -> None:
+        """Queue a pass execution's device work (``launch``: its prepared host work, else
+        prepared now).  Every pass execution of a frame goes through here, in order (the
+        stress runner's read perturbation wraps it)."""
+        (launch or self._prepare_pass(k, light))()
+
+    def _prepare_pass(self, k: int, light: Optional[int]):
+        """The host work of a pass execution (its set-up triangles and bins); returns the
+        function that queues its device work (clears, resolves, the raster kernel) in order."""
+        p = self.plan.passes[k]
+        width, height = self._pass_size(p)
+        timing = {"pass": p.name, "light": light}
+        self.last_timings.append(timing)
+        lights, drawn = None, None
+        if p.draw.kind is ir.DrawKind.LIGHTS:
+            lights = self._selection.instance(p, light)
+        frame_buf, frame64_buf, shadow = self._frame_buf, self._frame64_buf, None
+        if p.draw.kind is not ir.DrawKind.LIGHTS or lights:
+            if p.draw.shadow:           # one light's tile, seen from the light
+                shadow = self._shadow_view(p, light, width, height)
+                frame_buf, frame64_buf = shadow.frame_buf, shadow.frame64_buf
+            drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow)
+
+        def launch() -> None:
+            for name, c in p.clears:
+                self.store.clear_for_pass(name, c)
+            if drawn is not None:
+                self._launch(k, p, light, timing, width, height, drawn, frame_buf, frame64_buf)
+        return launch
+
+    def _launch(self, k: int, p: PassPlan, light: Optional[int], timing: dict, width: int,
+                height: int, drawn: tuple, frame_buf, frame64_buf) -> None:
+        """Queue a pass's raster kernel (``drawn``: its geometry and bins; nothing when no
+        tile has a triangle).  Bins built on the device tell their number of tiles when
+        their binning has run: this waits for it."""
+        import pyopencl as cl
+        geo, tb = drawn
+        if not tb.ntiles:
+            return
+        bufs = geo.bufs
+        st = self._dummy
+        if self.dynamic_state:
+            st = self._buffer(np.asarray(clgen.state_words(p), np.int32))
+        args = [np.int32(width), np.int32(height), np.int32(tb.tiles_x), tb.tile_list,
+                tb.tile_start, tb.tile_tris, bufs["a"], bufs["b"], bufs["c"],
+                bufs["z"], bufs["w"], bufs["coef"], np.int32(geo.ncoef),
+                bufs["zp"], bufs["zq"], bufs["flat"], bufs["vtx"], bufs["scissor"],
+                bufs["bbox"], bufs["vary"], np.int32(geo.tris.nverts), frame_buf,
+                self._lights_buf, st, np.uint32(light or 0)]
+        for name in p.writes:
+            args.append(self._targets[name].buf)
+        for name in p.writes:
+            t = self._targets[name]
+            if not t.fmt.is_integer:
+                on = p.state.blend_for(name).enabled
+                args.append(self.store.blend_count(t) if on else self._dummy)
+        if p.depth_target:
+            dt = self._targets[p.depth_target]
+            args.append(dt.buf)
+            if dt.stencil is not None:
+                args.append(dt.stencil)
+        for name in p.reads:
+            rt = self._targets[name]
+            self.store.resolve(rt)                # reads see the resolved texture, like GL
+            args += [rt.res, self._int2(rt.width, rt.height)]
+        if self.f64:
+            attrs = [self._zeros4] * 4
+            if p.draw.kind is ir.DrawKind.SCENE:
+                attrs = self.geometry.attributes(p.draw)[1]
+            args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
+        kern = self._kernel(k, "pg_raster")
+        cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
+        T = self.tile
+        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
+        self._events.append((timing, ev))
+        for name in p.attached:
+            if self._targets[name].samples > 1:
+                self._targets[name].dirty = True
+        timing["triangles"] = tb.triangles
+        timing["tile_entries"] = tb.entries
+
+    def _shadow_view(self, p: PassPlan, light: int, width: int, height: int) -> ShadowView:
+        """A shadow-map draw of ``light``: its tile and the frame structs with the light's view
+        and projection in place of the camera's (``draws.shadow_view``; float32 as a camera's
+        are uploaded); once per frame."""
+        got = self._shadows.get((id(p), light))
+        if got is not None:
+            return got
+        rect, view, proj = draws.shadow_view(self._scene, light, p.draw, width, height)
+        fr = self._frame_np.copy()
+        f8 = self._frame64_np.copy() if self.f64 else None
+        _put_matrices(fr, f8, view=view, proj=proj)
+        got = self._shadows[(id(p), light)] = ShadowView(
+            int(light), tuple(int(v) for v in rect), self._buffer(fr),
+            None if f8 is None else self._buffer(f8))
+        return got
+
+    def _int2(self, x: int, y: int):
+        """An ``int2`` kernel argument (pyopencl's ``make_int2`` evaluates code per call:
+        ~0.1 ms, a noticeable share of a light pass's host time)."""
+        key = (int(x), int(y))
+        v = self._int2s.get(key)
+        if v is None:
+            import pyopencl as cl
+            v = self._int2s[key] = cl.cltypes.make_int2(*key)
+        return v
+
+    def _pass_size(self, p: PassPlan) -> tuple[int, int]:
+        """The viewport of a pass: its first attachment's size, else the output size."""
+        if p.attached:
+            t = self._targets[p.attached[0]]
+            return t.width, t.height
+        return self._out

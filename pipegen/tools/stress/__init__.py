@@ -1,0 +1,37 @@
+"""``pipegen stress``: adversarial scenes (DESIGN.md §8) rendered on GL, CL and the technique's
+float64 evaluation; every target of both float32 backends held to a bound composed through the
+pipeline (docs/stress.md).
+
+- ``cases.py``: the scenes (``CASES``, ``GROUPS``, ``build``), a TOML writer for any scene;
+- ``bounds.py``: the per-target bound model (store, blend, arithmetic, positions, reads);
+- ``run.py``: ``Stress(compiled).run_case(case) -> CaseResult``;
+- ``search.py``: ``--random N``: hypothesis-drawn scenes, the first failure shrunk;
+- ``report.py``: the table and worst-pixel PNGs; ``command.py``: the subcommand.
+
+From Python::
+
+    from pipegen.tools.stress import stress
+    results = stress(compiled, base_scene, cases="quick", size=(96, 64))
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Optional
+
+DEFAULT_SIZE = (96, 64)
+
+
+def stress(compiled, base=None, cases: Optional[str] = None, size=DEFAULT_SIZE,
+           progress: Callable[[str], None] = lambda msg: None):
+    """Run the named cases (``cases``: comma-separated names or groups, None: all) of
+    ``compiled`` on ``base`` (default: the built-in scene) at ``size``: ``[CaseResult]``."""
+    from pipegen.scene.load import default_scene
+    from pipegen.tools.stress.cases import build, case_names
+    from pipegen.tools.stress.run import Stress
+    base = (base or default_scene()).with_size(*size) if size else (base or default_scene())
+    runner = Stress(compiled)
+    out = []
+    for case in build(base, case_names(cases)):
+        progress(case.name)
+        out.append(runner.run_case(case))
+    return out

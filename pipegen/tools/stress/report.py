@@ -1,0 +1,115 @@
+"""The stress table and the worst-pixel pictures of failing cases."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipegen.core import formats as F
+from pipegen.tools.stress.run import CaseResult, TargetResult
+
+HEADER = ("case", "status", "worst target", "err/bound", "error", "bound", "over/edges",
+          "NaN,inf gl|cl|f64", "GL=CL", "lights dropped", "s")
+
+
+def _nf(res: CaseResult) -> str:
+    if not res.nonfinite:
+        return "-"
+    return "|".join(f"{n},{i}" for n, i in (res.nonfinite.get(b, (0, 0))
+                                            for b in ("gl", "cl", "f64")))
+
+
+def _worst(res: CaseResult):
+    """The row that decides the case: the output's worst (or any failing target's)."""
+    rows = [t for t in res.targets if not t.exact]
+    failing = [t for t in res.targets if not t.passed and (t.output or res.status != "FAIL")]
+    pool = failing or [t for t in rows if t.output] or rows
+    return max(pool, key=lambda t: t.worst_ratio) if pool else None
+
+
+def row(res: CaseResult) -> tuple[str, ...]:
+    w = _worst(res)
+    if w is None:
+        return (res.case, res.status, "-", "-", "-", "-", "-", _nf(res),
+                "-" if res.agree is None else ("yes" if res.agree else "NO"), res.dropped,
+                f"{res.seconds:.2f}")
+    ratio = "inf" if not np.isfinite(w.worst_ratio) else f"{w.worst_ratio:.3g}"
+    return (res.case, res.status, f"{w.key} ({w.backend})", ratio, w.units(w.worst_error),
+            w.units(w.bound_at_worst), f"{w.over}/{w.edges}", _nf(res),
+            "-" if res.agree is None else ("yes" if res.agree else "NO"),
+            res.dropped, f"{res.seconds:.2f}")
+
+
+def table(results: list[CaseResult]) -> str:
+    rows = [HEADER] + [row(r) for r in results]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+
+
+def notes(results: list[CaseResult]) -> list[str]:
+    out = []
+    for r in results:
+        for m in r.mismatches:
+            out.append(f"{r.case}: {m}")
+        if r.disagree:
+            out.append(f"{r.case}: GL and CL disagree beyond pipegen check's tolerance on "
+                       f"{', '.join(r.disagree)}")
+        bad = sorted({t.key for t in r.targets if not t.passed})
+        if bad and r.status in ("warn", "FAIL", "unsupported"):
+            out.append(f"{r.case}: over the bound on {', '.join(bad)}"
+                       + (" (intermediate targets: reported, not failed)"
+                          if r.status == "warn" else ""))
+    return out
+
+
+def _picture(values: np.ndarray, fmt: F.Format) -> np.ndarray:
+    """(H, W[, C]) values -> (H, W, 3) uint8, GL row order (scaled to the finite range)."""
+    v = np.asarray(values, np.float64)
+    if v.ndim == 3:
+        v = v[..., :3] if v.shape[2] >= 3 else np.repeat(v[..., :1], 3, axis=2)
+    else:
+        v = np.repeat(v[..., None], 3, axis=2)
+    finite = np.isfinite(v)
+    lo = float(v[finite].min()) if finite.any() else 0.0
+    hi = float(v[finite].max()) if finite.any() else 1.0
+    if fmt.is_normalized and lo >= 0 and hi <= 1:
+        lo, hi = 0.0, 1.0
+    img = (np.where(finite, v, hi) - lo) / max(hi - lo, 1e-300)
+    img = np.where(finite, img, 0.0)
+    out = (np.clip(img, 0, 1) * 255 + 0.5).astype(np.uint8)
+    out[~finite.all(axis=2)] = (255, 0, 255)
+    return out
+
+
+def worst_pixels_png(res: CaseResult, target: TargetResult, path: Path, scale: int = 4,
+                     count: int = 16) -> None:
+    """Three panels, side by side, ``scale`` x nearest: the float32 target (GL), the float64
+    evaluation, and error / bound (black 0, white 1, red over the bound); the ``count`` worst
+    pixels boxed in yellow on every panel."""
+    from PIL import Image
+    key = target.key
+    fmt = F.get(target.format)
+    gl = res.images["gl"][key]
+    f64 = res.images["f64"][key]
+    shown = fmt.dequantize(gl) if not key.endswith(".stencil") else gl
+    ratio = target.ratio_map
+    r = np.where(np.isfinite(ratio), ratio, 10.0)
+    err = np.repeat((np.clip(r, 0, 1) * 255).astype(np.uint8)[..., None], 3, axis=2)
+    err[r > 1] = (255, 40, 40)
+    panels = [_picture(shown, fmt), _picture(f64, fmt), err]
+    flat = np.argsort(r.ravel())[::-1][:count]
+    ys, xs = np.unravel_index(flat, r.shape)
+    out = []
+    for p in panels:
+        big = np.kron(p, np.ones((scale, scale, 1), np.uint8))
+        for y, x in zip(ys, xs):
+            if r[y, x] <= 0:
+                continue
+            y0, x0 = y * scale, x * scale
+            big[y0, x0:x0 + scale] = big[y0 + scale - 1, x0:x0 + scale] = (255, 220, 0)
+            big[y0:y0 + scale, x0] = big[y0:y0 + scale, x0 + scale - 1] = (255, 220, 0)
+        out.append(big)
+    gap = np.full((out[0].shape[0], 4, 3), 64, np.uint8)
+    img = np.concatenate([out[0], gap, out[1], gap, out[2]], axis=1)
+    Image.fromarray(np.ascontiguousarray(img[::-1])).save(path)   # GL rows: bottom first
