@@ -10,17 +10,17 @@ from typing import Optional
 from pipegen.core.records import record
 from pipegen.frontend import ast, parse as syntax
 from pipegen.core import sources
-from pipegen.frontend.lower.names import Loader, _err
+from pipegen.frontend.lower.names import Loader, error
 
 @record
-class _PassItem:
+class PassItem:
     decl: ast.PassDecl
     group: Optional[int]          # repeat group from a `repeat per light { … }` block
     block_types: tuple = ()       # the block's light types (`repeat per light spot { … }`)
 
 
 @record
-class _Decls:
+class Decls:
     technique: Optional[ast.TechniqueDecl] = None
     params: list[ast.ParamDecl] = field(default_factory=list)
     lights: list[ast.LightsDecl] = field(default_factory=list)
@@ -28,7 +28,7 @@ class _Decls:
     outputs: list[ast.OutputDecl] = field(default_factory=list)
     packs: list[ast.PackDecl] = field(default_factory=list)
     functions: list[ast.FunctionDef] = field(default_factory=list)
-    passes: list[_PassItem] = field(default_factory=list)
+    passes: list[PassItem] = field(default_factory=list)
     named: list[tuple[ast.Name, str]] = field(default_factory=list)   # in source order
 
 
@@ -36,10 +36,10 @@ class _Decls:
 _INCLUDABLE = (ast.Include, ast.ParamDecl, ast.PackDecl, ast.FunctionDef)
 
 
-class _Collector:
+class Collector:
     def __init__(self, loader: Loader):
         self.loader = loader
-        self.decls = _Decls()
+        self.decls = Decls()
         self.seen: set[str] = set()
         self.texts: dict[str, str] = {}     # found by _find, parsed by _include
         self.groups = 0
@@ -49,9 +49,9 @@ class _Collector:
         included = bool(stack)
         for item in module.items:
             if included and not isinstance(item, _INCLUDABLE):
-                raise _err(item.span, f"an included file may only declare params, packs and "
-                           f"functions, not a {_item_kind(item)}",
-                           "move it into the technique file that includes this one")
+                raise error(item.span, f"an included file may only declare params, packs and "
+                            f"functions, not a {_item_kind(item)}",
+                            "move it into the technique file that includes this one")
             self._item(item, path, stack)
 
     def _item(self, item: ast.Item, path: str, stack: tuple[str, ...]) -> None:
@@ -60,21 +60,21 @@ class _Collector:
             self._include(item, path, stack)
         elif isinstance(item, ast.TechniqueDecl):
             if d.technique is not None:
-                raise _err(item.span, "a file declares one technique",
-                           f"'{d.technique.name.name}' is declared on line "
-                           f"{d.technique.span.line}")
+                raise error(item.span, "a file declares one technique",
+                            f"'{d.technique.name.name}' is declared on line "
+                            f"{d.technique.span.line}")
             d.technique = item
         elif isinstance(item, ast.RepeatBlock):
             if not item.passes:
-                raise _err(item.span, "an empty `repeat per light` block",
-                           "put the passes that run once per light inside it")
+                raise error(item.span, "an empty `repeat per light` block",
+                            "put the passes that run once per light inside it")
             group = self._new_group()
             types = tuple(item.light_types)
-            d.passes.extend(_PassItem(p, group, types) for p in item.passes)
+            d.passes.extend(PassItem(p, group, types) for p in item.passes)
         elif isinstance(item, ast.PassDecl):
             # A pass with its own `repeat per light` is a repeat group of one.
             repeats = any(isinstance(s, ast.RepeatPerLight) for s in item.stmts)
-            d.passes.append(_PassItem(item, self._new_group() if repeats else None))
+            d.passes.append(PassItem(item, self._new_group() if repeats else None))
         else:
             bucket = {ast.ParamDecl: d.params, ast.LightsDecl: d.lights,
                       ast.TargetDecl: d.targets, ast.OutputDecl: d.outputs,
@@ -90,13 +90,13 @@ class _Collector:
 
     def _include(self, inc: ast.Include, path: str, stack: tuple[str, ...]) -> None:
         if not inc.path.isprintable():
-            raise _err(inc.span, "an include path cannot contain control characters",
-                       'write the path of a .pipe file, e.g. include "common/lighting.pipe"')
+            raise error(inc.span, "an include path cannot contain control characters",
+                        'write the path of a .pipe file, e.g. include "common/lighting.pipe"')
         target = self._find(inc, path)
         if target in stack or target == os.path.normpath(path):
-            raise _err(inc.span, f"'{inc.path}' includes itself (through "
-                       f"{' -> '.join(os.path.basename(s) for s in stack + (path,))})",
-                       "remove one of the includes of the cycle")
+            raise error(inc.span, f"'{inc.path}' includes itself (through "
+                        f"{' -> '.join(os.path.basename(s) for s in stack + (path,))})",
+                        "remove one of the includes of the cycle")
         if target in self.seen:
             return   # already spliced in: a file's declarations are included once
         text = self.texts.pop(target)
@@ -115,16 +115,16 @@ class _Collector:
             except FileNotFoundError:
                 continue
             except (OSError, UnicodeDecodeError) as e:
-                raise _err(inc.span, f"cannot read included file '{inc.path}' ({target}): "
-                           f"{getattr(e, 'strerror', None) or e}",
-                           "include a .pipe file (a regular file of at most "
-                           f"{sources.MAX_SOURCE_BYTES >> 20} MiB)") from None
+                raise error(inc.span, f"cannot read included file '{inc.path}' ({target}): "
+                            f"{getattr(e, 'strerror', None) or e}",
+                            "include a .pipe file (a regular file of at most "
+                            f"{sources.MAX_SOURCE_BYTES >> 20} MiB)") from None
         searched = "; ".join(f"{t} ({where})" for t, where in candidates)
-        raise _err(inc.span, f"cannot read included file '{inc.path}': not found (searched "
-                   f"{searched})",
-                   "include paths are relative to the including file; the library shipped "
-                   "with pipegen is included as common/NAME.pipe; more folders can be listed "
-                   "in PIPEGEN_PATH")
+        raise error(inc.span, f"cannot read included file '{inc.path}': not found (searched "
+                    f"{searched})",
+                    "include paths are relative to the including file; the library shipped "
+                    "with pipegen is included as common/NAME.pipe; more folders can be listed "
+                    "in PIPEGEN_PATH")
 
 
 _NAMED_KINDS = {ast.ParamDecl: "parameter", ast.TargetDecl: "target", ast.PackDecl: "packing",

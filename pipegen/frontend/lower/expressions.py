@@ -13,19 +13,19 @@ from pipegen.ir.builtins import (
     binary_type, describe_overloads, resolve_builtin, target_read_type, unary_type)
 from pipegen.core.diagnostics import Span
 from pipegen.frontend.lower.names import (
-    _A, Lowering, _Context, _Local, _Uses, _a, _did_you_mean, _err, _listing, _reserved_meaning,
-    _shader_type)
+    A_or_An, Lowering, Context, Local, Uses, a_or_an, did_you_mean, error, listing,
+    reserved_meaning, shader_type)
 
 
-class _ExprChecker:
+class ExprChecker:
     """Type checks the expressions of one function or fragment body and builds their IR."""
 
-    def __init__(self, low: Lowering, ctx: _Context):
+    def __init__(self, low: Lowering, ctx: Context):
         self.low = low
         self.ctx = ctx
-        self.scopes: list[dict[str, _Local]] = [{}]
+        self.scopes: list[dict[str, Local]] = [{}]
         self.loops = 0
-        self.uses = _Uses()
+        self.uses = Uses()
         self.outputs: set[str] = set()       # targets this body writes
 
     # -- local names ---------------------------------------------------------------------------
@@ -33,16 +33,16 @@ class _ExprChecker:
         n = name.name
         prev = self._lookup_local(n)
         if prev is not None:
-            raise _err(name.span, f"'{n}' is already declared (line {prev.span.line})",
-                       "rename this variable; names are not shadowed")
-        clash = _reserved_meaning(n) or (_a(self.low.globals[n].kind)
+            raise error(name.span, f"'{n}' is already declared (line {prev.span.line})",
+                        "rename this variable; names are not shadowed")
+        clash = reserved_meaning(n) or (a_or_an(self.low.globals[n].kind)
                                          if n in self.low.globals else None)
         if clash:
-            raise _err(name.span, f"'{n}' is already {clash}",
-                       f"rename this variable (e.g. '{n}_')")
-        self.scopes[-1][n] = _Local(t, name.span, loop_var)
+            raise error(name.span, f"'{n}' is already {clash}",
+                        f"rename this variable (e.g. '{n}_')")
+        self.scopes[-1][n] = Local(t, name.span, loop_var)
 
-    def _lookup_local(self, name: str) -> Optional[_Local]:
+    def _lookup_local(self, name: str) -> Optional[Local]:
         for scope in reversed(self.scopes):
             if name in scope:
                 return scope[name]
@@ -53,14 +53,14 @@ class _ExprChecker:
         method = getattr(self, "_expr_" + type(e).__name__)
         result = method(e)
         if result.type.is_void and not allow_void:
-            raise _err(e.span, "this call returns no value", "use it as a statement")
+            raise error(e.span, "this call returns no value", "use it as a statement")
         return result
 
     def _condition(self, e: ast.Expr, what: str) -> ir.Expr:
         cond = self.expr(e)
         if cond.type != ir.BOOL:
-            raise _err(e.span, f"{what} must be a bool, not {_a(cond.type)}",
-                       "compare explicitly, e.g. `x != 0u` or `v > 0.0`")
+            raise error(e.span, f"{what} must be a bool, not {a_or_an(cond.type)}",
+                        "compare explicitly, e.g. `x != 0u` or `v > 0.0`")
         return cond
 
     def _expr_Number(self, e: ast.Number) -> ir.Expr:
@@ -79,24 +79,24 @@ class _ExprChecker:
         if n in low.params:
             p = low.params[n]
             if p.type == ir.VOID:
-                raise _err(e.span, f"parameter '{n}' is a format, not a value",
-                           "format parameters are used in target declarations")
+                raise error(e.span, f"parameter '{n}' is a format, not a value",
+                            "format parameters are used in target declarations")
             return ir.Var(n, p.type, "param")
         if n in STAGE_INPUTS:
             return self._stage_input(e)
         if n in low.targets:
-            raise _err(e.span, f"target '{n}' is not a value",
-                       f"read it with load({n}) or sample({n}, uv); write it with `{n} = …;`")
+            raise error(e.span, f"target '{n}' is not a value",
+                        f"read it with load({n}) or sample({n}, uv); write it with `{n} = …;`")
         if n == "light":
-            raise _err(e.span, "`light` is read by field", "e.g. light.position, light.index")
+            raise error(e.span, "`light` is read by field", "e.g. light.position, light.index")
         if n == "lights":
-            raise _err(e.span, "`lights` is read by index and field", "e.g. lights[i].position")
+            raise error(e.span, "`lights` is read by index and field", "e.g. lights[i].position")
         if n in low.pack_specs:
-            raise _err(e.span, f"packing '{n}' is not a value",
-                       f"call its functions ({n}.fn(…)) or read its constants ({n}.name)")
+            raise error(e.span, f"packing '{n}' is not a value",
+                        f"call its functions ({n}.fn(…)) or read its constants ({n}.name)")
         if n in low.signatures or n in BUILTINS:
-            raise _err(e.span, f"function '{n}' is not a value", f"call it: {n}(…)")
-        raise _err(e.span, f"unknown name '{n}'", _did_you_mean(n, self._visible_names(),
+            raise error(e.span, f"function '{n}' is not a value", f"call it: {n}(…)")
+        raise error(e.span, f"unknown name '{n}'", did_you_mean(n, self._visible_names(),
                                                                 "declare it before use"))
 
     def _visible_names(self) -> list[str]:
@@ -109,9 +109,9 @@ class _ExprChecker:
         inp = STAGE_INPUTS[e.name]
         if inp.where is Where.SCENE:
             if self.ctx.in_pass and self.ctx.draw is not ir.DrawKind.SCENE:
-                raise _err(e.span, f"'{e.name}' exists only in scene draws, and "
-                           f"{self.ctx.describe()} does not draw the scene",
-                           "store it in a target in a scene pass and load() it here")
+                raise error(e.span, f"'{e.name}' exists only in scene draws, and "
+                            f"{self.ctx.describe()} does not draw the scene",
+                            "store it in a target in a scene pass and load() it here")
             self.uses.scene.append((e.name, e.span))
         return ir.Var(e.name, inp.type, "input")
 
@@ -124,8 +124,8 @@ class _ExprChecker:
         operand = self.expr(e.operand)
         t = unary_type(e.op, operand.type)
         if t is None:
-            raise _err(e.span, f"operator '{e.op}' does not apply to {_a(operand.type)}",
-                       {"!": "'!' negates a bool", "~": "'~' inverts an int or uint"}.get(
+            raise error(e.span, f"operator '{e.op}' does not apply to {a_or_an(operand.type)}",
+                        {"!": "'!' negates a bool", "~": "'~' inverts an int or uint"}.get(
                            e.op, "'-' negates a number or vector"))
         return operand if e.op == "+" else ir.Unary(e.op, operand, t)
 
@@ -133,39 +133,40 @@ class _ExprChecker:
         left, right = self.expr(e.left), self.expr(e.right)
         t = binary_type(e.op, left.type, right.type)
         if t is None:
-            raise _err(e.span, f"operator '{e.op}' cannot combine {_a(left.type)} and "
-                       f"{_a(right.type)}", _operator_hint(e.op, left.type, right.type))
+            raise error(e.span, f"operator '{e.op}' cannot combine {a_or_an(left.type)} and "
+                        f"{a_or_an(right.type)}", _operator_hint(e.op, left.type, right.type))
         return ir.Binary(e.op, left, right, t)
 
     def _expr_Conditional(self, e: ast.Conditional) -> ir.Expr:
         cond = self._condition(e.cond, "a ?: condition")
         then, other = self.expr(e.then), self.expr(e.other)
         if then.type != other.type:
-            raise _err(e.span, f"the branches of ?: differ: {then.type} and {other.type}",
-                       _conversion_hint(other.type, then.type))
+            raise error(e.span, f"the branches of ?: differ: {then.type} and {other.type}",
+                        conversion_hint(other.type, then.type))
         return ir.Ternary(cond, then, other, then.type)
 
     def _expr_Subscript(self, e: ast.Subscript) -> ir.Expr:
         if isinstance(e.base, ast.Name) and e.base.name == "lights" \
                 and self._lookup_local("lights") is None:
-            raise _err(e.span, "a light is read by field",
-                       "e.g. lights[i].position; the schema lists the fields")
+            raise error(e.span, "a light is read by field",
+                        "e.g. lights[i].position; the schema lists the fields")
         base = self.expr(e.base)
         if not (base.type.is_vector or base.type.is_matrix):
-            raise _err(e.base.span, f"{_A(base.type)} cannot be indexed",
-                       "index a vector (v[i]) or a matrix column (m[i])")
+            raise error(e.base.span, f"{A_or_An(base.type)} cannot be indexed",
+                        "index a vector (v[i]) or a matrix column (m[i])")
         index = self._index_value(e.index)
         n = base.type.mat or base.type.size
         if isinstance(index, ir.Const) and not 0 <= index.value < n:
-            raise _err(e.index.span, f"index {index.value} is out of range for {_a(base.type)}",
-                       f"valid indices are 0 to {n - 1}")
+            raise error(e.index.span,
+                        f"index {index.value} is out of range for {a_or_an(base.type)}",
+                        f"valid indices are 0 to {n - 1}")
         return ir.Index(base, index, base.type.element)
 
     def _index_value(self, e: ast.Expr) -> ir.Expr:
         index = self.expr(e)
         if index.type not in (ir.INT, ir.UINT):
-            raise _err(e.span, f"an index is an int or a uint, not {_a(index.type)}",
-                       _conversion_hint(index.type, ir.INT))
+            raise error(e.span, f"an index is an int or a uint, not {a_or_an(index.type)}",
+                        conversion_hint(index.type, ir.INT))
         return index
 
     def _expr_Field(self, e: ast.Field) -> ir.Expr:
@@ -185,10 +186,10 @@ class _ExprChecker:
         name = e.name.name
         if index is None:
             if self.ctx.in_pass and not self.ctx.has_light:
-                raise _err(e.base.span, f"`light` is only bound in light draws and repeat-per-"
-                           f"light passes, and {self.ctx.describe()} is neither",
-                           "index the light table instead: lights[i].FIELD, or add "
-                           "`repeat per light` to the pass")
+                raise error(e.base.span, f"`light` is only bound in light draws and repeat-per-"
+                            f"light passes, and {self.ctx.describe()} is neither",
+                            "index the light table instead: lights[i].FIELD, or add "
+                            "`repeat per light` to the pass")
             self.uses.light.append(e.base.span)
             if name == LIGHT_INDEX:
                 return ir.LightField(None, LIGHT_INDEX, ir.UINT)
@@ -198,31 +199,31 @@ class _ExprChecker:
             if name in LIGHT_FIELDS:
                 hint = f"add `{name}: {LIGHT_FIELDS[name]}` to the `lights[…] {{ … }}` schema"
             else:
-                hint = _did_you_mean(name, schema + ([LIGHT_INDEX] if index is None else []),
-                                     f"the schema declares: {_listing(schema)}")
-            raise _err(e.name.span, f"lights have no field '{name}'", hint)
+                hint = did_you_mean(name, schema + ([LIGHT_INDEX] if index is None else []),
+                                    f"the schema declares: {listing(schema)}")
+            raise error(e.name.span, f"lights have no field '{name}'", hint)
         return ir.LightField(index, name, t)
 
     def _swizzle(self, value: ir.Expr, e: ast.Field) -> ir.Expr:
         name = e.name.name
         if not value.type.is_vector:
-            raise _err(e.name.span, f"{_A(value.type)} has no field '{name}'",
-                       "swizzles (.x, .rgb, …) apply to vectors")
+            raise error(e.name.span, f"{A_or_An(value.type)} has no field '{name}'",
+                        "swizzles (.x, .rgb, …) apply to vectors")
         for sets in ("xyzw", "rgba", "stpq"):
             if all(c in sets for c in name):
                 comps = "".join("xyzw"[sets.index(c)] for c in name)
                 break
         else:
-            raise _err(e.name.span, f"'{name}' is not a swizzle",
-                       "use components from one of xyzw, rgba, stpq")
+            raise error(e.name.span, f"'{name}' is not a swizzle",
+                        "use components from one of xyzw, rgba, stpq")
         if len(comps) > 4:
-            raise _err(e.name.span, f"a swizzle has at most 4 components, not {len(comps)}",
-                       "shorten it")
+            raise error(e.name.span, f"a swizzle has at most 4 components, not {len(comps)}",
+                        "shorten it")
         too_far = [c for c in comps if "xyzw".index(c) >= value.type.size]
         if too_far:
             bad = name[comps.index(too_far[0])]
-            raise _err(e.name.span, f"{_A(value.type)} has no component '{bad}'",
-                       f"{_A(value.type)} has {value.type.size} components")
+            raise error(e.name.span, f"{A_or_An(value.type)} has no component '{bad}'",
+                        f"{A_or_An(value.type)} has {value.type.size} components")
         if comps == "xyzw"[:value.type.size]:
             return value       # .xyz of a vec3 is the vector itself
         t = value.type.element if len(comps) == 1 else value.type.with_size(len(comps))
@@ -232,8 +233,8 @@ class _ExprChecker:
     def _expr_Call(self, e: ast.Call) -> ir.Expr:
         name = e.func.name
         if self._lookup_local(name) is not None:
-            raise _err(e.func.span, f"'{name}' is a variable, not a function",
-                       "rename the variable or the function")
+            raise error(e.func.span, f"'{name}' is a variable, not a function",
+                        "rename the variable or the function")
         if name in TYPE_NAMES:
             return self._construct(e)
         if name in TARGET_FUNCTIONS:
@@ -242,8 +243,8 @@ class _ExprChecker:
             return self._user_call(name, e.func.span, e.args, e.span)
         if name in BUILTINS:
             return self._builtin_call(e)
-        raise _err(e.func.span, f"unknown function '{name}'",
-                   _did_you_mean(name, list(BUILTINS) + list(self.low.signatures)
+        raise error(e.func.span, f"unknown function '{name}'",
+                    did_you_mean(name, list(BUILTINS) + list(self.low.signatures)
                                  + list(TARGET_FUNCTIONS),
                                  "builtins: " + " ".join(sorted(BUILTINS))))
 
@@ -251,16 +252,16 @@ class _ExprChecker:
         obj = e.obj
         if not (isinstance(obj, ast.Name) and obj.name in self.low.pack_specs):
             shown = obj.name if isinstance(obj, ast.Name) else "this value"
-            raise _err(obj.span, f"'{shown}' is not a packing, so it has no functions",
-                       "only packings have functions: PACK.fn(…)")
+            raise error(obj.span, f"'{shown}' is not a packing, so it has no functions",
+                        "only packings have functions: PACK.fn(…)")
         fn = f"{obj.name}_{e.method.name}"
         sig = self.low.signatures.get(fn)
         if sig is None or sig.pack != obj.name:
             own = [s.name[len(obj.name) + 1:] for s in self.low.signatures.values()
                    if s.pack == obj.name]
-            raise _err(e.method.span, f"packing '{obj.name}' has no function "
-                       f"'{e.method.name}'", _did_you_mean(e.method.name, own,
-                                                           f"its functions: {_listing(own)}"))
+            raise error(e.method.span, f"packing '{obj.name}' has no function "
+                        f"'{e.method.name}'", did_you_mean(e.method.name, own,
+                                                           f"its functions: {listing(own)}"))
         return self._user_call(fn, e.method.span, e.args, e.span,
                                shown=f"{obj.name}.{e.method.name}")
 
@@ -270,12 +271,12 @@ class _ExprChecker:
         shown = shown or name
         values = [self.expr(a) for a in args]
         if len(values) != len(sig.params):
-            raise _err(name_span, f"'{shown}' takes {len(sig.params)} argument(s), "
-                       f"not {len(values)}", f"{shown}({_params_text(sig.params)})")
+            raise error(name_span, f"'{shown}' takes {len(sig.params)} argument(s), "
+                        f"not {len(values)}", f"{shown}({_params_text(sig.params)})")
         for (pname, pt), value, arg in zip(sig.params, values, args):
             if value.type != pt:
-                raise _err(arg.span, f"argument '{pname}' of '{shown}' is {_a(pt)}, not "
-                           f"{_a(value.type)}", _conversion_hint(value.type, pt))
+                raise error(arg.span, f"argument '{pname}' of '{shown}' is {a_or_an(pt)}, not "
+                            f"{a_or_an(value.type)}", conversion_hint(value.type, pt))
         self._note_call(name, name_span)
         return ir.Call(name, tuple(values), sig.ret, builtin=False)
 
@@ -288,18 +289,18 @@ class _ExprChecker:
         ctx = self.ctx
         if needs.scene and ctx.draw is not ir.DrawKind.SCENE:
             input_name, where = needs.scene[0]
-            raise _err(span, f"'{name}' reads scene input '{input_name}' (line {where.line}), "
-                       f"which {ctx.describe()} does not have",
-                       "pass the value in as an argument, or call it from a scene pass")
+            raise error(span, f"'{name}' reads scene input '{input_name}' (line {where.line}), "
+                        f"which {ctx.describe()} does not have",
+                        "pass the value in as an argument, or call it from a scene pass")
         if needs.light and not ctx.has_light:
-            raise _err(span, f"'{name}' reads `light` (line {needs.light[0].line}), which is "
-                       f"not bound in {ctx.describe()}",
-                       "call it from a light draw or a `repeat per light` pass")
+            raise error(span, f"'{name}' reads `light` (line {needs.light[0].line}), which is "
+                        f"not bound in {ctx.describe()}",
+                        "call it from a light draw or a `repeat per light` pass")
         for target, where in needs.reads.items():
             if target not in ctx.reads:
-                raise _err(span, f"'{name}' reads target '{target}' (line {where.line}), "
-                           f"which pass '{ctx.pass_name}' does not declare",
-                           f"add `reads {target}` to the pass")
+                raise error(span, f"'{name}' reads target '{target}' (line {where.line}), "
+                            f"which pass '{ctx.pass_name}' does not declare",
+                            f"add `reads {target}` to the pass")
 
     def _builtin_call(self, e: ast.Call) -> ir.Expr:
         name = e.func.name
@@ -307,18 +308,18 @@ class _ExprChecker:
         t = resolve_builtin(name, [a.type for a in args])
         if t is None:
             types = ", ".join(str(a.type) for a in args)
-            raise _err(e.func.span, f"no version of '{name}' takes ({types})",
-                       f"there are {describe_overloads(name)}; genType is float or vec2-4, "
-                       f"genIType/genUType int/uint or ivec/uvec; no implicit conversions: "
-                       f"write 1.0, not 1")
+            raise error(e.func.span, f"no version of '{name}' takes ({types})",
+                        f"there are {describe_overloads(name)}; genType is float or vec2-4, "
+                        f"genIType/genUType int/uint or ivec/uvec; no implicit conversions: "
+                        f"write 1.0, not 1")
         return ir.Call(name, args, t, builtin=True)
 
     def _target_call(self, e: ast.Call) -> ir.Expr:
         name = e.func.name
         arity = {"load": (1, 2), "sample": (2,), "size": (1,)}[name]
         if len(e.args) not in arity or not isinstance(e.args[0], ast.Name):
-            raise _err(e.span, f"'{name}' is called as {TARGET_FUNCTIONS[name].split(':')[0]}",
-                       "its first argument is the name of a target")
+            raise error(e.span, f"'{name}' is called as {TARGET_FUNCTIONS[name].split(':')[0]}",
+                        "its first argument is the name of a target")
         target = self._read_target(e.args[0])
         fmt = self.low.targets[target].format
         if name == "size":
@@ -328,39 +329,39 @@ class _ExprChecker:
                 if len(e.args) == 2 else None
             return ir.Load(target, coord, target_read_type(fmt))
         if fmt.is_integer:
-            raise _err(e.span, f"integer target '{target}' cannot be sampled",
-                       f"read texels with load({target}) or load({target}, ivec2(…))")
+            raise error(e.span, f"integer target '{target}' cannot be sampled",
+                        f"read texels with load({target}) or load({target}, ivec2(…))")
         uv = self._typed_arg(e.args[1], ir.VEC2, "a sample coordinate")
         return ir.Sample(target, uv, target_read_type(fmt))
 
     def _typed_arg(self, e: ast.Expr, t: ir.Type, what: str) -> ir.Expr:
         value = self.expr(e)
         if value.type != t:
-            raise _err(e.span, f"{what} is {_a(t)}, not {_a(value.type)}",
-                       _conversion_hint(value.type, t))
+            raise error(e.span, f"{what} is {a_or_an(t)}, not {a_or_an(value.type)}",
+                        conversion_hint(value.type, t))
         return value
 
     def _read_target(self, name: ast.Name) -> str:
         n = name.name
         if n not in self.low.targets:
-            raise _err(name.span, f"unknown target '{n}'",
-                       _did_you_mean(n, self.low.targets, "declare it with `target`"))
+            raise error(name.span, f"unknown target '{n}'",
+                        did_you_mean(n, self.low.targets, "declare it with `target`"))
         ctx = self.ctx
         if ctx.in_pass and n not in ctx.reads:
-            raise _err(name.span, f"{ctx.describe()} reads target '{n}' but does not "
-                       f"declare it", f"add `reads {n}` to the pass")
+            raise error(name.span, f"{ctx.describe()} reads target '{n}' but does not "
+                        f"declare it", f"add `reads {n}` to the pass")
         self.uses.reads.setdefault(n, name.span)
         return n
 
     # -- constructors -----------------------------------------------------------------------------
     def _construct(self, e: ast.Call) -> ir.Expr:
-        t = _shader_type(e.func)
+        t = shader_type(e.func)
         args = [self.expr(a) for a in e.args]
         if not args:
-            raise _err(e.span, f"{t}() needs arguments", f"e.g. {t}(0)")
+            raise error(e.span, f"{t}() needs arguments", f"e.g. {t}(0)")
         if any(a.type.is_matrix for a in args) and not t.is_matrix:
-            raise _err(e.span, f"{_A(t)} cannot be built from a matrix",
-                       "index the matrix (m[i]) for a column")
+            raise error(e.span, f"{A_or_An(t)} cannot be built from a matrix",
+                        "index the matrix (m[i]) for a column")
         if t.is_scalar:
             return self._construct_scalar(t, args, e)
         if t.is_matrix:
@@ -369,8 +370,8 @@ class _ExprChecker:
 
     def _construct_scalar(self, t: ir.Type, args: list[ir.Expr], e: ast.Call) -> ir.Expr:
         if len(args) != 1 or not args[0].type.is_scalar:
-            raise _err(e.span, f"{t}(…) converts one scalar",
-                       "take a component first, e.g. float(v.x)")
+            raise error(e.span, f"{t}(…) converts one scalar",
+                        "take a component first, e.g. float(v.x)")
         return _convert(args[0], t.scalar)
 
     def _construct_vector(self, t: ir.Type, args: list[ir.Expr], e: ast.Call) -> ir.Expr:
@@ -379,16 +380,16 @@ class _ExprChecker:
             if a.type.is_scalar:
                 return ir.Construct(t, (_convert(a, t.scalar),))
             if a.type.size < t.size:
-                raise _err(e.span, f"{t}(…) needs {t.size} components; {_a(a.type)} has "
-                           f"{a.type.size}", f"add the missing ones, e.g. {t}(v, 1.0)"
-                           if t.scalar is ir.Scalar.FLOAT else "add the missing components")
+                raise error(e.span, f"{t}(…) needs {t.size} components; {a_or_an(a.type)} has "
+                            f"{a.type.size}", f"add the missing ones, e.g. {t}(v, 1.0)"
+                            if t.scalar is ir.Scalar.FLOAT else "add the missing components")
             if a.type.size > t.size:     # vec3(v4): keep the leading components
                 a = ir.Swizzle(a, "xyzw"[:t.size], a.type.with_size(t.size))
             return _convert(a, t.scalar)
         count = sum(a.type.size for a in args)
         if count != t.size:
-            raise _err(e.span, f"{t}(…) needs {t.size} components, but the arguments have "
-                       f"{count}", "use a swizzle to pass fewer components, e.g. v.xy")
+            raise error(e.span, f"{t}(…) needs {t.size} components, but the arguments have "
+                        f"{count}", "use a swizzle to pass fewer components, e.g. v.xy")
         return ir.Construct(t, tuple(_convert(a, t.scalar) for a in args))
 
     def _construct_matrix(self, t: ir.Type, args: list[ir.Expr], e: ast.Call) -> ir.Expr:
@@ -404,8 +405,8 @@ class _ExprChecker:
             cols = tuple(ir.Construct(column, tuple(args[i * n:(i + 1) * n]))
                          for i in range(n))
             return ir.Construct(t, cols)
-        raise _err(e.span, f"{t}(…) takes a float (diagonal), a matrix, {n} vec{n} columns "
-                   f"or {n * n} floats", "no implicit conversions: write 1.0, not 1")
+        raise error(e.span, f"{t}(…) takes a float (diagonal), a matrix, {n} vec{n} columns "
+                    f"or {n * n} floats", "no implicit conversions: write 1.0, not 1")
 
 
 def _convert(value: ir.Expr, scalar: ir.Scalar) -> ir.Expr:
@@ -429,20 +430,20 @@ def _convert_literal(v, scalar: ir.Scalar):
     return int(v)                        # float -> int truncates toward zero
 
 
-def _is_static(e: ir.Expr) -> bool:
+def is_static(e: ir.Expr) -> bool:
     """Known at compile time: literals, parameters, packing constants and arithmetic on them."""
     if isinstance(e, ir.Const):
         return True
     if isinstance(e, ir.Var):
         return e.kind == "param"
     if isinstance(e, ir.Unary):
-        return _is_static(e.operand)
+        return is_static(e.operand)
     if isinstance(e, ir.Binary):
-        return _is_static(e.left) and _is_static(e.right)
+        return is_static(e.left) and is_static(e.right)
     if isinstance(e, ir.Construct):
-        return all(_is_static(a) for a in e.args)
+        return all(is_static(a) for a in e.args)
     if isinstance(e, ir.Ternary):
-        return _is_static(e.cond) and _is_static(e.then) and _is_static(e.other)
+        return is_static(e.cond) and is_static(e.then) and is_static(e.other)
     return False
 
 
@@ -450,7 +451,7 @@ def _params_text(params: list[tuple[str, ir.Type]]) -> str:
     return ", ".join(f"{t} {n}" for n, t in params)
 
 
-def _conversion_hint(have: ir.Type, want: ir.Type) -> str:
+def conversion_hint(have: ir.Type, want: ir.Type) -> str:
     if have.is_void or want.is_void:
         return "check the value's type"
     if have.scalar is not want.scalar and have.size == want.size and not have.is_matrix:

@@ -37,13 +37,13 @@ from pipegen.core import sources
 from pipegen.ir.builtins import LIGHT_FIELDS
 from pipegen.core.diagnostics import Span
 from pipegen.core.formats import FORMATS, Format
-from pipegen.frontend.lower.collect import _Collector, _Decls, _PassItem
+from pipegen.frontend.lower.collect import Collector, Decls, PassItem
 from pipegen.frontend.lower.names import (
-    _SAMPLE_COUNTS, Loader, _a, _Context, _did_you_mean, _err, _generated_by, _Global, _listing,
-    _param_type_name, _reserved_meaning, _shader_type, _show_number, _Signature, _Uses)
-from pipegen.frontend.lower.params import _ParamBuilder
-from pipegen.frontend.lower.passes import _PassLowerer
-from pipegen.frontend.lower.statements import _BodyChecker
+    SAMPLE_COUNTS, Loader, a_or_an, Context, did_you_mean, error, generated_by, Global, listing,
+    param_type_name, reserved_meaning, shader_type, show_number, Signature, Uses)
+from pipegen.frontend.lower.params import ParamBuilder
+from pipegen.frontend.lower.passes import PassLowerer
+from pipegen.frontend.lower.statements import BodyChecker
 
 
 def lower(module: ast.Module, filename: str, params: Optional[dict] = None,
@@ -65,7 +65,7 @@ class _Lowerer:
         self.filename = filename
         self.overrides = overrides
         self.loader = loader
-        self.globals: dict[str, _Global] = {}
+        self.globals: dict[str, Global] = {}
         self.params: dict[str, ir.Param] = {}
         self.targets: dict[str, ir.Target] = {}
         self.lights = ir.LightTable((), 0)
@@ -73,12 +73,12 @@ class _Lowerer:
         self.pack_specs: dict[str, object] = {}
         self.pack_options: dict[str, dict] = {}
         self.pack_schemes: dict[str, str] = {}     # the scheme (a parameter may choose it)
-        self.signatures: dict[str, _Signature] = {}
+        self.signatures: dict[str, Signature] = {}
         self.bodies: dict[str, tuple[ir.Stmt, ...]] = {}
-        self.uses: dict[str, _Uses] = {}          # per function, transitive after phase 5
+        self.uses: dict[str, Uses] = {}          # per function, transitive after phase 5
 
     def run(self, module: ast.Module) -> ir.Technique:
-        collector = _Collector(self.loader)
+        collector = Collector(self.loader)
         collector.module(module, self.filename)
         d = collector.decls
         tech = self._technique_line(module, d)
@@ -103,35 +103,36 @@ class _Lowerer:
         n = name.name
         if n in self.globals:
             prev = self.globals[n]
-            raise _err(name.span, f"duplicate name '{n}': already declared as {_a(prev.kind)}",
-                       f"the first declaration is at {prev.span.file}:{prev.span.line}; "
-                       f"rename one of them")
-        reserved = _reserved_meaning(n)
+            raise error(name.span,
+                        f"duplicate name '{n}': already declared as {a_or_an(prev.kind)}",
+                        f"the first declaration is at {prev.span.file}:{prev.span.line}; "
+                        f"rename one of them")
+        reserved = reserved_meaning(n)
         if reserved:
-            raise _err(name.span, f"'{n}' is reserved: it is {reserved}",
-                       f"choose another name for this {kind}")
-        self.globals[n] = _Global(kind, name.span)
+            raise error(name.span, f"'{n}' is reserved: it is {reserved}",
+                        f"choose another name for this {kind}")
+        self.globals[n] = Global(kind, name.span)
 
     # -- technique line ------------------------------------------------------------------------
-    def _technique_line(self, module: ast.Module, d: _Decls) -> ast.TechniqueDecl:
+    def _technique_line(self, module: ast.Module, d: Decls) -> ast.TechniqueDecl:
         first = module.items[0] if module.items else None
         if d.technique is None or first is not d.technique:
             span = first.span if first is not None else module.span
-            raise _err(span, "a technique file starts with `technique NAME \"title\"`",
-                       "add e.g. `technique forward \"Single-pass forward\"` as its first line")
+            raise error(span, "a technique file starts with `technique NAME \"title\"`",
+                        "add e.g. `technique forward \"Single-pass forward\"` as its first line")
         return d.technique
 
     # -- parameters ----------------------------------------------------------------------------
     def _params(self, decls: list[ast.ParamDecl]) -> tuple[ir.Param, ...]:
         for decl in decls:
-            self.params[decl.name.name] = _ParamBuilder(decl).build()
+            self.params[decl.name.name] = ParamBuilder(decl).build()
         for name, value in self.overrides.items():
             if name not in self.params:
-                raise _err(None, f"unknown parameter '{name}'",
-                           f"{self.filename} declares: {_listing(self.params)}")
+                raise error(None, f"unknown parameter '{name}'",
+                            f"{self.filename} declares: {listing(self.params)}")
             p = self.params[name]
             decl = next(d for d in decls if d.name.name == name)
-            self.params[name] = _ParamBuilder(decl).override(p, value)
+            self.params[name] = ParamBuilder(decl).override(p, value)
         return tuple(self.params.values())
 
     # -- values in declarations ----------------------------------------------------------------
@@ -139,38 +140,38 @@ class _Lowerer:
         """A numeric value in a declaration: a literal, a parameter, or ``PACK.constant``."""
         if isinstance(e, ast.Number):
             if integer and e.kind == "float":
-                raise _err(e.span, f"{what} must be an integer, not {_show_number(e)}",
-                           f"write {int(e.value)}")
+                raise error(e.span, f"{what} must be an integer, not {show_number(e)}",
+                            f"write {int(e.value)}")
             return e.value
         if isinstance(e, ast.Name) and e.name in self.params:
             p = self.params[e.name]
             ok = (ir.INT, ir.UINT) if integer else (ir.INT, ir.UINT, ir.FLOAT)
             if p.type not in ok:
-                raise _err(e.span, f"{what} must be {'an integer' if integer else 'a number'}, "
-                           f"but parameter '{e.name}' is {_a(_param_type_name(p))}",
-                           "use a literal or a parameter of a numeric type")
+                raise error(e.span, f"{what} must be {'an integer' if integer else 'a number'}, "
+                            f"but parameter '{e.name}' is {a_or_an(param_type_name(p))}",
+                            "use a literal or a parameter of a numeric type")
             return p.default
         if isinstance(e, ast.Field) and isinstance(e.base, ast.Name) \
                 and e.base.name in self.pack_specs:
             const = self.pack_constant(e.base, e.name)
             if not const.type.is_scalar or const.type == ir.BOOL:
-                raise _err(e.span, f"{what} must be a number, not {_a(const.type)}",
-                           "use a numeric constant")
+                raise error(e.span, f"{what} must be a number, not {a_or_an(const.type)}",
+                            "use a numeric constant")
             if integer and const.type.scalar is not ir.Scalar.INT \
                     and const.type.scalar is not ir.Scalar.UINT:
-                raise _err(e.span, f"{what} must be an integer, not {_a(const.type)}",
-                           "use an integer constant")
+                raise error(e.span, f"{what} must be an integer, not {a_or_an(const.type)}",
+                            "use an integer constant")
             return const.value
         if isinstance(e, ast.Name):
-            raise _err(e.span, f"unknown parameter '{e.name}' in {what}",
-                       _did_you_mean(e.name, self.params, "declare it with `param NAME = VALUE`"))
-        raise _err(e.span, f"{what} must be a number", "write a number or a parameter name")
+            raise error(e.span, f"unknown parameter '{e.name}' in {what}",
+                        did_you_mean(e.name, self.params, "declare it with `param NAME = VALUE`"))
+        raise error(e.span, f"{what} must be a number", "write a number or a parameter name")
 
     def integer(self, e: ast.Expr, what: str, lo: int, hi: Optional[int] = None) -> int:
         value = int(self.number(e, what, integer=True))
         if value < lo or (hi is not None and value > hi):
             bound = f"between {lo} and {hi}" if hi is not None else f"at least {lo}"
-            raise _err(e.span, f"{what} must be {bound}, not {value}", f"use a value {bound}")
+            raise error(e.span, f"{what} must be {bound}, not {value}", f"use a value {bound}")
         return value
 
     # -- light table ---------------------------------------------------------------------------
@@ -178,24 +179,24 @@ class _Lowerer:
         if not decls:
             return
         if len(decls) > 1:
-            raise _err(decls[1].span, "the light table is declared twice",
-                       f"the first `lights[…]` is on line {decls[0].span.line}")
+            raise error(decls[1].span, "the light table is declared twice",
+                        f"the first `lights[…]` is on line {decls[0].span.line}")
         decl = decls[0]
         capacity = self.integer(decl.capacity, "the light capacity", 1)
         fields: list[ir.LightAttr] = []
         for f in decl.fields:
             name = f.name.name
             if name not in LIGHT_FIELDS:
-                raise _err(f.name.span, f"lights have no field '{name}'",
-                           _did_you_mean(name, LIGHT_FIELDS,
-                                         f"light fields: {_listing(LIGHT_FIELDS)}"))
+                raise error(f.name.span, f"lights have no field '{name}'",
+                            did_you_mean(name, LIGHT_FIELDS,
+                                         f"light fields: {listing(LIGHT_FIELDS)}"))
             if any(a.name == name for a in fields):
-                raise _err(f.name.span, f"light field '{name}' is declared twice",
-                           "list each field once")
+                raise error(f.name.span, f"light field '{name}' is declared twice",
+                            "list each field once")
             want = LIGHT_FIELDS[name]
             if ir.parse_type(f.type.name) != want:
-                raise _err(f.type.span, f"light field '{name}' has type {want}, "
-                           f"not {f.type.name}", f"write `{name}: {want}`")
+                raise error(f.type.span, f"light field '{name}' has type {want}, "
+                            f"not {f.type.name}", f"write `{name}: {want}`")
             fields.append(ir.LightAttr(name, want))
         self.lights = ir.LightTable(tuple(fields), capacity, decl.span)
 
@@ -212,8 +213,8 @@ class _Lowerer:
         for opt in decl.options:
             kind = ast.SizeRel if isinstance(opt, ast.SizeAbs) else type(opt)
             if kind in seen:
-                raise _err(opt.span, f"target '{decl.name.name}' has two "
-                           f"`{_option_word(opt)}` options", "keep one")
+                raise error(opt.span, f"target '{decl.name.name}' has two "
+                            f"`{_option_word(opt)}` options", "keep one")
             seen[kind] = opt
             if isinstance(opt, ast.SizeAbs):
                 size = ir.Size(width=self.integer(opt.width, "a target width", 1),
@@ -232,16 +233,16 @@ class _Lowerer:
         if n in self.params:
             p = self.params[n]
             if p.type != ir.VOID:
-                raise _err(name.span, f"parameter '{n}' is {_a(_param_type_name(p))}, "
-                           f"not a format", "declare it like `param fmt = rgba16f`")
+                raise error(name.span, f"parameter '{n}' is {a_or_an(param_type_name(p))}, "
+                            f"not a format", "declare it like `param fmt = rgba16f`")
             if p.default not in FORMATS:
-                raise _err(name.span, f"parameter '{n}' holds the packing scheme "
+                raise error(name.span, f"parameter '{n}' holds the packing scheme "
                                       f"'{p.default}', not a format",
-                           "declare a format parameter like `param fmt = rgba16f`")
+                            "declare a format parameter like `param fmt = rgba16f`")
             return FORMATS[p.default]
         if n not in FORMATS:
-            raise _err(name.span, f"unknown format '{n}'",
-                       _did_you_mean(n, FORMATS, f"formats: {' '.join(FORMATS)}"))
+            raise error(name.span, f"unknown format '{n}'",
+                        did_you_mean(n, FORMATS, f"formats: {' '.join(FORMATS)}"))
         return FORMATS[n]
 
     def _scale(self, opt: ast.SizeRel) -> float:
@@ -249,40 +250,40 @@ class _Lowerer:
             return 1.0
         scale = float(self.number(opt.scale, "a size scale"))
         if not 0.0 < scale <= 16.0:
-            raise _err(opt.scale.span, f"size scale {scale:g} is out of range",
-                       "scale the output size by a factor in (0, 16]")
+            raise error(opt.scale.span, f"size scale {scale:g} is out of range",
+                        "scale the output size by a factor in (0, 16]")
         return scale
 
     def _samples(self, opt: ast.Samples) -> int:
         n = self.integer(opt.value, "the sample count", 1)
-        if n not in _SAMPLE_COUNTS:
-            raise _err(opt.value.span, f"{n} samples per pixel is not supported",
-                       f"use one of {', '.join(map(str, _SAMPLE_COUNTS))}")
+        if n not in SAMPLE_COUNTS:
+            raise error(opt.value.span, f"{n} samples per pixel is not supported",
+                        f"use one of {', '.join(map(str, SAMPLE_COUNTS))}")
         return n
 
     def clear(self, spec: ast.ClearSpec, target: str, fmt: Format) -> ir.Clear:
         """A clear as written (parts not mentioned stay None)."""
         if spec.color is not None or spec.all is not None:
             if not fmt.is_color:
-                raise _err(spec.span, f"depth target '{target}' is cleared with "
-                           f"`clear depth D` (not a colour)",
-                           "write e.g. `clear depth 1.0 stencil 0`" if fmt.has_stencil
-                           else "write e.g. `clear depth 1.0`")
+                raise error(spec.span, f"depth target '{target}' is cleared with "
+                            f"`clear depth D` (not a colour)",
+                            "write e.g. `clear depth 1.0 stencil 0`" if fmt.has_stencil
+                            else "write e.g. `clear depth 1.0`")
             return ir.Clear(color=self._clear_color(spec, target, fmt))
         if not fmt.has_depth:
-            raise _err(spec.span, f"colour target '{target}' ({fmt.name}) has no depth or "
-                       f"stencil to clear", "clear a colour target with `clear (r, g, b, a)`")
+            raise error(spec.span, f"colour target '{target}' ({fmt.name}) has no depth or "
+                        f"stencil to clear", "clear a colour target with `clear (r, g, b, a)`")
         depth = None
         if spec.depth is not None:
             depth = float(self.number(spec.depth, "a depth clear value"))
             if not 0.0 <= depth <= 1.0:
-                raise _err(spec.depth.span, f"depth clear value {depth:g} is outside [0, 1]",
-                           "depth is cleared to a value in [0, 1], usually 1.0")
+                raise error(spec.depth.span, f"depth clear value {depth:g} is outside [0, 1]",
+                            "depth is cleared to a value in [0, 1], usually 1.0")
         stencil = None
         if spec.stencil is not None:
             if not fmt.has_stencil:
-                raise _err(spec.stencil.span, f"target '{target}' ({fmt.name}) has no "
-                           f"stencil bits", "use a d24s8 target for stencil")
+                raise error(spec.stencil.span, f"target '{target}' ({fmt.name}) has no "
+                            f"stencil bits", "use a d24s8 target for stencil")
             stencil = self.integer(spec.stencil, "a stencil clear value", 0, 255)
         return ir.Clear(depth=depth, stencil=stencil)
 
@@ -293,35 +294,35 @@ class _Lowerer:
         else:
             items = list(spec.color.items)
             if len(items) not in (fmt.channels, 4):
-                raise _err(spec.color.span, f"target '{target}' ({fmt.name}) has "
-                           f"{fmt.channels} channel(s), but the clear colour has {len(items)}",
-                           f"give {fmt.channels} or 4 values, or one value for all channels")
+                raise error(spec.color.span, f"target '{target}' ({fmt.name}) has "
+                            f"{fmt.channels} channel(s), but the clear colour has {len(items)}",
+                            f"give {fmt.channels} or 4 values, or one value for all channels")
         values = [float(self.number(e, "a clear colour component")) for e in items]
         if fmt.is_integer:
             for e, v in zip(items, values):
                 if v != int(v) or v < 0:
-                    raise _err(e.span, f"integer target '{target}' is cleared to whole "
-                               f"numbers, not {v:g}", "use values like 0 or 255")
+                    raise error(e.span, f"integer target '{target}' is cleared to whole "
+                                f"numbers, not {v:g}", "use values like 0 or 255")
         return tuple(values + [0.0] * (4 - len(values)))
 
     # -- output --------------------------------------------------------------------------------
     def _output(self, decls: list[ast.OutputDecl], tech: ast.TechniqueDecl) -> str:
         if len(decls) > 1:
-            raise _err(decls[1].span, "the output target is declared twice",
-                       f"the first `output` is on line {decls[0].span.line}")
+            raise error(decls[1].span, "the output target is declared twice",
+                        f"the first `output` is on line {decls[0].span.line}")
         if not decls:
             if "color" in self.targets and self.targets["color"].format.is_color:
                 return "color"
-            raise _err(tech.span, "the technique has no output target",
-                       "declare `output NAME` or a colour target named color")
+            raise error(tech.span, "the technique has no output target",
+                        "declare `output NAME` or a colour target named color")
         name = decls[0].name
         t = self.targets.get(name.name)
         if t is None:
-            raise _err(name.span, f"output target '{name.name}' is not declared",
-                       _did_you_mean(name.name, self.targets, "declare it with `target`"))
+            raise error(name.span, f"output target '{name.name}' is not declared",
+                        did_you_mean(name.name, self.targets, "declare it with `target`"))
         if not t.format.is_color:
-            raise _err(name.span, f"output target '{name.name}' is a depth target",
-                       "the output is a colour target")
+            raise error(name.span, f"output target '{name.name}' is a depth target",
+                        "the output is a colour target")
         return name.name
 
     # -- packings ------------------------------------------------------------------------------
@@ -337,15 +338,15 @@ class _Lowerer:
         if scheme in self.params:      # `pack nrm = encoding(…)`: the scheme a parameter holds
             p = self.params[scheme]
             if p.type != ir.VOID:
-                raise _err(decl.scheme.span, f"parameter '{scheme}' is "
-                           f"{_a(_param_type_name(p))}, not a packing scheme",
-                           "declare it like `param encoding = octahedral in {kircher, "
-                           "octahedral}`")
+                raise error(decl.scheme.span, f"parameter '{scheme}' is "
+                            f"{a_or_an(param_type_name(p))}, not a packing scheme",
+                            "declare it like `param encoding = octahedral in {kircher, "
+                            "octahedral}`")
             scheme = str(p.default)
         schemes = getattr(packing, "SCHEMES", None)
         if schemes is not None and scheme not in schemes:
-            raise _err(decl.scheme.span, f"unknown packing scheme '{scheme}'",
-                       _did_you_mean(scheme, schemes, f"schemes: {_listing(schemes)}"))
+            raise error(decl.scheme.span, f"unknown packing scheme '{scheme}'",
+                        did_you_mean(scheme, schemes, f"schemes: {listing(schemes)}"))
         options = self._pack_options(decl.options)
         target_format = None
         if "target" in options:
@@ -355,7 +356,7 @@ class _Lowerer:
         self.pack_schemes[name] = scheme
         self.pack_specs[name] = spec
         self.pack_options[name] = options
-        with _generated_by(decl):
+        with generated_by(decl):
             module = syntax.parse(spec.functions_source, f"<{scheme} packing '{name}'>")
             for item in module.items:
                 assert isinstance(item, ast.FunctionDef), f"packing {scheme} generated {item}"
@@ -367,7 +368,7 @@ class _Lowerer:
         for opt in options:
             key = opt.key.name
             if key in out:
-                raise _err(opt.key.span, f"option '{key}' is given twice", "keep one")
+                raise error(opt.key.span, f"option '{key}' is given twice", "keep one")
             out[key] = self._pack_option(key, opt.value)
         return out
 
@@ -379,8 +380,8 @@ class _Lowerer:
         if key == "target":
             if not isinstance(value, ast.Name) or value.name not in self.targets:
                 shown = value.name if isinstance(value, ast.Name) else "this"
-                raise _err(value.span, f"unknown target '{shown}'",
-                           _did_you_mean(shown, self.targets, "declare it with `target`"))
+                raise error(value.span, f"unknown target '{shown}'",
+                            did_you_mean(shown, self.targets, "declare it with `target`"))
             return value.name
         if isinstance(value, ast.Bool):
             return value.value
@@ -393,8 +394,8 @@ class _Lowerer:
     def pack_constant(self, pack: ast.Name, const: ast.Name) -> ir.Const:
         spec = self.pack_specs[pack.name]
         if const.name not in spec.constants:
-            raise _err(const.span, f"packing '{pack.name}' has no constant '{const.name}'",
-                       f"its constants: {_listing(spec.constants)}")
+            raise error(const.span, f"packing '{pack.name}' has no constant '{const.name}'",
+                        f"its constants: {listing(spec.constants)}")
         t, value = spec.constants[const.name]
         return ir.Const(t, value)
 
@@ -415,8 +416,8 @@ class _Lowerer:
         for decl in decls:
             self._signature(decl)
         for sig in list(self.signatures.values()):
-            checker = _BodyChecker(self, _Context.for_function(sig))
-            with _generated_by(self.packs[sig.pack] if sig.pack is not None else None):
+            checker = BodyChecker(self, Context.for_function(sig))
+            with generated_by(self.packs[sig.pack] if sig.pack is not None else None):
                 self.bodies[sig.name] = checker.function_body(sig)
             self.uses[sig.name] = checker.uses
         self._close_uses()
@@ -424,25 +425,26 @@ class _Lowerer:
     def _signature(self, decl: ast.FunctionDef, pack: Optional[ast.PackDecl] = None) -> None:
         if pack is not None:   # user functions were entered with the other top-level names
             self._declare_generated(decl.name.name, pack)
-        ret = _shader_type(decl.ret, allow_void=True)
+        ret = shader_type(decl.ret, allow_void=True)
         params: list[tuple[str, ir.Type]] = []
         for p in decl.params:
             if any(n == p.name.name for n, _ in params):
-                raise _err(p.name.span, f"parameter '{p.name.name}' is declared twice",
-                           "rename one of them")
-            params.append((p.name.name, _shader_type(p.type)))
-        self.signatures[decl.name.name] = _Signature(
+                raise error(p.name.span, f"parameter '{p.name.name}' is declared twice",
+                            "rename one of them")
+            params.append((p.name.name, shader_type(p.type)))
+        self.signatures[decl.name.name] = Signature(
             decl.name.name, params, ret, decl, pack.name.name if pack is not None else None)
 
     def _declare_generated(self, name: str, pack: ast.PackDecl) -> None:
         if name in self.globals:
-            raise _err(pack.name.span, f"packing '{pack.name.name}' defines function "
-                       f"'{name}', which is already declared as {_a(self.globals[name].kind)}",
-                       "rename the packing or the other declaration")
-        self.globals[name] = _Global("function", pack.span)
+            raise error(pack.name.span, f"packing '{pack.name.name}' defines function "
+                        f"'{name}', which is already declared as "
+                        f"{a_or_an(self.globals[name].kind)}",
+                        "rename the packing or the other declaration")
+        self.globals[name] = Global("function", pack.span)
 
     def _close_uses(self) -> None:
-        """Make every function's ``_Uses`` transitive and reject recursion (GLSL has none)."""
+        """Make every function's ``Uses`` transitive and reject recursion (GLSL has none)."""
         done: set[str] = set()
 
         def visit(name: str, path: tuple[str, ...]) -> None:
@@ -451,8 +453,8 @@ class _Lowerer:
             for callee, span in self.uses[name].calls:
                 if callee in path or callee == name:
                     cycle = " -> ".join(path + (name, callee))
-                    raise _err(span, f"recursive call of '{callee}' ({cycle})",
-                               "shader code cannot recurse; rewrite it as a bounded loop")
+                    raise error(span, f"recursive call of '{callee}' ({cycle})",
+                                "shader code cannot recurse; rewrite it as a bounded loop")
                 visit(callee, path + (name,))
                 self.uses[name].merge(self.uses[callee])
             done.add(name)
@@ -460,9 +462,9 @@ class _Lowerer:
         for name in self.signatures:
             visit(name, ())
 
-    def _ordered_signatures(self) -> list[_Signature]:
+    def _ordered_signatures(self) -> list[Signature]:
         """Callees before callers, so backends can emit functions without prototypes."""
-        order: list[_Signature] = []
+        order: list[Signature] = []
         placed: set[str] = set()
 
         def place(name: str) -> None:
@@ -477,7 +479,7 @@ class _Lowerer:
             place(name)
         return order
 
-    def _ir_function(self, sig: _Signature) -> ir.Function:
+    def _ir_function(self, sig: Signature) -> ir.Function:
         return ir.Function(sig.name, tuple(sig.params), sig.ret, self.bodies[sig.name],
                            sig.decl.span)
 
@@ -486,16 +488,16 @@ class _Lowerer:
                      if (s.pack is None) == user)
 
     # -- passes --------------------------------------------------------------------------------
-    def _passes(self, items: list[_PassItem]) -> tuple[ir.Pass, ...]:
+    def _passes(self, items: list[PassItem]) -> tuple[ir.Pass, ...]:
         names: dict[str, Span] = {}
         out = []
         for item in items:
             name = item.decl.name
             if name.name in names:
-                raise _err(name.span, f"duplicate pass name '{name.name}'",
-                           f"the first pass '{name.name}' is on line {names[name.name].line}")
+                raise error(name.span, f"duplicate pass name '{name.name}'",
+                            f"the first pass '{name.name}' is on line {names[name.name].line}")
             names[name.name] = name.span
-            out.append(_PassLowerer(self, item).lower())
+            out.append(PassLowerer(self, item).lower())
         return tuple(out)
 
 

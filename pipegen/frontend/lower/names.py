@@ -1,6 +1,6 @@
 """What every part of lowering shares: errors and their wording, the top-level names
-(``_Global``), function signatures and what bodies use (``_Signature``, ``_Uses``), where a body
-runs (``_Context``) and its locals (``_Local``), reserved names and shader types."""
+(``Global``), function signatures and what bodies use (``Signature``, ``Uses``), where a body
+runs (``Context``) and its locals (``Local``), reserved names and shader types."""
 
 from __future__ import annotations
 
@@ -17,37 +17,37 @@ from pipegen.core.formats import Format
 
 Loader = Callable[[str], str]
 
-_PARAM_TYPES = {"float": ir.FLOAT, "int": ir.INT, "uint": ir.UINT, "bool": ir.BOOL,
+PARAM_TYPES = {"float": ir.FLOAT, "int": ir.INT, "uint": ir.UINT, "bool": ir.BOOL,
                 "format": ir.VOID}
-_MATERIALS = ("opaque", "translucent")
-_SAMPLE_COUNTS = (1, 2, 4, 8)
-_RESERVED = {"light": "the light being drawn (light.FIELD)",
+MATERIALS = ("opaque", "translucent")
+SAMPLE_COUNTS = (1, 2, 4, 8)
+RESERVED = {"light": "the light being drawn (light.FIELD)",
              "lights": "the light table (lights[i].FIELD)"}
 
 
-def _err(span: Optional[Span], message: str, hint: str) -> PipegenError:
+def error(span: Optional[Span], message: str, hint: str) -> PipegenError:
     return PipegenError(span, message, hint)
 
 
-def _did_you_mean(name: str, candidates: Iterable[str], fallback: str) -> str:
+def did_you_mean(name: str, candidates: Iterable[str], fallback: str) -> str:
     import difflib
     close = difflib.get_close_matches(name, sorted(set(candidates)), n=1, cutoff=0.6)
     return f"did you mean '{close[0]}'?" if close else fallback
 
 
-def _listing(names: Iterable[str]) -> str:
+def listing(names: Iterable[str]) -> str:
     names = sorted(names)
     return ", ".join(names) if names else "(none)"
 
 
 @record
-class _Global:
+class Global:
     kind: str                     # "parameter", "target", "packing", "function"
     span: Span
 
 
 @record
-class _Signature:
+class Signature:
     name: str
     params: list[tuple[str, ir.Type]]
     ret: ir.Type
@@ -56,7 +56,7 @@ class _Signature:
 
 
 @record
-class _Uses:
+class Uses:
     """What a body needs from the pass that runs it (functions record, passes check)."""
 
     scene: list[tuple[str, Span]] = field(default_factory=list)     # scene-only inputs
@@ -64,7 +64,7 @@ class _Uses:
     reads: dict[str, Span] = field(default_factory=dict)            # targets loaded/sampled
     calls: list[tuple[str, Span]] = field(default_factory=list)     # user functions called
 
-    def merge(self, other: "_Uses") -> None:
+    def merge(self, other: "Uses") -> None:
         self.scene.extend(other.scene)
         self.light.extend(other.light)
         for t, s in other.reads.items():
@@ -72,7 +72,7 @@ class _Uses:
 
 
 @contextlib.contextmanager
-def _generated_by(pack: Optional[ast.PackDecl]):
+def generated_by(pack: Optional[ast.PackDecl]):
     """Errors in the code a packing generates are reported at the ``pack`` declaration: the
     user cannot see or edit that code (a name of theirs may clash with one of its locals)."""
     try:
@@ -80,17 +80,17 @@ def _generated_by(pack: Optional[ast.PackDecl]):
     except PipegenError as e:
         if pack is None or (e.span is not None and not e.span.file.startswith("<")):
             raise
-        raise _err(pack.span, f"the code packing '{pack.name.name}' generates does not compile "
-                   f"in this technique: {e.message}",
-                   "a name declared here may clash with one the generated functions use; "
-                   "rename it") from None
+        raise error(pack.span, f"the code packing '{pack.name.name}' generates does not compile "
+                    f"in this technique: {e.message}",
+                    "a name declared here may clash with one the generated functions use; "
+                    "rename it") from None
 
 
-def _reserved_meaning(name: str) -> Optional[str]:
+def reserved_meaning(name: str) -> Optional[str]:
     if name in STAGE_INPUTS:
         return "a stage input"
-    if name in _RESERVED:
-        return _RESERVED[name]
+    if name in RESERVED:
+        return RESERVED[name]
     if name in TYPE_NAMES:
         return "a type"
     if name in BUILTINS or name in TARGET_FUNCTIONS:
@@ -100,40 +100,40 @@ def _reserved_meaning(name: str) -> Optional[str]:
     return None
 
 
-def _a(thing) -> str:
+def a_or_an(thing) -> str:
     """'a float', 'an int', 'an ivec2', 'a uint': the article for a type name in a message."""
     text = str(thing)
     return ("an " if text[:1] in "aeio" else "a ") + text
 
 
-def _A(thing) -> str:
-    return _a(thing).capitalize()
+def A_or_An(thing) -> str:
+    return a_or_an(thing).capitalize()
 
 
-def _show_number(n: ast.Number) -> str:
+def show_number(n: ast.Number) -> str:
     return n.span.source_line[n.span.column - 1:n.span.end_column - 1] or str(n.value)
 
 
-def _param_type_name(p: ir.Param) -> str:
+def param_type_name(p: ir.Param) -> str:
     return "format" if p.type == ir.VOID else str(p.type)
 
 
-def _shader_type(name: ast.Name, allow_void: bool = False) -> ir.Type:
+def shader_type(name: ast.Name, allow_void: bool = False) -> ir.Type:
     t = ir.parse_type(name.name)
     if t is None:
-        raise _err(name.span, f"unknown type '{name.name}'",
-                   _did_you_mean(name.name, TYPE_NAMES,
+        raise error(name.span, f"unknown type '{name.name}'",
+                    did_you_mean(name.name, TYPE_NAMES,
                                  "types: float int uint bool vec2-4 ivec2-4 uvec2-4 bvec2-4 "
                                  "mat3 mat4"))
     if t.is_void and not allow_void:
-        raise _err(name.span, "a value cannot have type void", "use a value type like float")
+        raise error(name.span, "a value cannot have type void", "use a value type like float")
     return t
 
 
 @record
-class _Context:
+class Context:
     """Where a body runs.  A pass body checks its needs on the spot; a function body records
-    them (``_Uses``) and every pass that calls it checks them at the call."""
+    them (``Uses``) and every pass that calls it checks them at the call."""
 
     pass_name: Optional[str] = None
     draw: Optional[ir.DrawKind] = None
@@ -144,8 +144,8 @@ class _Context:
     function: Optional[str] = None
 
     @staticmethod
-    def for_function(sig: _Signature) -> "_Context":
-        return _Context(ret=sig.ret, function=sig.name)
+    def for_function(sig: Signature) -> "Context":
+        return Context(ret=sig.ret, function=sig.name)
 
     @property
     def in_pass(self) -> bool:
@@ -166,7 +166,7 @@ class _Context:
 
 
 @record
-class _Local:
+class Local:
     type: ir.Type
     span: Span
     loop_var: bool = False
@@ -178,7 +178,7 @@ class Lowering(Protocol):
     of numbers, clears and packing constants in declarations.  A protocol, so that the parts
     need not import the lowerer, which imports them."""
 
-    globals: dict[str, _Global]
+    globals: dict[str, Global]
     params: dict[str, ir.Param]
     targets: dict[str, ir.Target]
     lights: ir.LightTable
@@ -186,8 +186,8 @@ class Lowering(Protocol):
     pack_specs: dict[str, object]
     pack_options: dict[str, dict]
     pack_schemes: dict[str, str]
-    signatures: dict[str, _Signature]
-    uses: dict[str, _Uses]
+    signatures: dict[str, Signature]
+    uses: dict[str, Uses]
 
     def number(self, e: ast.Expr, what: str, integer: bool = False) -> Union[int, float]: ...
 

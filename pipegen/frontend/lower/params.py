@@ -9,9 +9,9 @@ from pipegen.frontend import ast
 from pipegen.ir import nodes as ir
 from pipegen.core.formats import FORMATS
 from pipegen.packing.schemes import SCHEMES
-from pipegen.frontend.lower.names import _PARAM_TYPES, _a, _err
+from pipegen.frontend.lower.names import PARAM_TYPES, a_or_an, error
 
-class _ParamBuilder:
+class ParamBuilder:
     """Types, default, allowed set and override of one ``param`` declaration."""
 
     def __init__(self, decl: ast.ParamDecl):
@@ -23,25 +23,25 @@ class _ParamBuilder:
         default = self._coerce(d.value, t)
         allowed = tuple(self._coerce(v, t) for v in d.allowed or ())
         if allowed and default not in allowed:
-            raise _err(d.value.span, f"the default of '{d.name.name}' ({_show(default)}) is "
-                       f"not one of its allowed values", f"allowed: {_show_all(allowed)}")
+            raise error(d.value.span, f"the default of '{d.name.name}' ({_show(default)}) is "
+                        f"not one of its allowed values", f"allowed: {_show_all(allowed)}")
         return ir.Param(d.name.name, t, default, allowed, d.span)
 
     def _type(self) -> ir.Type:
         d = self.decl
         if d.type is not None:
-            if d.type.name not in _PARAM_TYPES:
-                raise _err(d.type.span, f"a parameter cannot have type '{d.type.name}'",
-                           f"parameter types: {', '.join(_PARAM_TYPES)}")
-            return _PARAM_TYPES[d.type.name]
+            if d.type.name not in PARAM_TYPES:
+                raise error(d.type.span, f"a parameter cannot have type '{d.type.name}'",
+                            f"parameter types: {', '.join(PARAM_TYPES)}")
+            return PARAM_TYPES[d.type.name]
         v = d.value
         if isinstance(v, ast.Number):
-            return _PARAM_TYPES[v.kind]
+            return PARAM_TYPES[v.kind]
         if isinstance(v, ast.Bool):
             return ir.BOOL
         if isinstance(v, ast.Name):
             return ir.VOID
-        raise _err(v.span, "a parameter's value is a number, true/false, a format name or a "
+        raise error(v.span, "a parameter's value is a number, true/false, a format name or a "
                            "packing scheme", "e.g. `param scale = 0.5`, `param fmt = rgba16f` or "
                                              "`param encoding = octahedral`")
 
@@ -52,19 +52,20 @@ class _ParamBuilder:
             "bool" if isinstance(v, ast.Bool) else "name" if isinstance(v, ast.Name) else "?"
         result = _convert_param_value(value, kind, t)
         if result is None:
-            raise _err(v.span, f"parameter '{self.decl.name.name}' is "
-                       f"{_a(_type_word(t))}; {_show_literal(v)} is not", _param_hint(t))
+            raise error(v.span, f"parameter '{self.decl.name.name}' is "
+                        f"{a_or_an(_type_word(t))}; {_show_literal(v)} is not", _param_hint(t))
         return result
 
     def override(self, p: ir.Param, value) -> ir.Param:
         kind, raw = _classify_override(value)
         converted = _convert_param_value(raw, kind, p.type)
         if converted is None:
-            raise _err(self.decl.name.span, f"parameter '{p.name}' is {_a(_type_word(p.type))}; "
-                       f"the value {value!r} given for it is not", _param_hint(p.type))
+            raise error(self.decl.name.span,
+                        f"parameter '{p.name}' is {a_or_an(_type_word(p.type))}; "
+                        f"the value {value!r} given for it is not", _param_hint(p.type))
         if p.allowed and converted not in p.allowed:
-            raise _err(self.decl.name.span, f"{_show(converted)} is not an allowed value of "
-                       f"parameter '{p.name}'", f"allowed: {_show_all(p.allowed)}")
+            raise error(self.decl.name.span, f"{_show(converted)} is not an allowed value of "
+                        f"parameter '{p.name}'", f"allowed: {_show_all(p.allowed)}")
         return ir.Param(p.name, p.type, converted, p.allowed, p.span)
 
 

@@ -9,9 +9,9 @@ from typing import Optional
 from pipegen.frontend import ast
 from pipegen.ir import nodes as ir
 from pipegen.ir.builtins import LIGHT_TYPES, VOLUME_LIGHT_FIELDS
-from pipegen.frontend.lower.collect import _PassItem
-from pipegen.frontend.lower.names import _MATERIALS, Lowering, _Context, _did_you_mean, _err
-from pipegen.frontend.lower.statements import _BodyChecker
+from pipegen.frontend.lower.collect import PassItem
+from pipegen.frontend.lower.names import MATERIALS, Lowering, Context, did_you_mean, error
+from pipegen.frontend.lower.statements import BodyChecker
 
 _SINGLE = (ast.Draw, ast.Writes, ast.Reads, ast.Depth, ast.BlendConstant, ast.Cull, ast.Offset,
            ast.Fragment, ast.RepeatPerLight)
@@ -20,8 +20,8 @@ _STMT_WORD = {ast.Draw: "draw", ast.Writes: "writes", ast.Reads: "reads", ast.De
               ast.Fragment: "fragment", ast.RepeatPerLight: "repeat per light"}
 
 
-class _PassLowerer:
-    def __init__(self, low: Lowering, item: _PassItem):
+class PassLowerer:
+    def __init__(self, low: Lowering, item: PassItem):
         self.low = low
         self.decl = item.decl
         self.name = item.decl.name.name
@@ -31,8 +31,8 @@ class _PassLowerer:
         for s in self.decl.stmts:
             if isinstance(s, _SINGLE):
                 if type(s) in self.single:
-                    raise _err(s.span, f"pass '{self.name}' has two `{_STMT_WORD[type(s)]}` "
-                               f"statements", "merge them into one")
+                    raise error(s.span, f"pass '{self.name}' has two `{_STMT_WORD[type(s)]}` "
+                                f"statements", "merge them into one")
                 self.single[type(s)] = s
 
     def _all(self, kind: type) -> list:
@@ -45,7 +45,7 @@ class _PassLowerer:
         depth_target, depth = self._depth(reads)
         stencil = self._stencil(depth_target)
         blend = self._blend(writes)
-        ctx = _Context(self.name, draw.kind, self.group is not None, writes, reads)
+        ctx = Context(self.name, draw.kind, self.group is not None, writes, reads)
         body = self._fragment(ctx, writes)
         state = ir.PassState(depth, stencil, blend, self._blend_constant(), self._cull(),
                              self._offset())
@@ -56,14 +56,14 @@ class _PassLowerer:
     def _draw(self) -> ir.Draw:
         d = self.single.get(ast.Draw)
         if d is None:
-            raise _err(self.decl.name.span, f"pass '{self.name}' draws nothing",
-                       "add `draw scene`, `draw lights as sphere` or `draw fullscreen`")
+            raise error(self.decl.name.span, f"pass '{self.name}' draws nothing",
+                        "add `draw scene`, `draw lights as sphere` or `draw fullscreen`")
         if d.kind == "scene":
             material = ()
             if d.material is not None:
-                if d.material.name not in _MATERIALS:
-                    raise _err(d.material.span, f"unknown material '{d.material.name}'",
-                               f"scene draws filter by {' or '.join(_MATERIALS)}")
+                if d.material.name not in MATERIALS:
+                    raise error(d.material.span, f"unknown material '{d.material.name}'",
+                                f"scene draws filter by {' or '.join(MATERIALS)}")
                 material = (d.material.name,)
             order = ir.DrawOrder.BACK_TO_FRONT if d.back_to_front else ir.DrawOrder.SCENE
             if d.from_lights is not None:
@@ -74,14 +74,14 @@ class _PassLowerer:
         types: list[str] = []
         for w in d.light_types:
             if w.value in types:
-                raise _err(w.span, f"light type '{w.value}' is listed twice", "list it once")
+                raise error(w.span, f"light type '{w.value}' is listed twice", "list it once")
             types.append(w.value)
         missing = [f for f in VOLUME_LIGHT_FIELDS[d.volume.value]
                    if self.low.lights.field_type(f) is None]
         if missing:
-            raise _err(d.volume.span, f"{d.volume.value} light volumes need the light "
-                       f"field(s) {', '.join(missing)}, which the lights schema lacks",
-                       "add them to `lights[N] { … }`")
+            raise error(d.volume.span, f"{d.volume.value} light volumes need the light "
+                        f"field(s) {', '.join(missing)}, which the lights schema lacks",
+                        "add them to `lights[N] { … }`")
         return ir.Draw(ir.DrawKind.LIGHTS, volume=ir.Volume(d.volume.value),
                        light_types=tuple(t for t in LIGHT_TYPES if t in types),
                        light_set=self._light_set(d), scissor=d.scissor)
@@ -94,31 +94,31 @@ class _PassLowerer:
         types: list[str] = []
         for w in f.light_types:
             if w.value == "point":
-                raise _err(w.span, "point lights cast no shadows (a shadow map is one "
-                           "frustum; a point light would need six)",
-                           "draw from spot and/or directional lights")
+                raise error(w.span, "point lights cast no shadows (a shadow map is one "
+                            "frustum; a point light would need six)",
+                            "draw from spot and/or directional lights")
             if w.value in types:
-                raise _err(w.span, f"light type '{w.value}' is listed twice", "list it once")
+                raise error(w.span, f"light type '{w.value}' is listed twice", "list it once")
             types.append(w.value)
         tiles = 1 if f.tiles is None else self.low.integer(f.tiles, "the shadow atlas's tiles "
                                                             "per side", 1, 64)
         if order is not ir.DrawOrder.SCENE:
-            raise _err(f.span, "a shadow-map draw keeps the scene order",
-                       "drop `back_to_front`")
+            raise error(f.span, "a shadow-map draw keeps the scene order",
+                        "drop `back_to_front`")
         if self.group is not None or self.single.get(ast.RepeatPerLight) is not None:
-            raise _err(f.span, f"pass '{self.name}' draws from the lights already (once per "
-                       f"shadow-casting light) and cannot also repeat per light",
-                       "move it out of the `repeat per light` group")
+            raise error(f.span, f"pass '{self.name}' draws from the lights already (once per "
+                        f"shadow-casting light) and cannot also repeat per light",
+                        "move it out of the `repeat per light` group")
         for s in (self.single.get(ast.Writes), self.single.get(ast.Fragment),
                   *self._all(ast.PassClear)):
             if s is not None:
-                raise _err(s.span, f"pass '{self.name}' draws shadow maps: it writes only "
-                           f"depth (no `writes`, `fragment` or `clear`; the atlas is cleared "
-                           f"by its target's `clear` at the start of the frame)",
-                           "remove this statement")
+                raise error(s.span, f"pass '{self.name}' draws shadow maps: it writes only "
+                            f"depth (no `writes`, `fragment` or `clear`; the atlas is cleared "
+                            f"by its target's `clear` at the start of the frame)",
+                            "remove this statement")
         if self.single.get(ast.Depth) is None:
-            raise _err(d.span, f"pass '{self.name}' draws shadow maps but attaches no depth "
-                       f"target", "add e.g. `depth shadow_atlas less write`")
+            raise error(d.span, f"pass '{self.name}' draws shadow maps but attaches no depth "
+                        f"target", "add e.g. `depth shadow_atlas less write`")
         return ir.Draw(ir.DrawKind.SCENE, material=material, order=order,
                        light_types=tuple(t for t in LIGHT_TYPES if t in types) or
                        ("spot", "directional"), shadow_tiles=tiles)
@@ -129,13 +129,13 @@ class _PassLowerer:
         pack, index = d.light_set
         decl = self.low.packs.get(pack.name)
         if decl is None:
-            raise _err(pack.span, f"unknown packing '{pack.name}'",
-                       _did_you_mean(pack.name, self.low.packs,
+            raise error(pack.span, f"unknown packing '{pack.name}'",
+                        did_you_mean(pack.name, self.low.packs,
                                      "declare it with `pack NAME = channel_slots(…)`"))
         scheme = self.low.pack_schemes[pack.name]
         if scheme != "channel_slots":
-            raise _err(pack.span, f"packing '{pack.name}' is a {scheme} packing; "
-                       f"light sets come from channel_slots", "use a channel_slots packing")
+            raise error(pack.span, f"packing '{pack.name}' is a {scheme} packing; "
+                        f"light sets come from channel_slots", "use a channel_slots packing")
         slots = self.low.pack_options[pack.name].get("slots", 4)
         k = self.low.integer(index, "a light set index", 0, int(slots) - 1)
         return pack.name, k
@@ -144,8 +144,8 @@ class _PassLowerer:
     def _target(self, name: ast.Name) -> ir.Target:
         t = self.low.targets.get(name.name)
         if t is None:
-            raise _err(name.span, f"unknown target '{name.name}'",
-                       _did_you_mean(name.name, self.low.targets, "declare it with `target`"))
+            raise error(name.span, f"unknown target '{name.name}'",
+                        did_you_mean(name.name, self.low.targets, "declare it with `target`"))
         return t
 
     def _writes(self) -> tuple[str, ...]:
@@ -154,8 +154,8 @@ class _PassLowerer:
         for n in (stmt.targets if stmt else ()):
             t = self._target(n)
             if not t.format.is_color:
-                raise _err(n.span, f"'{n.name}' is a depth target and cannot be written as a "
-                           f"colour", f"attach it with `depth {n.name} …`")
+                raise error(n.span, f"'{n.name}' is a depth target and cannot be written as a "
+                            f"colour", f"attach it with `depth {n.name} …`")
         return names
 
     def _reads(self, writes: tuple[str, ...]) -> tuple[str, ...]:
@@ -164,9 +164,9 @@ class _PassLowerer:
         for n in (stmt.targets if stmt else ()):
             self._target(n)
             if n.name in writes:
-                raise _err(n.span, f"pass '{self.name}' both writes and reads target "
-                           f"'{n.name}'", "a pass cannot read a target it renders to; "
-                           "write a copy in an earlier pass and read that")
+                raise error(n.span, f"pass '{self.name}' both writes and reads target "
+                            f"'{n.name}'", "a pass cannot read a target it renders to; "
+                            "write a copy in an earlier pass and read that")
         return names
 
     def _unique_targets(self, stmt, word: str) -> tuple[str, ...]:
@@ -175,7 +175,7 @@ class _PassLowerer:
         seen: list[str] = []
         for n in stmt.targets:
             if n.name in seen:
-                raise _err(n.span, f"'{n.name}' is listed twice in `{word}`", "list it once")
+                raise error(n.span, f"'{n.name}' is listed twice in `{word}`", "list it once")
             seen.append(n.name)
         return tuple(seen)
 
@@ -185,28 +185,28 @@ class _PassLowerer:
             return None, ir.DepthState()
         t = self._target(d.target)
         if not t.format.has_depth:
-            raise _err(d.target.span, f"'{t.name}' ({t.format.name}) is not a depth target",
-                       "attach a d24s8 or d32f target")
+            raise error(d.target.span, f"'{t.name}' ({t.format.name}) is not a depth target",
+                        "attach a d24s8 or d32f target")
         if d.func is None:
             return t.name, ir.DepthState()
         flags = [f.value for f in d.flags]
         for f in set(flags):
             if flags.count(f) > 1:
-                raise _err(d.span, f"`{f}` is given twice", "give it once")
+                raise error(d.span, f"`{f}` is given twice", "give it once")
         if "write" in flags and "nowrite" in flags:
-            raise _err(d.span, "depth is both `write` and `nowrite`", "choose one")
+            raise error(d.span, "depth is both `write` and `nowrite`", "choose one")
         write = "nowrite" not in flags
         if write and t.name in reads:
-            raise _err(d.span, f"pass '{self.name}' writes depth to '{t.name}' while reading "
-                       f"it", f"test without writing: `depth {t.name} {d.func.value} nowrite`")
+            raise error(d.span, f"pass '{self.name}' writes depth to '{t.name}' while reading "
+                        f"it", f"test without writing: `depth {t.name} {d.func.value} nowrite`")
         inside = None
         if d.inside is not None:
             cull = self.single.get(ast.Cull)
             if cull is None or cull.mode.value != "auto":
-                raise _err(d.inside.span, "`inside FUNC` is the depth test of the lights that "
-                           "`cull auto` draws with their back faces, but pass "
-                           f"'{self.name}' does not `cull auto`",
-                           "add `cull auto` or drop `inside`")
+                raise error(d.inside.span, "`inside FUNC` is the depth test of the lights that "
+                            "`cull auto` draws with their back faces, but pass "
+                            f"'{self.name}' does not `cull auto`",
+                            "add `cull auto` or drop `inside`")
             inside = ir.CompareFunc(d.inside.value)
         return t.name, ir.DepthState(ir.CompareFunc(d.func.value), write, "clamp" in flags,
                                      inside)
@@ -223,8 +223,8 @@ class _PassLowerer:
             names = (s.face.value,) if s.face is not None else ("front", "back")
             for n in names:
                 if n in faces:
-                    raise _err(s.span, f"the {n} stencil face is set twice",
-                               "give each face one `stencil` statement")
+                    raise error(s.span, f"the {n} stencil face is set twice",
+                                "give each face one `stencil` statement")
                 faces[n] = face
         return ir.StencilState(faces.get("front", ir.StencilFace()),
                                faces.get("back", ir.StencilFace()))
@@ -233,19 +233,19 @@ class _PassLowerer:
         hint = ("attach a d24s8 target with `depth T …` (or `depth T off` to use only its "
                 "stencil)")
         if depth_target is None:
-            raise _err(s.span, f"stencil state without a stencil target: pass '{self.name}' "
-                       f"attaches no depth/stencil target", hint)
+            raise error(s.span, f"stencil state without a stencil target: pass '{self.name}' "
+                        f"attaches no depth/stencil target", hint)
         fmt = self.low.targets[depth_target].format
         if not fmt.has_stencil:
-            raise _err(s.span, f"stencil state without a stencil target: '{depth_target}' "
-                       f"({fmt.name}) has no stencil bits", hint)
+            raise error(s.span, f"stencil state without a stencil target: '{depth_target}' "
+                        f"({fmt.name}) has no stencil bits", hint)
 
     def _stencil_face(self, s: ast.Stencil) -> ir.StencilFace:
         values: dict[str, object] = {}
         for item in s.items:
             if item.key in values:
-                raise _err(item.span, f"`{item.key}` is given twice in this stencil block",
-                           "give it once")
+                raise error(item.span, f"`{item.key}` is given twice in this stencil block",
+                            "give it once")
             if item.key == "func":
                 values["func"] = ir.CompareFunc(item.value.value)
             elif item.key in ("fail", "zfail", "pass"):
@@ -268,18 +268,18 @@ class _PassLowerer:
         for b in self._all(ast.Blend):
             t = self._written(b.target, writes, "blend")
             if t.name in blends:
-                raise _err(b.target.span, f"target '{t.name}' is blended twice",
-                           "give each target one `blend` statement")
+                raise error(b.target.span, f"target '{t.name}' is blended twice",
+                            "give each target one `blend` statement")
             if b.rgb is not None and not t.format.blendable:
-                raise _err(b.span, f"blend on an integer target: '{t.name}' ({t.format.name}) "
-                           f"cannot be blended", "blend unorm or float targets; integer "
-                           "targets are only overwritten")
+                raise error(b.span, f"blend on an integer target: '{t.name}' ({t.format.name}) "
+                            f"cannot be blended", "blend unorm or float targets; integer "
+                            "targets are only overwritten")
             blends[t.name] = self._target_blend(b)
         for m in self._all(ast.Mask):
             t = self._written(m.target, writes, "mask")
             if t.name in masks:
-                raise _err(m.target.span, f"target '{t.name}' is masked twice",
-                           "give each target one `mask` statement")
+                raise error(m.target.span, f"target '{t.name}' is masked twice",
+                            "give each target one `mask` statement")
             masks[t.name] = _write_mask(m, t)
         out = []
         for name in writes:
@@ -291,8 +291,8 @@ class _PassLowerer:
     def _written(self, name: ast.Name, writes: tuple[str, ...], word: str) -> ir.Target:
         t = self._target(name)
         if name.name not in writes:
-            raise _err(name.span, f"`{word}` for target '{name.name}', which pass '{self.name}' "
-                       f"does not write", f"add `writes {name.name}` or remove the `{word}`")
+            raise error(name.span, f"`{word}` for target '{name.name}', which pass '{self.name}' "
+                        f"does not write", f"add `writes {name.name}` or remove the `{word}`")
         return t
 
     def _target_blend(self, b: ast.Blend) -> ir.TargetBlend:
@@ -306,8 +306,8 @@ class _PassLowerer:
             return (0.0, 0.0, 0.0, 0.0)
         items = s.value.items if isinstance(s.value, ast.TupleLit) else [s.value] * 4
         if len(items) != 4:
-            raise _err(s.value.span, f"the blend constant has 4 components, not {len(items)}",
-                       "write `blend constant (r, g, b, a)` or one value for all four")
+            raise error(s.value.span, f"the blend constant has 4 components, not {len(items)}",
+                        "write `blend constant (r, g, b, a)` or one value for all four")
         return tuple(float(self.low.number(e, "a blend constant component")) for e in items)
 
     def _repeat_types(self) -> tuple[str, ...]:
@@ -317,14 +317,14 @@ class _PassLowerer:
         own = list(stmt.light_types) if stmt is not None else []
         block = list(self.item.block_types)
         if own and block:
-            raise _err(own[0].span, f"pass '{self.name}' is in a `repeat per light "
-                       f"{' '.join(w.value for w in block)} {{ … }}` block and names light "
-                       f"types again", "give the light types once, on the block or the pass")
+            raise error(own[0].span, f"pass '{self.name}' is in a `repeat per light "
+                        f"{' '.join(w.value for w in block)} {{ … }}` block and names light "
+                        f"types again", "give the light types once, on the block or the pass")
         words = own or block
         types: list[str] = []
         for w in words:
             if w.value in types:
-                raise _err(w.span, f"light type '{w.value}' is listed twice", "list it once")
+                raise error(w.span, f"light type '{w.value}' is listed twice", "list it once")
             types.append(w.value)
         return tuple(t for t in LIGHT_TYPES if t in types)
 
@@ -340,10 +340,10 @@ class _PassLowerer:
             if d is None or d.kind != "lights" or volume not in ("sphere", "cone"):
                 what = ("nothing" if d is None else "a screen quad" if volume == "quad" else
                         "scene geometry" if d.kind == "scene" else "a full-screen triangle")
-                raise _err(s.span, f"`cull auto` chooses the faces of light volumes, but pass "
-                           f"'{self.name}' draws {what}",
-                           "use it with `draw lights as sphere` or `draw lights as cone`; "
-                           "otherwise write `cull back`, `cull front` or `cull none`")
+                raise error(s.span, f"`cull auto` chooses the faces of light volumes, but pass "
+                            f"'{self.name}' draws {what}",
+                            "use it with `draw lights as sphere` or `draw lights as cone`; "
+                            "otherwise write `cull back`, `cull front` or `cull none`")
         return mode
 
     def _offset(self) -> Optional[ir.PolygonOffset]:
@@ -358,27 +358,27 @@ class _PassLowerer:
         for c in self._all(ast.PassClear):
             t = self._target(c.target)
             if t.name in out:
-                raise _err(c.target.span, f"target '{t.name}' is cleared twice in pass "
-                           f"'{self.name}'", "merge the clears")
+                raise error(c.target.span, f"target '{t.name}' is cleared twice in pass "
+                            f"'{self.name}'", "merge the clears")
             out[t.name] = self.low.clear(c.clear, t.name, t.format)
         return tuple(out.items())
 
     # -- fragment ------------------------------------------------------------------------------
-    def _fragment(self, ctx: _Context, writes: tuple[str, ...]) -> tuple[ir.Stmt, ...]:
+    def _fragment(self, ctx: Context, writes: tuple[str, ...]) -> tuple[ir.Stmt, ...]:
         frag = self.single.get(ast.Fragment)
         if frag is None:
             if writes:
-                raise _err(self.single[ast.Writes].span, f"pass '{self.name}' writes "
-                           f"{', '.join(writes)} but has no fragment body",
-                           "add `fragment { … }` that assigns the targets, or drop `writes`")
+                raise error(self.single[ast.Writes].span, f"pass '{self.name}' writes "
+                            f"{', '.join(writes)} but has no fragment body",
+                            "add `fragment { … }` that assigns the targets, or drop `writes`")
             return ()
-        checker = _BodyChecker(self.low, ctx)
+        checker = BodyChecker(self.low, ctx)
         body = checker.block(frag.body)
         missing = [w for w in writes if w not in checker.outputs]
         if missing:
-            raise _err(self.single[ast.Writes].span, f"pass '{self.name}' declares `writes "
-                       f"{missing[0]}` but its fragment body never writes it",
-                       f"assign it: `{missing[0]} = …;`, or drop it from `writes`")
+            raise error(self.single[ast.Writes].span, f"pass '{self.name}' declares `writes "
+                        f"{missing[0]}` but its fragment body never writes it",
+                        f"assign it: `{missing[0]} = …;`, or drop it from `writes`")
         return body
 
 
@@ -386,12 +386,12 @@ def _equation(eq: ast.BlendEq) -> ir.BlendEquation:
     op = ir.BlendOp(eq.op.value)
     if op in (ir.BlendOp.MIN, ir.BlendOp.MAX):
         if eq.src is not None:
-            raise _err(eq.src.span, f"`{op.value}` blending ignores factors",
-                       f"write just `{op.value}`")
+            raise error(eq.src.span, f"`{op.value}` blending ignores factors",
+                        f"write just `{op.value}`")
         return ir.BlendEquation(op)
     if eq.src is None:
-        raise _err(eq.span, f"`{op.value}` blending needs factors",
-                   f"e.g. `{op.value}(one, one)` or `{op.value}(src_alpha, one_minus_src_alpha)`")
+        raise error(eq.span, f"`{op.value}` blending needs factors",
+                    f"e.g. `{op.value}(one, one)` or `{op.value}(src_alpha, one_minus_src_alpha)`")
     return ir.BlendEquation(op, ir.BlendFactor(eq.src.value), ir.BlendFactor(eq.dst.value))
 
 
@@ -401,10 +401,10 @@ def _write_mask(m: ast.Mask, t: ir.Target) -> tuple[bool, bool, bool, bool]:
         return (False, False, False, False)
     channels = "rgba"[:t.format.channels]
     if not all(c in "rgba" for c in text) or len(set(text)) != len(text):
-        raise _err(m.channels.span, f"'{text}' is not a channel mask",
-                   "list channels from r, g, b, a once each (e.g. `rg`), or write `none`")
+        raise error(m.channels.span, f"'{text}' is not a channel mask",
+                    "list channels from r, g, b, a once each (e.g. `rg`), or write `none`")
     for c in text:
         if c not in channels:
-            raise _err(m.channels.span, f"target '{t.name}' ({t.format.name}) has no "
-                       f"{c} channel", f"its channels are {channels}")
+            raise error(m.channels.span, f"target '{t.name}' ({t.format.name}) has no "
+                        f"{c} channel", f"its channels are {channels}")
     return tuple(c in text for c in "rgba")
