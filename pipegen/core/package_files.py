@@ -13,9 +13,10 @@ def package_text(package: str, name: str) -> Optional[str]:
     """The text (UTF-8) of file ``name`` shipped in ``package``, None when there is none.
     Read from the package's folder; only a package that is not a folder (a zip) goes
     through ``importlib.resources``, whose imports cost a compile several milliseconds."""
-    import importlib
-    module = importlib.import_module(package)
-    folders = list(getattr(module, "__path__", ()))
+    import importlib.util
+    # found, not imported: a data package needs no code run, only its folder
+    spec = importlib.util.find_spec(package)
+    folders = list(spec.submodule_search_locations or ()) if spec else []
     if folders and all(os.path.isdir(f) for f in folders):
         for folder in folders:
             try:

@@ -404,13 +404,13 @@ def load_gltf(path: str | Path, first_id: int = 1, intensity_scale: float = 1.0)
                 p = pos[tris.reshape(-1)]
                 if attrs.NORMAL is not None:
                     nrm = doc.accessor(attrs.NORMAL)[:, :3].astype(np.float64)
-                    n = meshes._normalize(nrm[tris.reshape(-1)])
+                    n = meshes.normalize_rows(nrm[tris.reshape(-1)])
                     n = np.where(np.isfinite(n).all(axis=1, keepdims=True), n, 0.0)
                     flat = np.repeat(meshes.face_normals(p), 3, axis=0)
                     n = np.where((np.linalg.norm(n, axis=1) > 0)[:, None], n, flat)
                 else:
                     n = np.repeat(meshes.face_normals(p), 3, axis=0)
-                local = meshes._finish(p, n)
+                local = meshes.finish_mesh(p, n)
                 dropped += len(tris) - local.triangle_count
                 if not local.triangle_count:
                     continue

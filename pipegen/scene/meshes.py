@@ -34,7 +34,7 @@ class Mesh:
 # -- helpers ---------------------------------------------------------------------------------
 
 
-def _normalize(v: np.ndarray) -> np.ndarray:
+def normalize_rows(v: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     return v / np.where(n > 0, n, 1.0)
 
@@ -42,7 +42,7 @@ def _normalize(v: np.ndarray) -> np.ndarray:
 def face_normals(positions: np.ndarray) -> np.ndarray:
     """Unit geometric normals (T, 3) of a non-indexed triangle list (ccw = front)."""
     tri = positions.reshape(-1, 3, 3)
-    return _normalize(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    return normalize_rows(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
 
 
 def _expand(vertices, normals, faces, orient: bool = True) -> tuple[np.ndarray, np.ndarray]:
@@ -62,7 +62,7 @@ def _expand(vertices, normals, faces, orient: bool = True) -> tuple[np.ndarray, 
     return vertices[idx], normals[idx]
 
 
-def _finish(positions: np.ndarray, normals: np.ndarray) -> Mesh:
+def finish_mesh(positions: np.ndarray, normals: np.ndarray) -> Mesh:
     keep = _non_degenerate(positions)
     positions = positions.reshape(-1, 3, 3)[keep].reshape(-1, 3)
     normals = normals.reshape(-1, 3, 3)[keep].reshape(-1, 3)
@@ -91,7 +91,7 @@ def plane(divisions: int = 1) -> Mesh:
         for j in range(n):
             a, b, c, d = i * (n + 1) + j, (i + 1) * (n + 1) + j, (i + 1) * (n + 1) + j + 1, i * (n + 1) + j + 1
             faces += [(a, b, c), (a, c, d)]
-    return _finish(*_expand(verts, normals, faces))
+    return finish_mesh(*_expand(verts, normals, faces))
 
 
 def box() -> Mesh:
@@ -109,7 +109,7 @@ def box() -> Mesh:
             verts += [c - u - v, c + u - v, c + u + v, c - u + v]
             normals += [n] * 4
             faces += [(base, base + 1, base + 2), (base, base + 2, base + 3)]
-    return _finish(*_expand(verts, normals, faces))
+    return finish_mesh(*_expand(verts, normals, faces))
 
 
 def sphere(segments: int = 24, rings: int = 12) -> Mesh:
@@ -129,8 +129,8 @@ def sphere(segments: int = 24, rings: int = 12) -> Mesh:
                 faces.append((a, b, d))
             if r != rings - 1:
                 faces.append((d, b, c))
-    normals = _normalize(verts)
-    return _finish(*_expand(verts * 0.5, normals, faces))
+    normals = normalize_rows(verts)
+    return finish_mesh(*_expand(verts * 0.5, normals, faces))
 
 
 def cylinder(segments: int = 24) -> Mesh:
@@ -153,7 +153,7 @@ def cylinder(segments: int = 24) -> Mesh:
         normals += [n] * (segments + 1)
         for s in range(segments):
             faces.append((centre, centre + 1 + s, centre + 1 + (s + 1) % segments))
-    return _finish(*_expand(verts, normals, faces))
+    return finish_mesh(*_expand(verts, normals, faces))
 
 
 PRIMITIVES = {"plane": plane, "box": box, "sphere": sphere, "cylinder": cylinder}
@@ -170,7 +170,7 @@ class ObjError(ValueError):
         self.line = line
 
 
-def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> np.ndarray:
+def smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> np.ndarray:
     """Per-corner normals: at each corner, the sum of the raw (area-weighted) normals of the
     faces around the corner's vertex whose unit normal is within ``crease_deg`` of the corner's
     own face's, normalised.
@@ -179,7 +179,7 @@ def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) ->
     mean, every pair is within the crease (triangle inequality on the sphere), so each corner
     gets the vertex's whole sum; only the other vertices (creases, zero-area faces) list every
     (corner, face) pair around them, a work of valence² each."""
-    unit = _normalize(fn_raw)
+    unit = normalize_rows(fn_raw)
     cos_crease = math.cos(math.radians(crease_deg))
     corners = faces.reshape(-1)
     n = len(corners)
@@ -192,7 +192,7 @@ def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) ->
         return np.stack([np.bincount(idx, weights=values[:, k], minlength=length)
                          for k in range(3)], axis=1)
 
-    mean = _normalize(per_vertex_sum(uc, corners, nv))
+    mean = normalize_rows(per_vertex_sum(uc, corners, nv))
     dev = np.einsum("ij,ij->i", uc, mean[corners])
     min_cos = np.full(nv, 2.0)
     np.minimum.at(min_cos, corners, dev)
@@ -200,7 +200,7 @@ def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) ->
     zero[corners[~np.any(uc != 0, axis=1)]] = True
     half = math.radians(crease_deg) / 2.0 - 1e-9
     easy = (min_cos >= math.cos(half)) & ~zero & (half > 0)
-    out = _normalize(per_vertex_sum(np.repeat(fn_raw, 3, axis=0), corners, nv))[corners]
+    out = normalize_rows(per_vertex_sum(np.repeat(fn_raw, 3, axis=0), corners, nv))[corners]
 
     hard = np.flatnonzero(~easy[corners])        # corners at vertices needing every pair
     if len(hard):
@@ -218,7 +218,7 @@ def _smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) ->
         ti, tj = order[i] // 3, order[j] // 3
         close = np.einsum("ij,ij->i", unit[ti], unit[tj]) >= cos_crease
         acc = per_vertex_sum(fn_raw[tj[close]], i[close], m)
-        out[order] = _normalize(acc)
+        out[order] = normalize_rows(acc)
     return out
 
 
@@ -295,7 +295,7 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
         e0 = np.concatenate([e0, [p[0] for p in extra]])
         e1 = np.concatenate([e1, [p[1] for p in extra]])
 
-    unit = _normalize(np.asarray(normals, dtype=np.float64))
+    unit = normalize_rows(np.asarray(normals, dtype=np.float64))
 
     def agree(c0, c1):
         return np.einsum("ij,ij->i", unit[c0], unit[c1]) > 1 - tol

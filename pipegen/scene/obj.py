@@ -2,7 +2,7 @@
 
 The reader is vectorised: numpy classifies the lines by their first bytes, parses the
 numbers and indices of all ``v``, ``vn`` and ``f`` records in one call each, triangulates
-polygons as fans and smooths normals (:func:`pipegen.scene.meshes._smooth_normals`); Python only
+polygons as fans and smooths normals (:func:`pipegen.scene.meshes.smooth_normals`); Python only
 touches the lines it keeps.  A 224k-triangle file loads in about 0.55 s of CPU time against
 4.6 s for the line-by-line loader it replaced (``benchmarks/load_scene.py --before``).
 
@@ -105,7 +105,7 @@ class ObjModel:
     @functools.cached_property
     def mesh(self) -> Mesh:
         """All faces as one mesh (normal groups over the whole file), made on first use."""
-        return meshes._finish(self.positions, self.normals)
+        return meshes.finish_mesh(self.positions, self.normals)
 
 
 # -- OBJ ---------------------------------------------------------------------------------------
@@ -313,9 +313,9 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
 
     positions = V[F].reshape(-1, 3)
     fn_raw = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # length = 2 * area
-    normals = meshes._smooth_normals(F, fn_raw, crease_deg)
+    normals = meshes.smooth_normals(F, fn_raw, crease_deg)
     if tri_has_n.any():
-        given = meshes._normalize(N[ni[corner[tri_has_n]].reshape(-1)])
+        given = meshes.normalize_rows(N[ni[corner[tri_has_n]].reshape(-1)])
         normals.reshape(-1, 3, 3)[tri_has_n] = given.reshape(-1, 3, 3)
 
     notes = []
@@ -341,7 +341,7 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
             missing.append(f"'{name}' (no MTL defines it)")
         pos = positions.reshape(-1, 3, 3)[sel].reshape(-1, 3)
         nrm = normals.reshape(-1, 3, 3)[sel].reshape(-1, 3)
-        mesh = meshes._finish(pos, nrm)
+        mesh = meshes.finish_mesh(pos, nrm)
         parts.append(ObjPart(mat, mesh, len(sel) - mesh.triangle_count))
         dropped_total += len(sel) - mesh.triangle_count
     if missing:
