@@ -1,4 +1,4 @@
-"""``features.mismatches`` on translucent objects lit from a light index written by light-volume
+"""``mismatches.mismatches`` on translucent objects lit from a light index written by light-volume
 back faces (no backend).
 
 A light-indexed technique whose index pass draws the light volumes' back faces behind the
@@ -7,7 +7,7 @@ surface.  A pass drawing ``scene.translucent`` that shades from that index misse
 whose volume reaches a translucent surface but not the opaque surface behind it (measured on
 the GL backend in tests/test_lidr_transparent.py: mean 32.8 codes off where translucent layers
 cover translucent_layers).  ``mismatches`` reports it, naming the missed lights, found by a
-float64 rasterisation (``features.translucent_missed_lights``); the front-face variant
+float64 rasterisation (``mismatches.translucent_missed_lights``); the front-face variant
 (pipelines/lidr_transparent.pipe) and scenes without such lights get no report.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from pipegen.compiler import features
+from pipegen.compiler import capabilities, mismatches
 from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.scene.load import load_scene, parse_scene
 
@@ -47,18 +47,18 @@ def scene(name):
 
 
 def translucent_messages(tech, s):
-    return [m.message for m in features.mismatches(tech, s) if m.kind == "translucent"]
+    return [m.message for m in mismatches.mismatches(tech, s) if m.kind == "translucent"]
 
 
 def test_capabilities_find_the_translucent_pass_reading_back_face_indices():
-    cap = features.capabilities(back())
+    cap = capabilities.capabilities(back())
     assert cap.translucent_back_reads == tuple(
         ("shade_translucent", pack, frozenset({"point", "spot"})) for pack in ("b0", "b1", "b2"))
     # front faces (the shipped technique): nothing; the directional index (a quad with no
     # depth test, classified "back") reaches every pixel and is not listed either
-    assert features.capabilities(front()).translucent_back_reads == ()
+    assert capabilities.capabilities(front()).translucent_back_reads == ()
     # back faces without a depth test write the whole projection of a volume: nothing missed
-    assert features.capabilities(back("depth dsi always nowrite\n  cull front")) \
+    assert capabilities.capabilities(back("depth dsi always nowrite\n  cull front")) \
         .translucent_back_reads == ()
 
 
@@ -81,7 +81,7 @@ def test_reads_without_unpack_calls_are_found():
   }
 }
 """
-    cap = features.capabilities(compile_source(src, filename=str(TECHNIQUE)).technique)
+    cap = capabilities.capabilities(compile_source(src, filename=str(TECHNIQUE)).technique)
     assert [(p, k) for p, k, _ in cap.translucent_back_reads] == [("shade_translucent", "b0")]
 
 
@@ -134,8 +134,8 @@ def test_only_lights_between_the_translucent_and_the_opaque_surface_are_missed()
     reaches the wall only (2.5 from the glass): not the glass's light.  Light 2 reaches both
     (1.5 from each): its back faces lie behind the wall, it is in the index."""
     s = plane_scene((1.3, 0.8), (-1.5, 1.5), (-0.5, 3.0))
-    assert features.translucent_missed_lights(s, [0, 1, 2]) == ([0], 1)
-    assert features.translucent_missed_lights(s, [1, 2]) == ([], 0)
+    assert mismatches.translucent_missed_lights(s, [0, 1, 2]) == ([0], 1)
+    assert mismatches.translucent_missed_lights(s, [1, 2]) == ([], 0)
     assert translucent_messages(back(), s) == [
         "1 translucent object is lit from a light index written by light-volume back faces "
         "(`b0`, `b1`, `b2`, read by pass shade_translucent): 1 light that reaches it but not "
@@ -152,7 +152,7 @@ def test_translucent_over_the_sky_misses_every_light_reaching_it():
     faces behind it never pass ``gequal``: every light reaching the glass is missed."""
     src = planes_scene(GLASS, width=48, height=32, ambient=0.1)
     s = parse_scene(src + LIGHT.format(z=-0.5, r=3.0))
-    assert features.translucent_missed_lights(s, [0]) == ([0], 1)
+    assert mismatches.translucent_missed_lights(s, [0]) == ([0], 1)
 
 
 def test_a_light_pass_writing_through_a_helper_function_is_a_writer():
@@ -167,7 +167,7 @@ def test_a_light_pass_writing_through_a_helper_function_is_a_writer():
     wrapped = src.replace(direct, "    lightidx = index_value(light.index);\n").replace(
         "pass light_indices {", helper + "pass light_indices {", 1)
     s = scene("stress_overlap")
-    original = [m.message for m in features.mismatches(compile_file(path).technique, s)]
+    original = [m.message for m in mismatches.mismatches(compile_file(path).technique, s)]
     via_helper = compile_source(wrapped, filename=str(path)).technique
     assert any("holds 4" in m for m in original)
-    assert [m.message for m in features.mismatches(via_helper, s)] == original
+    assert [m.message for m in mismatches.mismatches(via_helper, s)] == original

@@ -9,10 +9,10 @@
   and the same technique in scene order is measurably wrong (tens of codes).
 - why front faces: the same technique drawing the other LIDRs' back faces behind the opaque
   surface misses the lights between a translucent surface and the opaque one (tens of codes
-  where translucent layers cover the pixel), and front faces do not; ``features.mismatches``
+  where translucent layers cover the pixel), and front faces do not; ``mismatches.mismatches``
   reports the back-face variant (the lights it misses), not the technique.
 - the technique's capacity report: its index banks are written by light-volume front faces, so
-  ``features.mismatches`` counts the volumes along each pixel's ray (per bank) and reports the
+  ``mismatches.mismatches`` counts the volumes along each pixel's ray (per bank) and reports the
   scenes that overflow a bank (stress_overlap, cornell_box), not the example scenes it renders.
 - GL against OpenCL (``pipegen check``) on translucent_layers at 96x54: passes (measured: the
   output bit-exact).
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.compiler import features
+from pipegen.compiler import capabilities, mismatches
 from pipegen.ir import nodes as ir
 from pipegen.proof.accuracy import scene_reference
 from pipegen.backends.plan import draw_from_dict
@@ -202,9 +202,9 @@ def test_structure():
         assert p.state.cull is ir.CullMode.AUTO and p.depth_target == "dsi"
         assert p.state.depth.func is ir.CompareFunc.LEQUAL
         assert p.state.depth.inside is ir.CompareFunc.ALWAYS
-    cap = features.capabilities(tech)
+    cap = capabilities.capabilities(tech)
     assert cap.translucent
-    assert all(how == features.RENDERED for _, how in cap.light_types)
+    assert all(how == capabilities.RENDERED for _, how in cap.light_types)
     rules = {pack: (faces, bank) for pack, faces, bank in cap.index_rules}
     assert rules == {"b0": ("front", (3, 0)), "b1": ("front", (3, 1)), "b2": ("front", (3, 2)),
                      "dirs": ("back", None)}
@@ -212,12 +212,12 @@ def test_structure():
 
 @pytest.mark.parametrize("name", SCENES + ["small", "many_lights", "edges"])
 def test_renders_the_example_scenes_without_mismatch(name):
-    assert features.mismatches(compiled().technique, scene(name)) == []
+    assert mismatches.mismatches(compiled().technique, scene(name)) == []
 
 
 @pytest.mark.parametrize("name, bound", [("stress_overlap", 7), ("cornell_box", 8)])
 def test_reports_banks_over_capacity(name, bound):
-    found = features.mismatches(compiled().technique, scene(name))
+    found = mismatches.mismatches(compiled().technique, scene(name))
     assert {m.kind for m in found} == {"capacity"}
     text = " ".join(m.message for m in found)
     assert f"up to {bound} point/spot light volumes with index % 3 == 0 lie along" in text
@@ -228,8 +228,8 @@ def test_front_face_count_bounds_the_lights_along_the_ray():
     """On translucent_layers the volumes along a ray (10) exceed one bank (4), and are the
     reason for the banks; the back-face count of the other LIDRs (surface only) is smaller."""
     s = scene("translucent_layers")
-    all_front = features.lights_per_pixel_bound(s, {"point"}, faces="front")
-    banks = [features.lights_per_pixel_bound(s, {"point"}, faces="front", residue=(3, k))
+    all_front = mismatches.lights_per_pixel_bound(s, {"point"}, faces="front")
+    banks = [mismatches.lights_per_pixel_bound(s, {"point"}, faces="front", residue=(3, k))
              for k in range(3)]
     assert all_front == 10 and max(banks) <= 4 and sum(banks) >= all_front
 
@@ -302,7 +302,7 @@ def test_back_faces_would_miss_the_lights_of_translucent_surfaces():
     surface (``cull front``, ``depth gequal``) lights the opaque surfaces as well but misses
     the lights between a translucent surface and the opaque one behind it (measured on
     translucent_layers: mean 32.8, max 158 codes where translucent layers cover the pixel;
-    max 1 elsewhere).  ``features.mismatches`` says so (no silent wrong image): the 9 lights
+    max 1 elsewhere).  ``mismatches.mismatches`` says so (no silent wrong image): the 9 lights
     that reach translucent surfaces but not the opaque surface behind them are named; the
     front-face technique gets no such report."""
     src = TECHNIQUE.read_text()

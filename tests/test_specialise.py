@@ -12,7 +12,9 @@ import pytest
 from pipegen.ir import nodes as ir, verify as ir_verify
 from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.core.diagnostics import PipegenError
-from pipegen.compiler.features import capabilities, mismatches, scene_features
+from pipegen.compiler.capabilities import capabilities
+from pipegen.compiler.mismatches import mismatches
+from pipegen.scene.features import scene_features
 from pipegen.scene.load import Light, load_scene
 from pipegen.compiler.specialise import SCENE_PHASES, clear_cache, specialise, verify
 

@@ -195,7 +195,7 @@ def test_cases_build_what_they_say():
     r_out = np.float32(cases["radius_plus_ulp"].lights[0].radius)
     assert np.nextafter(r_in, np.float32(1e9)) == np.float32(cases["radius_exact"].lights[0].radius)
     assert np.nextafter(r_out, np.float32(0)) == np.float32(cases["radius_exact"].lights[0].radius)
-    from pipegen.compiler.features import scene_features
+    from pipegen.scene.features import scene_features
     assert scene_features(cases["camera_in_light"]).camera_inside
     far = cases["far_1e4"]
     assert np.max(np.abs(far.camera.position)) > 5000

@@ -83,7 +83,7 @@ class Compiled:
     def mismatches(self, scene) -> list:
         """What this technique will not render of ``scene`` (``features.Mismatch`` list:
         light types it cannot draw, translucent objects, light-index capacity)."""
-        from pipegen.compiler.features import mismatches
+        from pipegen.compiler.mismatches import mismatches
         return mismatches(self.technique, scene)
 
     def specialise(self, scene, verify_each: bool = False) -> "Compiled":

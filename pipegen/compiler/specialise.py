@@ -27,7 +27,7 @@ import numpy as np
 from pipegen.ir import nodes as ir
 from pipegen.views.graph import human_bytes, target_memory
 from pipegen.ir.verify import verify as verify_ir
-from pipegen.compiler.features import SceneFeatures, scene_features
+from pipegen.scene.features import SceneFeatures, scene_features
 from pipegen.passes import (
     cull_empty_draws, cull_unread, opt_fold_constants, opt_unused_functions, spec_light_types,
     spec_shadows)

@@ -1,6 +1,6 @@
 """Backend-neutral queries about shader code: what a pass body or function body calls, reads,
 samples, writes and whether it may discard, and which functions a pass reaches.  Used by the
-emitters (``backends/plan.py`` re-exports them), the scene features (``features.py``) and the
+emitters (``backends/plan.py`` re-exports them), the scene features and capabilities (``compiler/capabilities.py``) and the
 compiler passes; kept out of ``backends/`` so that the compiler core does not depend on it.
 """
 

@@ -613,7 +613,7 @@ class Packing:
 
 @record(frozen=True)
 class SceneFacts:
-    """What a scene-specialised technique assumes of every scene it renders (``features.py``
+    """What a scene-specialised technique assumes of every scene it renders (``scene/features.py``
     computes them; the runtimes refuse a scene that breaks one).  Set by the ``assume_scene``
     phase; the scene passes read them."""
 

@@ -266,7 +266,7 @@ class Stress:
     def __init__(self, compiled, per_channel: bool = True):
         """``per_channel``: perturb each channel of the read targets in turn (2 renders per
         channel and level of reads); False: all channels at once (2 renders per level)."""
-        from pipegen.compiler.features import capabilities
+        from pipegen.compiler.capabilities import capabilities
         self.compiled = compiled
         self.per_channel = per_channel
         self.info = B.plan_targets(compiled)

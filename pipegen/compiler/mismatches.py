@@ -1,0 +1,195 @@
+"""Where a technique and a scene disagree: ``mismatches(tech, scene)`` says what the
+technique will not render of the scene, in words ("2 spot lights are lit as point lights
+..."); ``run``, ``check`` and the API report them, ``--strict`` makes them an error.  A
+silently wrong image is the worst bug.
+
+Two of its questions rasterise the scene in float64 (``reference/``), so they are asked only
+when a technique's capabilities make them matter:
+
+- ``lights_per_pixel_bound(scene)`` bounds the lights whose volumes a light-index packing
+  must hold at one pixel;
+- ``translucent_missed_lights(scene, lights)``: the lights a back-face light index misses at
+  the translucent surfaces they reach.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from pipegen.ir import nodes as ir
+from pipegen.scene import shadows as S
+from pipegen.scene.features import LIGHT_TYPES, SceneFeatures, scene_features
+from pipegen.compiler.capabilities import RENDERED, capabilities
+
+
+def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]:
+    """Of the scene's lights ``lights`` (point/spot indices), those a light index written by
+    light-volume back faces (``cull front``, ``depth gequal`` against the opaque depth) misses
+    at a visible translucent surface they reach: the light's sphere holds the translucent
+    surface point, but its circumscribing volume (the mesh the light pass draws) has no back
+    face at or behind the opaque surface along the pixel's ray (on sky pixels: none at all).
+    Returns (the missed lights, sorted; how many translucent objects miss one).  A float64
+    rasterisation of the scene's opaque depth and of each translucent object on its own, at
+    the scene's resolution."""
+    from pipegen.reference.lighting import ray_volume_span, volume_grow
+    from pipegen.reference.rounding import as_float32
+    from pipegen.reference.raster import rasterize, rasterize_each
+    if not lights or not scene.has_translucent:
+        return [], 0
+    opaque = rasterize(scene, ("opaque",))
+    cam = np.asarray(scene.camera.position, dtype=np.float64)
+    grow = volume_grow()
+    missed: set[int] = set()
+    objects = 0
+    for _obj, gb in rasterize_each(scene, ("translucent",)):
+        visible = gb.coverage & (gb.depth < opaque.depth)
+        if not visible.any():
+            continue
+        T = gb.position[visible]
+        ray = T - cam
+        u = ray / np.maximum(np.linalg.norm(ray, axis=1), 1e-300)[:, None]
+        t_opaque = np.where(opaque.coverage[visible],
+                            np.linalg.norm(opaque.position[visible] - cam, axis=1), np.inf)
+        hit = False
+        for i in lights:
+            light = scene.lights[i]
+            centre, r = as_float32(light.position), float(as_float32(light.radius))
+            d = T - centre
+            reaches = np.einsum("ij,ij->i", d, d) < r * r
+            if not reaches.any():
+                continue
+            meets, _, t_far = ray_volume_span(light, cam, u, grow)
+            behind = meets & (t_far >= t_opaque)
+            if (reaches & ~behind).any():
+                missed.add(i)
+                hit = True
+        objects += hit
+    return sorted(missed), objects
+
+
+def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
+                           faces: str = "back", residue: Optional[tuple[int, int]] = None) -> int:
+    """The most lights (of ``types``; None: all) whose volumes a light-index pass may write
+    at one pixel: lights whose circumscribing volume has a back face at or behind the visible
+    surface (or the sky) along the pixel's ray, directional lights everywhere
+    (``reference.lighting.lights_per_pixel``, conservative, at the scene's resolution;
+    ``gbuffer``: its rasterisation, when the caller has one).  ``faces="front"``: volumes
+    meeting the ray in front of the surface (a pass drawing front faces, ``depth lequal``),
+    on sky pixels too when the scene has translucent objects.  ``residue (n, k)``: only the
+    lights whose index in the scene's table is k modulo n (an index bank)."""
+    from pipegen.reference.lighting import lights_per_pixel
+    from pipegen.reference.raster import rasterize
+    lights = tuple(l for i, l in enumerate(scene.lights) if (types is None or l.type in types)
+                   and (residue is None or i % residue[0] == residue[1]))
+    if not lights:
+        return 0
+    counts = lights_per_pixel(gbuffer if gbuffer is not None else rasterize(scene),
+                              dataclasses.replace(scene, lights=lights), conservative=True,
+                              faces=faces, sky=faces == "front" and scene.has_translucent)
+    return int(counts.max()) if counts.size else 0
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    kind: str          # "light_type", "translucent", "capacity", "table"
+    message: str
+
+
+def _n(count: int, noun: str) -> str:
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = None,
+               per_pixel: Optional[int] = None) -> list[Mismatch]:
+    """What ``tech`` will not render of ``scene`` (empty: it renders everything).
+    ``per_pixel`` overrides the lights-per-pixel bound (computed only when the technique
+    has a per-pixel light-index capacity)."""
+    f = features or scene_features(scene)
+    cap = capabilities(tech)
+    out: list[Mismatch] = []
+    for t, how in cap.light_types:
+        n = f.count(t)
+        if n and how != RENDERED:
+            verb = "is" if n == 1 else "are"
+            out.append(Mismatch("light_type", f"{_n(n, t + ' light')} {verb} {how}"))
+    if f.translucent_objects and not cap.translucent:
+        n = f.translucent_objects
+        out.append(Mismatch("translucent", f"{_n(n, 'translucent object')} "
+                                           f"{'is' if n == 1 else 'are'} not drawn "
+                                           f"(no pass draws scene.translucent)"))
+    gbuffer = None
+    rules = {r[0]: r[1:] for r in cap.index_rules}
+    for pack, scheme, capacity, types in cap.index_packings:
+        if not any(f.count(t) for t in types):
+            continue
+        if per_pixel is None and gbuffer is None:
+            from pipegen.reference.raster import rasterize
+            gbuffer = rasterize(scene)
+        faces, bank = rules.get(pack, ("back", None))
+        bound = (lights_per_pixel_bound(scene, types, gbuffer, faces, bank) if per_pixel is None
+                 else per_pixel)
+        if bound > capacity:
+            kinds = "/".join(t for t in LIGHT_TYPES if t in types)
+            which = f" with index % {bank[0]} == {bank[1]}" if bank else ""
+            what = (f"up to {bound} {kinds} light volumes{which} lie along a pixel's view ray "
+                    f"in front of its surface (light-volume front faces)" if faces == "front"
+                    else f"up to {bound} {kinds} lights{which} reach a pixel")
+            out.append(Mismatch("capacity", f"{what}, the packing `{pack}` ({scheme}) holds "
+                                            f"{capacity}: lights will be dropped"))
+    if f.translucent_objects and cap.translucent_back_reads:
+        readers: dict[str, list] = {}
+        for pass_name, pack, types in cap.translucent_back_reads:
+            readers.setdefault(pass_name, []).append((pack, types))
+        for pass_name, packs in readers.items():
+            lights = sorted({i for pack, types in packs
+                             for i, l in enumerate(scene.lights) if l.type in types and
+                             (rules.get(pack, ("back", None))[1] is None or
+                              i % rules[pack][1][0] == rules[pack][1][1])})
+            missed, objects = translucent_missed_lights(scene, lights)
+            if missed:
+                names = ", ".join(f"`{pack}`" for pack, _ in packs)
+                out.append(Mismatch(
+                    "translucent", f"{_n(objects, 'translucent object')} "
+                    f"{'is' if objects == 1 else 'are'} lit from a light index written by "
+                    f"light-volume back faces ({names}, read by pass {pass_name}): "
+                    f"{_n(len(missed), 'light')} that reach{'es' if len(missed) == 1 else ''} "
+                    f"{'it' if objects == 1 else 'them'} but not the opaque surface behind "
+                    f"{'is' if len(missed) == 1 else 'are'} missed (lights "
+                    f"{', '.join(map(str, missed))})"))
+    for pack, slots, types in cap.slot_packings:
+        from pipegen.packing.schemes import sort_lights_into_slots
+        members = [i for i, l in enumerate(scene.lights) if l.type in types]
+        _, dropped = sort_lights_into_slots([tuple(scene.lights[i].position) for i in members],
+                                            [float(scene.lights[i].radius) for i in members],
+                                            slots)
+        dropped = [members[j] for j in dropped]
+        if dropped:
+            out.append(Mismatch("capacity", f"{_n(len(dropped), 'light')} overlap more than "
+                                            f"the {slots} light sets of `{pack}` hold: "
+                                            f"{'it is' if len(dropped) == 1 else 'they are'} "
+                                            f"dropped (lights {', '.join(map(str, dropped))})"))
+    casting: dict[str, int] = {}
+    for light in scene.lights:
+        if S.casts_shadows(light):
+            casting[light.type] = casting.get(light.type, 0) + 1
+    for t in LIGHT_TYPES:
+        n = casting.get(t, 0)
+        if n and t not in cap.shadow_types:
+            why = ("this technique does not render shadows" if not cap.shadow_capacity else
+                   f"no shadow-map pass draws from {t} lights")
+            out.append(Mismatch("shadows", f"{_n(n, t + ' light')} "
+                                           f"{'casts' if n == 1 else 'cast'} shadows that are "
+                                           f"not drawn ({why}): lit unshadowed"))
+    total = sum(casting.values())
+    if cap.shadow_capacity and total > cap.shadow_capacity:
+        out.append(Mismatch("capacity", f"the scene has {total} shadow-casting lights, the "
+                                        f"shadow atlas holds {cap.shadow_capacity}: the "
+                                        f"technique refuses the scene"))
+    if tech.lights.fields and f.lights > tech.lights.capacity:
+        out.append(Mismatch("table", f"the scene has {f.lights} lights, the light table holds "
+                                     f"{tech.lights.capacity}"))
+    return out
