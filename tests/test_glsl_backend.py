@@ -578,3 +578,13 @@ def test_shipped_techniques_emit_valid_glsl(path, tmp_path):
     plan = emit_gl(compiled.technique).to_dict()
     validate_all([(p[stage], stage) for p in plan["passes"] for stage in ("vertex", "fragment")],
                  tmp_path)
+
+
+def test_a_varying_is_flat_exactly_when_its_inputs_are_flat_scene_inputs():
+    # glsl.FLAT_VARYINGS derives from builtins.FLAT_SCENE_INPUTS: a varying carrying one flat
+    # and one interpolated input would make one of them wrong
+    from pipegen.ir.builtins import FLAT_SCENE_INPUTS
+    for name, (_, varying) in glsl.INPUTS.items():
+        if varying:
+            assert (name in FLAT_SCENE_INPUTS) == (varying in glsl.FLAT_VARYINGS), name
+    assert glsl.FLAT_VARYINGS == {"v_albedo", "v_material", "v_ids", "v_layer"}

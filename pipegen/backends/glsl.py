@@ -40,7 +40,7 @@ from pipegen.ir.nodes import DrawKind, Scalar, Type, Volume
 from pipegen.backends import plan as planlib
 from pipegen.backends.plan import GLPassCode, Plan
 from pipegen.backends import templating
-from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
+from pipegen.ir.builtins import FLAT_SCENE_INPUTS, PREVIOUS_FRAME_INPUTS, VOLUME_LIGHT_FIELDS
 from pipegen.backends.cstyle import FLT_MIN, CStyleLanguage, texel_select
 
 # GLSL keywords, reserved words and the builtin functions this backend emits: user identifiers
@@ -78,20 +78,21 @@ INPUTS: dict[str, tuple[str, Optional[str]]] = {
     "layer": ("v_layer", "v_layer"),
 }
 
-# scene varying -> (type, flat, value in the vertex stage, attribute it reads)
+# scene varying -> (type, value in the vertex stage, attribute it reads)
 SCENE_VARYINGS = {
-    "v_world_pos": ("vec3", False, "a_position", "a_position"),
-    "v_view_pos": ("vec3", False, "view_pos.xyz", "a_position"),
-    "v_normal": ("vec3", False, "a_normal", "a_normal"),
-    "v_view_normal": ("vec3", False, "mat3(u_view) * a_normal", "a_normal"),
-    # materials are per object: flat, so no interpolation noise rounds a value that sits on a
-    # unorm tie (albedo 0.7 = code 178.5) one way on llvmpipe and the other way on CL
-    "v_albedo": ("vec3", True, "a_albedo", "a_albedo"),
-    "v_material": ("vec3", True, "a_material", "a_material"),
-    "v_ids": ("uvec2", True, "uvec2(a_ids + 0.5)", "a_ids"),
+    "v_world_pos": ("vec3", "a_position", "a_position"),
+    "v_view_pos": ("vec3", "view_pos.xyz", "a_position"),
+    "v_normal": ("vec3", "a_normal", "a_normal"),
+    "v_view_normal": ("vec3", "mat3(u_view) * a_normal", "a_normal"),
+    "v_albedo": ("vec3", "a_albedo", "a_albedo"),
+    "v_material": ("vec3", "a_material", "a_material"),
+    "v_ids": ("uvec2", "uvec2(a_ids + 0.5)", "a_ids"),
     # the stipple layer (0 opaque, 1..3 translucent): a small whole number, exact in a float
-    "v_layer": ("uint", True, "uint(a_layer + 0.5)", "a_layer"),
+    "v_layer": ("uint", "uint(a_layer + 0.5)", "a_layer"),
 }
+# the varyings carrying the inputs both backends pass flat (builtins.FLAT_SCENE_INPUTS: a
+# material value on a unorm tie must not round one way on llvmpipe and the other on CL)
+FLAT_VARYINGS = frozenset(INPUTS[n][1] for n in FLAT_SCENE_INPUTS)
 SCENE_ATTRIBUTES = [("a_position", "vec3"), ("a_normal", "vec3"), ("a_albedo", "vec3"),
                     ("a_material", "vec3"), ("a_ids", "vec2"), ("a_layer", "float")]
 
@@ -205,8 +206,9 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
     code = ([lang.helper_source()] if lang.helpers else []) + code
 
     if kind is DrawKind.SCENE:
-        varyings = [_varying(n, *SCENE_VARYINGS[n][:3]) for n in scene_varyings]
-        used = {"a_position"} | {SCENE_VARYINGS[n][3] for n in scene_varyings}
+        varyings = [_varying(n, SCENE_VARYINGS[n][0], n in FLAT_VARYINGS, SCENE_VARYINGS[n][1])
+                    for n in scene_varyings]
+        used = {"a_position"} | {SCENE_VARYINGS[n][2] for n in scene_varyings}
         attributes = [{"name": a, "type": t, "location": k}
                       for k, (a, t) in enumerate(SCENE_ATTRIBUTES) if a in used]
     elif kind is DrawKind.LIGHTS:
