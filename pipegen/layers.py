@@ -13,7 +13,10 @@ package facade (``pipegen/__init__.py``), which sits above everything with ``__m
 file.  The only imports by string are the backend registry's (emitters and runtimes named as
 data, so that compiling never imports moderngl or pyopencl) and the facade's lazy names.  And no
 two modules import each other, through any chain: the import graph has no strongly connected
-component.
+component.  Two more walls: the runtimes and the float64 reference never import each other
+(though ``reference`` is below ``runtime``: a bug in one must not hide in the other), and
+moderngl, PyOpenGL and pyopencl are imported in ``runtime/`` only (compiling works on any
+machine).
 
 ``violations(package_dir)`` lists every breach as ``file:line: what``; tests/test_layers.py
 holds the package to an empty list and plants breaches in a copy to show each one is caught;
@@ -48,6 +51,13 @@ ABOVE_ALL = {PACKAGE, f"{PACKAGE}.__main__", f"{PACKAGE}.layers"}
 
 # the modules allowed to import by string (importlib.import_module, __import__)
 STRING_IMPORTERS = {f"{PACKAGE}.backends.registry", PACKAGE}
+
+# folders that never import each other, whatever their layers
+APART = {("runtime", "reference"), ("reference", "runtime")}
+
+# the libraries that need a GL or OpenCL driver, and the folder that alone may import them
+DEVICE_LIBRARIES = ("moderngl", "OpenGL", "pyopencl")
+DEVICE_FOLDER = "runtime"
 
 LAYER_OF = {folder: k for k, folders in enumerate(LAYERS) for folder in folders}
 
@@ -112,6 +122,16 @@ def _module_aliases(tree: ast.AST, mods: dict[str, Path]) -> set[str]:
     return out
 
 
+def _device_imports(tree: ast.AST) -> Iterator[tuple[int, str]]:
+    for node in ast.walk(tree):
+        names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                 [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level
+                 else [])
+        for name in names:
+            if name.split(".")[0] in DEVICE_LIBRARIES:
+                yield node.lineno, name.split(".")[0]
+
+
 def _private(name: str) -> bool:
     return name.startswith("_") and not name.startswith("__")
 
@@ -159,7 +179,10 @@ def violations(package_dir: Path) -> list[str]:
             theirs = layer(imp.target)
             if mine is None or theirs is None or theirs == mine:
                 continue
-            if theirs not in LAYER_OF or mine not in LAYER_OF:
+            if (mine, theirs) in APART:
+                out.append(f"{at}: {mine}/ imports {imp.target}; {mine}/ and {theirs}/ never "
+                           f"import each other")
+            elif theirs not in LAYER_OF or mine not in LAYER_OF:
                 unknown = theirs if theirs not in LAYER_OF else mine
                 out.append(f"{at}: folder {unknown!r} is in no layer (pipegen/layers.py)")
             elif LAYER_OF[theirs] == LAYER_OF[mine]:
@@ -168,6 +191,9 @@ def violations(package_dir: Path) -> list[str]:
             elif LAYER_OF[theirs] > LAYER_OF[mine]:
                 out.append(f"{at}: {mine}/ imports {imp.target}, from the later layer "
                            f"{theirs}/")
+        if mine != DEVICE_FOLDER:
+            for line, lib in _device_imports(tree):
+                out.append(f"{where}:{line}: imports {lib} outside {DEVICE_FOLDER}/")
         aliases = _module_aliases(tree, mods)
         for node in ast.walk(tree):
             if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and \

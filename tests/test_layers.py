@@ -55,6 +55,10 @@ def test_planted_breaches_are_each_caught_at_their_line(copy):
             copy, "core/outdir.py", "from pipegen import DEFAULT_SIZE\n"),
         "imports by string": _plant(
             copy, "views/graph.py", "import importlib\nM = importlib.import_module('x')\n"),
+        "never import each other": _plant(
+            copy, "runtime/draws.py", "from pipegen.reference import raster\n"),
+        "imports pyopencl outside runtime/": _plant(
+            copy, "proof/check.py", "def _cl():\n    import pyopencl\n"),
         "is in no layer": _plant(
             copy, "extras/tool.py", "from pipegen.core import formats\n"),
     }
@@ -69,6 +73,7 @@ def test_planted_breaches_are_each_caught_at_their_line(copy):
         lines = {"reads the private name formats._table": line + 1,
                  "imports by string": line + 1,
                  "from the later layer cli/": line + 1,
+                 "imports pyopencl outside runtime/": line + 1,
                  "from the later layer runtime/": line + 2}.get(what, line)
         hits = [v for v in found if v.startswith(f"{file}:{lines}:") and what in v]
         assert hits, f"{what!r} planted at {file}:{lines} not reported; got {found}"
