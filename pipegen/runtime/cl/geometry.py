@@ -2,32 +2,33 @@
 ``cl_setup_device``, where it can; else the numpy ``cl_setup``) and binning of each pass's
 draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
 
-``DrawGeometry(pipe).pass_triangles(k, pass, width, height, timing, lights)`` returns the
-set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile bins
-(``cl_bin.DeviceBins``, binned on the device; ``Bins`` where numpy bins them: the groups of
-``repeat per light`` passes, and every draw with ``$PIPEGEN_CL_DEVICE_BIN=0``), or None when
-the pass draws no triangle (bins may still hold no tile: the raster launch checks).
-``begin_frame()`` drops the per-frame caches; ``use_scene()`` the scene's attribute buffers.
+``DrawGeometry(device, plan, tile).pass_triangles(k, pass, width, height, timing, lights)``
+returns the set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile
+bins (``cl_bin.DeviceBins``, binned on the device; ``Bins`` where numpy bins them: the groups
+of ``repeat per light`` passes, and every draw with ``$PIPEGEN_CL_DEVICE_BIN=0``), or None
+when the pass draws no triangle (bins may still hold no tile: the raster launch checks).
+``begin_frame(state)`` drops the per-frame caches and takes the frame's ``FrameState``;
+``use_scene()`` drops the scene's attribute buffers.  The geometry sees the pipeline only
+through what it is given: the ``device.Device`` it runs on, the plan, the tile size and each
+frame's ``FrameState`` (so it does not import the pipeline, which imports it).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import time
-from typing import TYPE_CHECKING, Optional
+from typing import Optional
 
 import numpy as np
 
 from pipegen.ir import nodes as ir
 from pipegen.backends.opencl import emit as clgen
-from pipegen.backends.plan import PassPlan
+from pipegen.backends.plan import PassPlan, Plan
 from pipegen.runtime.cl import (
     bin as cl_bin, context as cl_context, setup_device as cl_setup_device)
 from pipegen.runtime import draws
+from pipegen.runtime.cl.device import Device
 from pipegen.runtime.cl.setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
-
-if TYPE_CHECKING:
-    from pipegen.runtime.cl.pipeline import CLPipeline
 
 
 def f4(a: np.ndarray) -> np.ndarray:
@@ -72,11 +73,30 @@ class ShadowView:
     frame64_buf: object
 
 
+@dataclasses.dataclass(frozen=True)
+class FrameState:
+    """What the draws of a frame read of the pipeline's frame, made by ``CLPipeline.render``
+    for each frame (``DrawGeometry.begin_frame``): the scene and its light selection
+    (``draws.LightSelection``), the camera's ``view`` and ``proj`` matrices (float64, as
+    ``draws`` takes them), the device's frame structs (``pg_frame``; ``pg_frame64`` with the
+    float64 evaluation, else None), the scene's light table, and each pass's viewport
+    (width, height), by pass index (set-ups are shared by passes whose raster state,
+    viewport included, is the same)."""
+    scene: object
+    selection: draws.LightSelection
+    view: np.ndarray
+    proj: np.ndarray
+    frame_buf: object
+    frame64_buf: object
+    lights_buf: object
+    pass_sizes: tuple
+
+
 class Bins:
     """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
     work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
 
-    def __init__(self, pipe: "CLPipeline", tile_start, tile_tris, tiles_x: int, triangles: int,
+    def __init__(self, device: Device, tile_start, tile_tris, tiles_x: int, triangles: int,
                  active: Optional[np.ndarray] = None, index: Optional[np.ndarray] = None):
         if active is None:
             active = np.flatnonzero(np.diff(tile_start) > 0)
@@ -86,11 +106,11 @@ class Bins:
         self.triangles = triangles
         self.entries = int(tile_start[-1])
         self.host = (active, tile_start, tile_tris)      # triangle indices (tests)
-        self.tile_list = pipe._buffer(active)
-        self.tile_start = pipe._buffer(tile_start)
+        self.tile_list = device.buffer(active)
+        self.tile_start = device.buffer(tile_start)
         # the raster kernel reads buffer rows: the geometry's ``index`` of each triangle
-        self.tile_tris = pipe._buffer(tile_tris if index is None or not len(index)
-                                      else np.take(index, tile_tris))
+        self.tile_tris = device.buffer(tile_tris if index is None or not len(index)
+                                       else np.take(index, tile_tris))
 
 
 def homogeneous_planes(clip64: np.ndarray, parent: np.ndarray, width: int, height: int,
@@ -172,23 +192,29 @@ def select_triangles(tris, index: np.ndarray):
 
 
 class DrawGeometry:
-    """Set-up and binning of a ``CLPipeline``'s draws, with its caches."""
+    """Set-up and binning of a ``CLPipeline``'s draws, with its caches: the draws of
+    ``plan`` (its passes' programs on ``device``) in ``tile``-pixel tiles."""
 
-    def __init__(self, pipe: "CLPipeline"):
-        self.pipe = pipe
+    def __init__(self, device: Device, plan: Plan, tile: int):
+        self.device = device
+        self.plan = plan
+        self.tile = tile
+        self.f64 = plan.precision == "f64"     # the float64 evaluation
+        self.frame_state: Optional[FrameState] = None     # the current frame's (``begin_frame``)
         self.frame: dict = {}          # per frame: set-ups, bins, (triangle, tile) pairs
         self.pending: dict = {}        # per frame: queued vertex work (``prefetch``)
         self.static: dict = {}         # full-screen draws: the same every frame
         self.scene_attrs: dict = {}    # per material filter, for the current scene
         self.meshes: dict = {}         # unit light-volume meshes
         # the per-frame geometry's buffers, reused by the next frames (not the static draws')
-        self.pool = cl_context.FramePool(pipe.ctx)
-        self.device_setup = cl_setup_device.DeviceSetup(pipe.ctx, pipe.queue, self.pool)
-        self.binner = cl_bin.DeviceBinner(pipe.ctx, pipe.queue)
+        self.pool = cl_context.FramePool(device.ctx)
+        self.device_setup = cl_setup_device.DeviceSetup(device.ctx, device.queue, self.pool)
+        self.binner = cl_bin.DeviceBinner(device.ctx, device.queue)
 
-    def begin_frame(self) -> None:
-        """A new frame: the last frame's set-ups and bins are dropped and their buffers
-        recycled (``CLPipeline.render`` finished that frame on the device)."""
+    def begin_frame(self, state: FrameState) -> None:
+        """A new frame, ``state``: the last frame's set-ups and bins are dropped and their
+        buffers recycled (``CLPipeline.render`` finished that frame on the device)."""
+        self.frame_state = state
         self.frame = {}
         self.pending = {}
         self.pool.recycle()
@@ -201,14 +227,14 @@ class DrawGeometry:
         if volume not in self.meshes:
             from pipegen.scene.meshes import light_volume
             mesh = light_volume(volume)
-            self.meshes[volume] = (len(mesh), self.pipe._buffer(f4(mesh)))
+            self.meshes[volume] = (len(mesh), self.device.buffer(f4(mesh)))
         return self.meshes[volume]
 
     def attributes(self, draw: ir.Draw) -> Optional[tuple]:
         """A scene draw's vertex attributes, in its object order (``draws.scene_geometry``)."""
         material = draws.scene_key(draw)
         if material not in self.scene_attrs:
-            g = draws.scene_geometry(self.pipe._scene, draw)
+            g = draws.scene_geometry(self.frame_state.scene, draw)
             n = g.vertex_count
             if n == 0:
                 self.scene_attrs[material] = None
@@ -221,8 +247,8 @@ class DrawGeometry:
                 if layer is not None:
                     flat[:, 3] = np.floor(np.asarray(layer, np.float32)[2::3].astype(np.float64)
                                           + 0.5).astype(np.uint32)
-                attrs = [self.pipe._buffer(f4(a)) for a in (g.positions, g.normals, g.albedo,
-                                                              g.material)]
+                attrs = [self.device.buffer(f4(a)) for a in (g.positions, g.normals, g.albedo,
+                                                               g.material)]
                 self.scene_attrs[material] = (n, attrs, flat)
         return self.scene_attrs[material]
 
@@ -257,7 +283,7 @@ class DrawGeometry:
     def _light_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
                          lights: list):
         cache = self.frame
-        batch = tuple(self.pipe._selection.of(p.draw))
+        batch = tuple(self.frame_state.selection.of(p.draw))
         if not set(lights) <= set(batch):
             batch = tuple(lights)
         geo = self._geometry(k, p, width, height, timing, batch)
@@ -300,7 +326,7 @@ class DrawGeometry:
                     tri = np.concatenate([tri[a:b] for a, b in cut])
                     tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
                 tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
-                tb = Bins(self.pipe, tile_start, tile_tris, tiles_x, n, index=geo.index)
+                tb = Bins(self.device, tile_start, tile_tris, tiles_x, n, index=geo.index)
             cache[key] = tb
             timing["bin"] = (time.perf_counter() - t0) * 1e3
         return geo, tb
@@ -314,7 +340,7 @@ class DrawGeometry:
         pairs = self.frame.get(key)
         if pairs is None:
             subset = None if keep is None else np.flatnonzero(geo.front == keep)
-            pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.pipe.tile,
+            pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.tile,
                                                 subset=subset)
         return pairs
 
@@ -350,7 +376,7 @@ class DrawGeometry:
             n = int(drawn[j])
             own = tile_tris[first[j]:first[j + 1]]
             self.frame[("bins", id(geo.tris), (int(light),), cull.value, width, height)] = Bins(
-                self.pipe, starts[j], own if len(own) else np.zeros(1, np.int32), tiles_x, n,
+                self.device, starts[j], own if len(own) else np.zeros(1, np.int32), tiles_x, n,
                 np.flatnonzero(occupied[j]), geo.index)
         timing["bin"] = (time.perf_counter() - t0) * 1e3
 
@@ -368,8 +394,8 @@ class DrawGeometry:
                                        self.pool if cache is self.frame else None)
             else:
                 tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height,
-                                                                  self.pipe.tile)
-                tb = Bins(self.pipe, tile_start, tile_tris, tiles_x, geo.tris.count,
+                                                                  self.tile)
+                tb = Bins(self.device, tile_start, tile_tris, tiles_x, geo.tris.count,
                           index=geo.index)
             cache[key] = tb
             timing["bin"] = (time.perf_counter() - t0) * 1e3
@@ -389,18 +415,18 @@ class DrawGeometry:
             bbox = tris.bbox[subset]
         if not len(rows):   # nothing to bin (no zero-sized OpenCL buffers): numpy's empty lists
             tile_start, tile_tris, tiles_x, _ = bin_triangles(tris, width, height,
-                                                              self.pipe.tile, subset=subset)
-            return Bins(self.pipe, tile_start, tile_tris, tiles_x, triangles, index=geo.index)
+                                                              self.tile, subset=subset)
+            return Bins(self.device, tile_start, tile_tris, tiles_x, triangles, index=geo.index)
         return self.binner.bin(geo.bufs, rows, bbox, tris.samples, width, height,
-                               self.pipe.tile, triangles, geo.index, pool)
+                               self.tile, triangles, geo.index, pool)
 
     def _raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
         """What the set-up triangles of a pass's draw depend on besides its varyings."""
         draw = p.draw
         depth_clamp = p.state.depth.clamp
-        dfmt = p.depth_target and self.pipe.plan.target(p.depth_target).format.name
+        dfmt = p.depth_target and self.plan.target(p.depth_target).format.name
         # llvmpipe folds the pixel centre into the planes' a0 unless the pass is multisampled
-        center = 0.0 if self.pipe.plan.pass_samples(p) > 1 else 0.5
+        center = 0.0 if self.plan.pass_samples(p) > 1 else 0.5
         offset = str(_offset(p))
         if draw.kind is ir.DrawKind.LIGHTS:
             # culling is per pass (``_light_cull``: at set-up where all its passes agree)
@@ -418,10 +444,11 @@ class DrawGeometry:
         if got is not None:
             return got
         members = []
-        for k, q in enumerate(self.pipe.plan.passes):
+        sizes = self.frame_state.pass_sizes
+        for k, q in enumerate(self.plan.passes):
             if q.draw.kind is not ir.DrawKind.SCENE:
                 continue
-            if self._raster_key(q, *self.pipe._pass_size(q)) != key:
+            if self._raster_key(q, *sizes[k]) != key:
                 continue
             members.append((k, clgen.varying_slots(q), "frag_coord" in q.code.inputs))
         union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
@@ -444,9 +471,10 @@ class DrawGeometry:
         with the key), else none (each pass culls its own)."""
         got = self.frame.get(("light cull", key))
         if got is None:
-            modes = {q.state.cull for q in self.pipe.plan.passes
+            sizes = self.frame_state.pass_sizes
+            modes = {q.state.cull for k, q in enumerate(self.plan.passes)
                      if q.draw.kind is ir.DrawKind.LIGHTS
-                     and self._raster_key(q, *self.pipe._pass_size(q)) == key}
+                     and self._raster_key(q, *sizes[k]) == key}
             mode = modes.pop() if len(modes) == 1 else None
             got = mode.value if mode in (ir.CullMode.BACK, ir.CullMode.FRONT,
                                          ir.CullMode.AUTO) else "none"
@@ -456,9 +484,9 @@ class DrawGeometry:
     def _inside_bits(self, p: PassPlan, lights: np.ndarray) -> np.ndarray:
         """Per light of a ``cull auto`` draw, 4 (the set-up's flat bit 2) where it is drawn
         with its back faces, else 0 (``draws.auto_inside``, as the GL runtime draws it)."""
-        scene = self.pipe._scene
+        scene = self.frame_state.scene
         inside = draws.auto_inside(p.draw.volume, list(scene.lights), lights.tolist(),
-                                   scene.camera.position, self.pipe._proj)
+                                   scene.camera.position, self.frame_state.proj)
         return np.array([4 if inside[int(i)] else 0 for i in lights], np.uint32)
 
     def _geometry(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
@@ -506,7 +534,7 @@ class DrawGeometry:
         if not names:
             return geo          # reads no varying: nothing indexes vary or coef
         import pyopencl as cl
-        pipe = self.pipe
+        queue = self.device.queue
         tris = geo.tris
         flat = dict(zip(geo.names, geo.flats))
         pos = {n: i for i, n in enumerate(geo.names)}
@@ -518,7 +546,7 @@ class DrawGeometry:
         vary = self.pool.buffer(len(names) * nv * 16)
         for i, n in enumerate(names):
             if flat[n]:
-                cl.enqueue_copy(pipe.queue, vary, geo.bufs["vary"], byte_count=nv * 16,
+                cl.enqueue_copy(queue, vary, geo.bufs["vary"], byte_count=nv * 16,
                                 src_offset=pos[n] * nv * 16, dst_offset=i * nv * 16)
         K, plane = geo.ncoef, 3 * 16
         rows = len(tris.coef) if geo.index is None or not len(geo.index) \
@@ -526,7 +554,7 @@ class DrawGeometry:
         coef = self.pool.buffer(rows * len(sel) * plane)
         for j, col in enumerate(sel):
             if rows:
-                cl.enqueue_copy(pipe.queue, coef, geo.bufs["coef"], src_origin=(col * plane, 0),
+                cl.enqueue_copy(queue, coef, geo.bufs["coef"], src_origin=(col * plane, 0),
                                 dst_origin=(j * plane, 0), region=(plane, rows),
                                 src_pitches=(K * plane,), dst_pitches=(len(sel) * plane,))
         cut = Geo(tris, dict(geo.bufs, vary=vary, coef=coef), geo.index)
@@ -546,7 +574,7 @@ class DrawGeometry:
         kind = p.draw.kind
         key = self._raster_key(p, width, height)
         if kind is ir.DrawKind.LIGHTS:
-            batch = tuple(self.pipe._selection.of(p.draw))
+            batch = tuple(self.frame_state.selection.of(p.draw))
             if not set(lights) <= set(batch):
                 batch = tuple(lights)
             key, lights = key + (batch,), batch
@@ -569,7 +597,7 @@ class DrawGeometry:
         """Queue the vertex kernel(s) of a draw and the read-back of clip positions and
         varyings (not waited for): a ``_Vertices``, or None when the draw has no vertex."""
         import pyopencl as cl
-        pipe = self.pipe
+        dev, frame_state = self.device, self.frame_state
         draw = p.draw
         v = _Vertices()
         v.names, v.flats, providers = [], [], [(k, [])]
@@ -589,7 +617,7 @@ class DrawGeometry:
             v.cull = (self._light_cull(key[:-1]) if draw.kind is ir.DrawKind.LIGHTS
                       else p.state.cull.value)
         mesh_verts = 1
-        zeros = pipe._zeros4
+        zeros = dev.zeros4
         attrs = [zeros] * 4
         v.inst = np.zeros(1, np.uint32)
         if draw.kind is ir.DrawKind.SCENE:
@@ -613,17 +641,17 @@ class DrawGeometry:
                 v.scissor = self._light_scissors(v.inst, width, height, mesh_verts // 3)
         else:
             nverts = 3
-        inst_buf = pipe._buffer(v.inst)
-        frame_buf = pipe._frame_buf if shadow is None else shadow.frame_buf
-        frame64_buf = pipe._frame64_buf if shadow is None else shadow.frame64_buf
+        inst_buf = dev.buffer(v.inst)
+        frame_buf = frame_state.frame_buf if shadow is None else shadow.frame_buf
+        frame64_buf = frame_state.frame64_buf if shadow is None else shadow.frame64_buf
         v.nverts = nverts
         # set up on the device (``cl_setup_device``): the clip positions and varyings stay
         # there, nothing is read back; else the host copies the numpy set-up takes
-        device = cl_setup_device.supports(_offset(p), pipe.f64)
+        on_device = cl_setup_device.supports(_offset(p), self.f64)
         v.clip = v.clip64 = v.vary = None
-        if not device:
+        if not on_device:
             v.clip = np.empty((nverts, 4), np.float32)
-            v.clip64 = np.empty((nverts, 4), np.float64) if pipe.f64 else None
+            v.clip64 = np.empty((nverts, 4), np.float64) if self.f64 else None
             v.vary = np.empty((len(v.names), nverts, 4), np.float32) if v.names else None
         v.vary_buf = None
         v.kernels, v.copies, v.outs, v.vbufs = [], [], [], []
@@ -633,27 +661,27 @@ class DrawGeometry:
             clip_buf = self.pool.buffer(nverts * 16)
             clip_bufs.append(clip_buf)
             vbuf = self.pool.buffer(S * nverts * 16)
-            kern = pipe._kernel(kp, "pg_vertex")
+            kern = dev.kernel(kp, "pg_vertex")
             extra = []
-            if pipe.f64:      # the float64 evaluation: clip positions in double too
+            if self.f64:      # the float64 evaluation: clip positions in double too
                 clip64_buf = self.pool.buffer(nverts * 32)
                 extra = [frame64_buf, clip64_buf]
             # one kernel object per pass is shared by every draw it provides for: it is
             # enqueued (which takes the arguments) before the next draw sets them
             cl_context.set_args(kern, np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
-                                frame_buf, pipe._lights_buf, clip_buf, vbuf, *extra)
+                                frame_buf, frame_state.lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
-            v.kernels.append(cl.enqueue_nd_range_kernel(pipe.queue, kern, (gsize,), (64,)))
-            if i == 0 and not device:
-                v.copies.append(cl.enqueue_copy(pipe.queue, v.clip, clip_buf, is_blocking=False))
-                if pipe.f64:
-                    v.copies.append(cl.enqueue_copy(pipe.queue, v.clip64, clip64_buf,
+            v.kernels.append(cl.enqueue_nd_range_kernel(dev.queue, kern, (gsize,), (64,)))
+            if i == 0 and not on_device:
+                v.copies.append(cl.enqueue_copy(dev.queue, v.clip, clip_buf, is_blocking=False))
+                if self.f64:
+                    v.copies.append(cl.enqueue_copy(dev.queue, v.clip64, clip64_buf,
                                                     is_blocking=False))
             if S:
                 out = None
-                if not device:
+                if not on_device:
                     out = np.empty((S, nverts, 4), np.float32)
-                    v.copies.append(cl.enqueue_copy(pipe.queue, out, vbuf, is_blocking=False))
+                    v.copies.append(cl.enqueue_copy(dev.queue, out, vbuf, is_blocking=False))
                 v.outs.append((have, out))
                 v.vbufs.append(vbuf)
                 if have == v.names:
@@ -667,12 +695,12 @@ class DrawGeometry:
                 for i, n in enumerate(have):
                     if n in v.names and n not in done:
                         done.add(n)
-                        cl.enqueue_copy(pipe.queue, v.vary_buf, vbuf, byte_count=nverts * 16,
+                        cl.enqueue_copy(dev.queue, v.vary_buf, vbuf, byte_count=nverts * 16,
                                         src_offset=i * nverts * 16,
                                         dst_offset=v.names.index(n) * nverts * 16)
         v.job = None
-        if device:     # queued behind the vertex kernels
-            center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
+        if on_device:     # queued behind the vertex kernels
+            center = 0.0 if self.plan.pass_samples(p) > 1 else 0.5
             v.job = self.device_setup.enqueue(
                 clip_bufs[0], v.vary_buf, nverts // 3, nverts, width, height, cull=v.cull,
                 depth_clamp=p.state.depth.clamp, flat=v.flat, scissor=v.scissor,
@@ -685,7 +713,6 @@ class DrawGeometry:
                 lights: Optional[tuple], shadow: Optional["ShadowView"] = None):
         """Wait for the draw's vertices (queued by ``prefetch``, or now), clip and set up on
         the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
-        pipe = self.pipe
         v = self.pending.pop(key, False)
         if v is False:
             v = self._vertices(k, p, width, height, key, lights, shadow)
@@ -700,8 +727,8 @@ class DrawGeometry:
                     if n in v.names:
                         v.vary[v.names.index(n)] = out[i]
         timing["vertex"] = sum((ev.profile.end - ev.profile.start) * 1e-6 for ev in v.kernels)
-        dfmt = p.depth_target and pipe.plan.target(p.depth_target).format.name
-        center = 0.0 if pipe.plan.pass_samples(p) > 1 else 0.5
+        dfmt = p.depth_target and self.plan.target(p.depth_target).format.name
+        center = 0.0 if self.plan.pass_samples(p) > 1 else 0.5
         viewport = None if shadow is None else shadow.rect
         t0 = time.perf_counter()
         dev = None
@@ -714,7 +741,7 @@ class DrawGeometry:
                                    smooth=[i for i, f in enumerate(v.flats) if not f],
                                    pixel_center=center, w_plane=v.w_plane, viewport=viewport,
                                    with_zp=False, with_zq=center == 0.0)
-        if pipe.f64:
+        if self.f64:
             tris.h = homogeneous_planes(v.clip64, tris.parent, width, height, _offset(p), dfmt,
                                         viewport)
         timing["setup"] = (time.perf_counter() - t0) * 1e3
@@ -725,15 +752,15 @@ class DrawGeometry:
         if dev is not None and "vary" in dev:     # with the device clipper's vertices
             vary_buf = dev.pop("vary")
         elif tris.vary is None:
-            vary_buf = pipe._zeros4
+            vary_buf = self.device.zeros4
         elif vary_buf is None:
-            vary_buf = pipe._buffer(tris.vary)
+            vary_buf = self.device.buffer(tris.vary)
         elif tris.vary.shape[1] != v.nverts:     # the clipper's new vertices appended
             vary_buf = self._grown_varyings(vary_buf, tris.vary, v.nverts)
         if dev is None:
             geo = self._upload(tris, vary_buf)
         else:       # the device set-up's buffers, rows through ``index``
-            none = pipe._dummy
+            none = self.device.dummy
             geo = Geo(tris, dict(dev, zp=none, zq=dev.get("zq", none), vary=vary_buf), index)
         self.frame[key] = geo
         geo.names, geo.flats = v.names, v.flats
@@ -750,23 +777,23 @@ class DrawGeometry:
         vertices ``vary`` has after them (the clipper's): each slot copied on the device, the
         new vertices written from the host, instead of uploading all of ``vary``."""
         import pyopencl as cl
-        pipe = self.pipe
+        queue = self.device.queue
         S, total = vary.shape[:2]
         grown = self.pool.buffer(S * total * 16)
         new = np.ascontiguousarray(vary[:, nverts:])
         for k in range(S):
-            cl.enqueue_copy(pipe.queue, grown, buf, byte_count=nverts * 16,
+            cl.enqueue_copy(queue, grown, buf, byte_count=nverts * 16,
                             src_offset=k * nverts * 16, dst_offset=k * total * 16)
-            cl.enqueue_copy(pipe.queue, grown, new[k], dst_offset=(k * total + nverts) * 16,
+            cl.enqueue_copy(queue, grown, new[k], dst_offset=(k * total + nverts) * 16,
                             is_blocking=False)
         self.frame.setdefault("_hold", []).append(new)   # read by the non-blocking writes
         return grown
 
     def _upload(self, tris, vary_buf) -> Geo:
-        buf = self.pipe._buffer
+        buf = self.device.buffer
         # zp and zq are only set up where read (``_set_up``: zq for multisampled passes, whose
         # raster kernel reads zq.z; no kernel reads zp): a placeholder buffer otherwise
-        none = self.pipe._dummy
+        none = self.device.dummy
         bufs = {"a": buf(tris.a), "b": buf(tris.b), "c": buf(tris.c), "z": buf(tris.z),
                 "w": buf(tris.w), "coef": buf(tris.coef),
                 "zp": none if tris.zp is None else buf(tris.zp),
@@ -785,9 +812,9 @@ class DrawGeometry:
         Filtering the set-up triangles keeps their submission order, so per pixel the lights
         still arrive in light order.  The result shares ``geo``'s device buffers (its triangles
         are rows of them) but for the facing words, which it changes."""
-        scene = self.pipe._scene
+        scene = self.frame_state.scene
         inside = draws.auto_inside(p.draw.volume, list(scene.lights), lights,
-                                   scene.camera.position, self.pipe._proj)
+                                   scene.camera.position, self.frame_state.proj)
         draw_front = np.zeros(max(lights) + 1, bool)
         for i, back in inside.items():
             draw_front[i] = not back        # culling back faces: front drawn
@@ -802,15 +829,15 @@ class DrawGeometry:
         rows = chosen.astype(np.int32) if geo.index is None else geo.index[chosen]
         flat_rows = np.zeros((int(rows.max()) + 1 if len(rows) else 1, 4), np.uint32)
         flat_rows[rows] = tris.flat
-        sub = Geo(tris, dict(geo.bufs, flat=self.pipe._buffer(flat_rows)), rows)
+        sub = Geo(tris, dict(geo.bufs, flat=self.device.buffer(flat_rows)), rows)
         sub.ncoef = geo.ncoef
         return sub
 
     def _light_scissors(self, lights: np.ndarray, width: int, height: int, tris_per: int):
         """Per-triangle scissor rectangles (x0, y0, x1, y1) of each light's screen rectangle."""
-        scene_lights = self.pipe._scene.lights
-        rects = draws.scissor_rects([scene_lights[int(i)] for i in lights], self.pipe._view,
-                                    self.pipe._proj, width, height)
+        fs = self.frame_state
+        rects = draws.scissor_rects([fs.scene.lights[int(i)] for i in lights], fs.view, fs.proj,
+                                    width, height)
         rects[:, 2:] += rects[:, :2]
         return np.repeat(rects.astype(np.int32), tris_per, axis=0)
 

@@ -95,8 +95,9 @@ from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime import draws
 from pipegen.runtime.common import (
     check_light_capacity, check_param_overrides, check_scene_facts, check_shadow_capacity)
-from pipegen.runtime.cl.geometry import DrawGeometry, ShadowView
-from pipegen.runtime.cl.targets import TargetStore, d24_resolve, device_buffer
+from pipegen.runtime.cl.device import Device
+from pipegen.runtime.cl.geometry import DrawGeometry, FrameState, ShadowView
+from pipegen.runtime.cl.targets import TargetStore, d24_resolve
 
 __all__ = ["CLPipeline", "FRAME_DTYPE", "d24_resolve"]
 
@@ -169,23 +170,20 @@ class CLPipeline:
             cache_dir, key=f"{plan.technique}:{plan.source}")
         self.targets_spec = {t.name: t for t in plan.targets}
         self.store = TargetStore(self.ctx, self.queue, plan)
-        self._programs: dict[int, object] = {}
         self.last_timings: list[dict] = []
         self._blend_counts: Optional[dict[str, np.ndarray]] = {}
         self._blend_count_bufs: dict = {}
-        self.geometry = DrawGeometry(self)
+        # every pass's program is built here, none during a frame (a PoCL build takes 0.3-3 s)
+        self.device = Device(self.ctx, self.queue, [
+            cl_context.build_program(self.source(k)) for k in range(len(plan.passes))])
+        self.geometry = DrawGeometry(self.device, plan, tile)
         self._presets: dict = {}
         self._scene = None
         self._selection: Optional[draws.LightSelection] = None
-        self._dummy = self._buffer(np.zeros(4, np.int32))
-        self._zeros4 = self._buffer(np.zeros((1, 4), np.float32))
         self._events: list = []
-        self._kernels: dict = {}
         self._int2s: dict = {}
         self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
         self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
-        for k in range(len(plan.passes)):
-            self._program(k)
 
     def release(self) -> None:
         """Drop the device buffers this pipeline holds (targets, blend counts, set-up geometry,
@@ -193,7 +191,7 @@ class CLPipeline:
         the process's cache.  The pipeline is unusable afterwards."""
         self.store = None
         self.geometry = None
-        self._kernels = {}
+        self.device = None
         self._events = []
         for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf"):
             if hasattr(self, name):
@@ -201,22 +199,6 @@ class CLPipeline:
         self._scene = None
 
     # -- programs ---------------------------------------------------------------------------------
-    def _program(self, k: int):
-        prog = self._programs.get(k)
-        if prog is None:
-            src = self.source(k)
-            prog = cl_context.build_program(src)
-            self._programs[k] = prog
-        return prog
-
-    def _kernel(self, k: int, name: str):
-        """Kernel objects are cached: pyopencl builds an argument invoker per Kernel object."""
-        import pyopencl as cl
-        kern = self._kernels.get((k, name))
-        if kern is None:
-            kern = self._kernels[(k, name)] = cl.Kernel(self._program(k), name)
-        return kern
-
     @property
     def dropped_lights(self) -> dict[str, list[int]]:
         """Per channel_slots pack, the lights of the last scene no light set could take."""
@@ -228,10 +210,7 @@ class CLPipeline:
             return clgen.pass_program(self.plan, p, dynamic=self.dynamic_state, tile=self.tile)
         return p.code.kernel
 
-    # -- buffers and targets ----------------------------------------------------------------------
-    def _buffer(self, array: np.ndarray):
-        return device_buffer(self.ctx, array)
-
+    # -- targets ----------------------------------------------------------------------------------
     @property
     def _targets(self) -> dict:
         return self.store.targets
@@ -258,9 +237,9 @@ class CLPipeline:
     def target_size(self, name: str, out_w: int, out_h: int) -> tuple[int, int]:
         return self.targets_spec[name].resolve(out_w, out_h)
 
-    def _frame(self, scene, light: int = 0) -> np.ndarray:
-        """The frame's ``pg_frame`` struct; sets ``_frame64_np`` (its ``pg_frame64``) with the
-        float64 evaluation."""
+    def _frame(self, scene, light: int = 0) -> tuple:
+        """(``pg_frame`` struct, ``pg_frame64`` struct or None without the float64 evaluation,
+        view matrix, projection matrix) of the frame's camera."""
         out_w, out_h = self._out
         cam = scene.camera
         view = cam.view_matrix()
@@ -269,10 +248,7 @@ class CLPipeline:
         fr, f8 = _frame_structs(view, proj, prev.view_matrix(), prev.projection(out_w / out_h),
                                 cam.position, scene.ambient, (out_w, out_h), len(scene.lights),
                                 light, len(self.plan.lights.fields), self.f64)
-        self._view, self._proj = view, proj
-        if f8 is not None:
-            self._frame64_np = f8
-        return fr
+        return fr, f8, view, proj
 
     # -- rendering ----------------------------------------------------------------------------------
     def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
@@ -282,11 +258,14 @@ class CLPipeline:
         self._use_scene(scene)
         self.prepare(scene)
         self.last_timings = []
-        self.geometry.begin_frame()
         self._events = []
-        self._frame_np = self._frame(scene)
-        self._frame_buf = self._buffer(self._frame_np)
-        self._frame64_buf = self._buffer(self._frame64_np) if self.f64 else None
+        self._frame_np, self._frame64_np, view, proj = self._frame(scene)
+        self._frame_buf = self.device.buffer(self._frame_np)
+        self._frame64_buf = self.device.buffer(self._frame64_np) if self.f64 else None
+        self.geometry.begin_frame(FrameState(
+            scene=scene, selection=self._selection, view=view, proj=proj,
+            frame_buf=self._frame_buf, frame64_buf=self._frame64_buf, lights_buf=self._lights_buf,
+            pass_sizes=tuple(self._pass_size(p) for p in self.plan.passes)))
         captures: list[dict] = []
         runs = self._selection.schedule()
         self._shadows = {}
@@ -352,11 +331,11 @@ class CLPipeline:
         fields = [list(f) for f in self.plan.lights.fields]
         table = (np.asarray(scene.light_table(fields, capacity), np.float32) if fields
                  else np.zeros((0, 4), np.float32))
-        self._lights_buf = self._buffer(table.reshape(-1, 4) if table.size
-                                        else np.zeros((1, 4), np.float32))
+        self._lights_buf = self.device.buffer(table.reshape(-1, 4) if table.size
+                                              else np.zeros((1, 4), np.float32))
         if self.f64:     # the fragment function's light table in double
-            self._lights64_buf = self._buffer(table.reshape(-1, 4).astype(np.float64)
-                                              if table.size else np.zeros((1, 4), np.float64))
+            self._lights64_buf = self.device.buffer(table.reshape(-1, 4).astype(np.float64)
+                                                    if table.size else np.zeros((1, 4), np.float64))
 
     def _prefetch(self, k: int, light: Optional[int]) -> None:
         """Queue the vertex work of a pass execution (``DrawGeometry.prefetch``)."""
@@ -410,9 +389,10 @@ class CLPipeline:
         if not tb.ntiles:
             return
         bufs = geo.bufs
-        st = self._dummy
+        dev = self.device
+        st = dev.dummy
         if self.dynamic_state:
-            st = self._buffer(np.asarray(clgen.state_words(p), np.int32))
+            st = dev.buffer(np.asarray(clgen.state_words(p), np.int32))
         args = [np.int32(width), np.int32(height), np.int32(tb.tiles_x), tb.tile_list,
                 tb.tile_start, tb.tile_tris, bufs["a"], bufs["b"], bufs["c"],
                 bufs["z"], bufs["w"], bufs["coef"], np.int32(geo.ncoef),
@@ -425,7 +405,7 @@ class CLPipeline:
             t = self._targets[name]
             if not t.fmt.is_integer:
                 on = p.state.blend_for(name).enabled
-                args.append(self.store.blend_count(t) if on else self._dummy)
+                args.append(self.store.blend_count(t) if on else dev.dummy)
         if p.depth_target:
             dt = self._targets[p.depth_target]
             args.append(dt.buf)
@@ -436,11 +416,11 @@ class CLPipeline:
             self.store.resolve(rt)                # reads see the resolved texture, like GL
             args += [rt.res, self._int2(rt.width, rt.height)]
         if self.f64:
-            attrs = [self._zeros4] * 4
+            attrs = [dev.zeros4] * 4
             if p.draw.kind is ir.DrawKind.SCENE:
                 attrs = self.geometry.attributes(p.draw)[1]
             args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
-        kern = self._kernel(k, "pg_raster")
+        kern = dev.kernel(k, "pg_raster")
         cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
         T = self.tile
         ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
@@ -463,8 +443,8 @@ class CLPipeline:
         f8 = self._frame64_np.copy() if self.f64 else None
         _put_matrices(fr, f8, view=view, proj=proj)
         got = self._shadows[(id(p), light)] = ShadowView(
-            int(light), tuple(int(v) for v in rect), self._buffer(fr),
-            None if f8 is None else self._buffer(f8))
+            int(light), tuple(int(v) for v in rect), self.device.buffer(fr),
+            None if f8 is None else self.device.buffer(f8))
         return got
 
     def _int2(self, x: int, y: int):
