@@ -344,7 +344,7 @@ def test_light_volumes_instanced_with_types():
 
 def test_light_sets_from_cpu_sort():
     """``in slots[k]``: passes draw only the lights of set k of sort_lights_into_slots."""
-    from pipegen.packing.schemes import sort_lights_into_slots
+    from pipegen.packing.light_index import sort_lights_into_slots
     scene = _lights_scene()
     sets, dropped = sort_lights_into_slots([l.position for l in scene.lights],
                                            [l.radius for l in scene.lights], 2)

@@ -49,7 +49,7 @@ import pytest
 
 from pipegen.compiler.driver import compile_file
 from pipegen.ir.nodes import DrawKind, Volume
-from pipegen.packing.schemes import sort_lights_into_slots
+from pipegen.packing.light_index import sort_lights_into_slots
 from pipegen.reference.light_buffer import light_buffer_reference
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.rounding import as_float32

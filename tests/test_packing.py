@@ -1,6 +1,6 @@
 """Packing schemes: options, capacities, and the numerical hard cases of DESIGN.md §8.
 
-The numpy mirrors (``packing.numpy_impl``) stand in for the shaders; ``TestAgainstGL`` checks
+The numpy mirrors (``schemes.numpy_impl``) stand in for the shaders; ``TestAgainstGL`` checks
 them against the generated source compiled and run by llvmpipe when a GL context exists.
 """
 
@@ -14,7 +14,8 @@ import pytest
 
 from pipegen.core import formats
 from pipegen.ir import nodes as ir
-from pipegen.packing import schemes as packing
+from pipegen.packing import light_index, measurement, schemes
+from pipegen.packing.capacity import capacity_table, format_capacity_table
 from pipegen.core.diagnostics import PipegenError, Span
 
 F32 = np.float32
@@ -27,11 +28,11 @@ def fmt(name):
 
 
 def build(scheme, options=None, target=None, name="p"):
-    return packing.build(name, scheme, options or {}, fmt(target) if target else None, SPAN)
+    return schemes.build(name, scheme, options or {}, fmt(target) if target else None, SPAN)
 
 
 def impl(scheme, options=None, target=None):
-    return packing.numpy_impl(scheme, options or {}, fmt(target) if target else None)
+    return schemes.numpy_impl(scheme, options or {}, fmt(target) if target else None)
 
 
 def unorm_read(values, target="rgba8"):
@@ -128,7 +129,7 @@ class TestBuild:
         assert "constant_color" in notes and "0.25" in notes and "Trebilco's table" in notes
 
     def test_format_name_as_target_option(self):
-        spec = packing.build("s", "bitplanes", {"index_bits": 4, "target": "rg8"}, None, SPAN)
+        spec = schemes.build("s", "bitplanes", {"index_bits": 4, "target": "rg8"}, None, SPAN)
         assert spec.capacity == 4
 
     @pytest.mark.parametrize("scheme, options, target, message", [
@@ -187,21 +188,21 @@ class TestCapacityTable:
     ]
 
     def test_reproduces_the_paper(self):
-        rows = packing.capacity_table()
+        rows = capacity_table()
         assert [(r.lights_per_fragment, r.scene_lights, r.surfaces) for r in rows] == self.PAPER
         two_pass = [(r.index_bits, r.channels) for r in rows if r.stencil]
         assert two_pass == [(4, 8), (8, 16)]          # the rows that need the stencil trick
         assert {r.passes for r in rows if r.stencil} == {2}
 
     def test_generated_rows_agree_with_build(self):
-        for r in packing.capacity_table():
+        for r in capacity_table():
             if r.bitplanes:
                 target = {1: "r8", 2: "rg8", 4: "rgba8"}[r.channels]
                 assert build("bitplanes", {"index_bits": r.index_bits}, target).capacity \
                     == r.lights_per_fragment
 
     def test_markdown(self):
-        text = packing.format_capacity_table(packing.capacity_table())
+        text = format_capacity_table(capacity_table())
         assert text.count("\n") == 2 + 12
         assert "| 4 | 255 | 1 x RGBA8 surface | light index split into 4x2bit values |" in text
 
@@ -236,7 +237,7 @@ class TestDecodeRobustness:
         f = impl("bitplanes", {"index_bits": B}, target)
         rng = np.random.default_rng(B)
         lights = rng.integers(1, 2 ** B, size=(spec.capacity, 4096))
-        v = packing.emulate_bitplanes(lights, B, target).astype(np.float64)
+        v = light_index.emulate_bitplanes(lights, B, target).astype(np.float64)
         noise = rng.choice(PERTURB, size=v.shape) / 255.0
         noise[..., fmt(target).channels:] = 0.0
         got = decode_all(f["unpack"], (v + noise).astype(F32), spec.capacity)
@@ -284,14 +285,14 @@ class TestBitPlanes:
             lights = rng.integers(1, 2 ** B, size=(n, 3000))
             lights[:, 0] = 2 ** B - 1                     # every bit set
             lights[:, 1] = 1
-            v = packing.emulate_bitplanes(lights, B, target, mode)
+            v = light_index.emulate_bitplanes(lights, B, target, mode)
             got = decode_all(f["unpack"], v, cap)
             assert np.array_equal(got[:n], lights[::-1]), (n, mode)
             assert np.all(got[n:] == 0)                   # the rest reads as empty
 
     def test_exhaustive_pairs_in_r8(self):
         lights = np.array(list(itertools.product(range(1, 16), repeat=2))).T
-        v = packing.emulate_bitplanes(lights, 4, "r8", "unorm8")
+        v = light_index.emulate_bitplanes(lights, 4, "r8", "unorm8")
         f = impl("bitplanes", {"index_bits": 4}, "r8")
         assert np.array_equal(decode_all(f["unpack"], v, 2), lights[::-1])
 
@@ -305,7 +306,7 @@ class TestBitPlanes:
     def test_over_capacity_drops_the_oldest_cleanly_when_its_chunks_are_low(self, mode):
         # Index 0b01010101: every 2-bit chunk is 1 < 2, so shifting it out rounds down.
         lights = [0b01010101, 7, 200, 33, 129]
-        v = packing.emulate_bitplanes(lights, 8, "rgba8", mode)
+        v = light_index.emulate_bitplanes(lights, 8, "rgba8", mode)
         got = decode_all(impl("bitplanes", {"index_bits": 8}, "rgba8")["unpack"], v, 4)
         assert list(got) == [129, 33, 200, 7]
 
@@ -314,7 +315,7 @@ class TestBitPlanes:
         # The oldest index 3 has chunk 0b11 in red: shifting it out rounds up, adding 1 to
         # red's remaining bits, i.e. to the low chunk of the next-oldest light.
         lights = [3, 1, 1, 1, 1]
-        v = packing.emulate_bitplanes(lights, 8, "rgba8", mode)
+        v = light_index.emulate_bitplanes(lights, 8, "rgba8", mode)
         got = decode_all(impl("bitplanes", {"index_bits": 8}, "rgba8")["unpack"], v, 4)
         assert list(got) == [1, 1, 1, 2]
 
@@ -322,11 +323,11 @@ class TestBitPlanes:
         f = impl("bitplanes", {"index_bits": 8}, "rgba8")
         # Red chunks of the retained lights are all 0b11: the carry ripples through them into
         # the newest light's chunk ...
-        v = packing.emulate_bitplanes([3, 3, 3, 3, 1], 8, "rgba8", "unorm8")
+        v = light_index.emulate_bitplanes([3, 3, 3, 3, 1], 8, "rgba8", "unorm8")
         assert RGBA8.quantize(v)[0] == 0b10000000
         assert list(decode_all(f["unpack"], v, 4)) == [2, 0, 0, 0]
         # ... and saturates at 255 when there is nothing left to carry into.
-        v = packing.emulate_bitplanes([255] * 5, 8, "rgba8", "unorm8")
+        v = light_index.emulate_bitplanes([255] * 5, 8, "rgba8", "unorm8")
         assert np.all(RGBA8.quantize(v) == 255)
 
     @pytest.mark.parametrize("B, target", [(8, "rgba8"), (4, "rgba8"), (16, "rgba8"), (4, "r8")])
@@ -338,7 +339,7 @@ class TestBitPlanes:
         b = B // C
         rng = np.random.default_rng(11)
         lights = rng.integers(1, 2 ** B, size=(cap + 1, 20000))
-        v = packing.emulate_bitplanes(lights, B, target, "unorm8")
+        v = light_index.emulate_bitplanes(lights, B, target, "unorm8")
         got = decode_all(impl("bitplanes", {"index_bits": B}, target)["unpack"], v, cap)
         intact = np.all(got == lights[::-1][:cap], axis=0)
         oldest = lights[0].astype(np.uint32)
@@ -355,8 +356,8 @@ class TestBitPlanes:
         rng = np.random.default_rng(5)
         for n in (1, 2, 3, 4, 5, 6):
             lights = rng.integers(1, 256, size=(n, 5000))
-            a = packing.emulate_bitplanes(lights, 8, "rgba8", "exact")
-            b = packing.emulate_bitplanes(lights, 8, "rgba8", "unorm8")
+            a = light_index.emulate_bitplanes(lights, 8, "rgba8", "exact")
+            b = light_index.emulate_bitplanes(lights, 8, "rgba8", "unorm8")
             assert np.array_equal(a, b) == (n <= 4)
 
     def test_blend_constant_quantises_to_a_power_of_two_code(self):
@@ -374,7 +375,7 @@ class TestBitPlanes:
 class TestMaxPairs:
     def decode(self, lights):
         f = impl("max_pairs", {}, "rgba8")
-        v = unorm_read(packing.emulate_max_pairs(lights))
+        v = unorm_read(light_index.emulate_max_pairs(lights))
         return [int(f["unpack"](v, k)) for k in range(4)]
 
     def test_pair_is_index_and_complement(self):
@@ -411,7 +412,7 @@ class TestMaxPairs:
         assert self.decode(lights) == [20, 10, 250, 5]
 
     def test_the_papers_printed_channel_mapping_is_wrong(self):
-        v = unorm_read(packing.emulate_max_pairs([7, 200]))
+        v = unorm_read(light_index.emulate_max_pairs([7, 200]))
         codes = np.rint(v * 255).astype(int)
         paper_index3 = codes[1]                  # "Index3 = Green"
         assert paper_index3 == 255 - 7           # not an index that was written
@@ -450,26 +451,26 @@ class TestChannelSlots:
     def test_greedy_sort_and_drop(self):
         # Five lights at one spot overlap each other: four slots take four, the fifth drops.
         centers = np.zeros((5, 3))
-        sets, dropped = packing.sort_lights_into_slots(centers, np.ones(5), 4)
+        sets, dropped = light_index.sort_lights_into_slots(centers, np.ones(5), 4)
         assert sets == [[0], [1], [2], [3]] and dropped == [4]
 
     def test_disjoint_lights_share_the_first_slot(self):
         centers = np.array([[0, 0, 0], [3, 0, 0], [6, 0, 0], [1, 0, 0]], dtype=float)
-        sets, dropped = packing.sort_lights_into_slots(centers, np.ones(4), 2)
+        sets, dropped = light_index.sort_lights_into_slots(centers, np.ones(4), 2)
         assert sets == [[0, 1, 2], [3]] and dropped == []
 
     def test_touching_spheres_count_as_overlapping(self):
         centers = np.array([[0, 0, 0], [2, 0, 0]], dtype=float)
-        sets, _ = packing.sort_lights_into_slots(centers, np.ones(2), 2)
+        sets, _ = light_index.sort_lights_into_slots(centers, np.ones(2), 2)
         assert sets == [[0], [1]]
-        sets, _ = packing.sort_lights_into_slots(centers, np.full(2, 0.999), 2)
+        sets, _ = light_index.sort_lights_into_slots(centers, np.full(2, 0.999), 2)
         assert sets == [[0, 1], []]
 
     def test_no_set_holds_overlapping_lights(self):
         rng = np.random.default_rng(4)
         centers = rng.uniform(-10, 10, size=(200, 3))
         radii = rng.uniform(0.5, 3.0, size=200)
-        sets, dropped = packing.sort_lights_into_slots(centers, radii, 4)
+        sets, dropped = light_index.sort_lights_into_slots(centers, radii, 4)
         placed = sorted(i for s in sets for i in s)
         assert sorted(placed + dropped) == list(range(200)) and dropped
         for s in sets:
@@ -594,7 +595,7 @@ class TestNormals:
         assert np.all(np.isfinite(d))
         assert np.allclose(np.linalg.norm(d, axis=-1), 1.0, atol=1e-5)
         # In float32, the pole's neighbourhood is resolved to within a degree at worst.
-        assert packing.angular_error_deg(n, d).max() < 1.0
+        assert measurement.angular_error_deg(n, d).max() < 1.0
 
     @pytest.mark.parametrize("scheme", NORMAL_SCHEMES)
     def test_decode_of_any_stored_value_is_a_unit_vector(self, scheme):
@@ -606,7 +607,7 @@ class TestNormals:
 
     @pytest.mark.parametrize("scheme", NORMAL_SCHEMES)
     def test_encodes_into_unit_square(self, scheme):
-        n = packing.fibonacci_sphere(20000, hemisphere=scheme == "kircher")
+        n = measurement.fibonacci_sphere(20000, hemisphere=scheme == "kircher")
         e = impl(scheme)["encode"](n.astype(F32))
         assert e.min() >= -1e-6 and e.max() <= 1 + 1e-6
 
@@ -621,7 +622,7 @@ class TestNormals:
         assert np.allclose(impl("kircher")["decode"](e), n, atol=1e-6)
 
     def test_kircher_and_spheremap_store_the_same_values(self):
-        n = packing.fibonacci_sphere(5000).astype(F32)
+        n = measurement.fibonacci_sphere(5000).astype(F32)
         assert np.allclose(impl("kircher")["encode"](n), impl("spheremap")["encode"](n),
                            atol=2e-6)
 
@@ -637,7 +638,7 @@ class TestNormals:
                 for target in (None, "rg8", "rg16"):
                     d = round_trip("octahedral", np.stack([a, b]), target)
                     tol = {None: 1e-3, "rg8": 1.2, "rg16": 0.01}[target]
-                    assert packing.angular_error_deg([a, b], d).max() < tol
+                    assert measurement.angular_error_deg([a, b], d).max() < tol
         # The square's edges fold onto themselves: (±1, t) and (±1, -t) are one normal, and
         # likewise (t, ±1) and (-t, ±1).
         for t in np.linspace(-1, 1, 21):
@@ -671,13 +672,13 @@ class TestNormals:
         if scheme == "kircher":
             n[:, 2] = np.abs(n[:, 2])
         d = round_trip(scheme, n, target)
-        assert packing.angular_error_deg(n, d).max() <= spec.error * 1.05
+        assert measurement.angular_error_deg(n, d).max() <= spec.error * 1.05
 
     def test_spheremap_is_only_bad_far_from_the_camera(self):
-        whole = packing.normal_error("spheremap", "rg8")
-        front = packing.normal_error("spheremap", "rg8", hemisphere=True)
+        whole = measurement.normal_error("spheremap", "rg8")
+        front = measurement.normal_error("spheremap", "rg8", hemisphere=True)
         assert front < 1.0 < whole
-        assert front == pytest.approx(packing.normal_error("kircher", "rg8"), rel=1e-4)
+        assert front == pytest.approx(measurement.normal_error("kircher", "rg8"), rel=1e-4)
 
 
 # =============================================================================================
@@ -728,7 +729,7 @@ class TestAgainstGL:
                        np.stack([index, 0 * index, 0 * index, 0 * index], -1).astype(F32))
         assert np.array_equal(got, f["plane_value"](index))
         rng = np.random.default_rng(0)
-        v = packing.emulate_bitplanes(rng.integers(1, 256, size=(4, 5000)), 8, "rgba8")
+        v = light_index.emulate_bitplanes(rng.integers(1, 256, size=(4, 5000)), 8, "rgba8")
         v = (v + rng.choice(PERTURB, size=v.shape) / 255.0).astype(F32)
         got = run_glsl(gl, src, "o = uvec4(bp_unpack(a, 0), bp_unpack(a, 1), bp_unpack(a, 2), "
                        "bp_unpack(a, 3));", v, out_uint=True)
@@ -765,7 +766,7 @@ class TestAgainstGL:
     def test_normals(self, gl, scheme):
         src = build(scheme, name="nm").functions_source
         f = impl(scheme)
-        n = np.concatenate([packing.fibonacci_sphere(4000), near([0, 1e-6, 1e-3, 1.0]),
+        n = np.concatenate([measurement.fibonacci_sphere(4000), near([0, 1e-6, 1e-3, 1.0]),
                             [[0, 0, 1], [1, 0, 0], [0, -1, 0], [0, 1e-7, -1], [-1e-7, 0, -1]]])
         n = np.concatenate([n, np.zeros((len(n), 1))], -1).astype(F32)
         got = run_glsl(gl, src, "o = vec4(nm_encode(a.xyz), 0.0, 0.0);", n)
@@ -822,7 +823,7 @@ class TestAgainstGL:
                 vao.render(moderngl.TRIANGLES)
                 tex.release()
                 codes = np.frombuffer(fbo.read(components=C, dtype="f1"), np.uint8)
-                want = packing.emulate_bitplanes(lights[:n + 1], B, target, "unorm8")
+                want = light_index.emulate_bitplanes(lights[:n + 1], B, target, "unorm8")
                 assert np.array_equal(codes.reshape(-1, C), RGBA8.quantize(want)[:, :C]), n
         finally:
             gl.blend_func = moderngl.DEFAULT_BLENDING

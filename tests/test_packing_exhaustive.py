@@ -9,7 +9,7 @@
   sequences are assembled to cover them (docs/encodings.md says exactly what that covers);
   where there are few enough, every whole sequence directly;
 - the normal encodings: the compile report's figures are the tabulated measurements
-  (``packing.NORMAL_ERRORS``), which a fresh measurement reproduces;
+  (``error_tables.NORMAL_ERRORS``), which a fresh measurement reproduces;
 - light-index decode under ±0.49-code perturbation: ``floor(x*255+0.5)`` recovers every
   code, Trebilco's ``ceil(x*254.5)`` misreads codes 0..249 when they come in high.
 
@@ -29,7 +29,9 @@ import numpy as np
 import pytest
 
 from pipegen.core import formats
-from pipegen.packing import schemes as packing
+from pipegen.core.diagnostics import PipegenError
+from pipegen.packing import error_tables, light_index, measurement, schemes
+from pipegen.packing.values import bitfield_round_trip_failure, exact_bits, measure_split16_error
 
 F32 = np.float32
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +44,7 @@ def fmt(name):
 
 
 def impl(scheme, options=None, target=None):
-    return packing.numpy_impl(scheme, options or {}, fmt(target) if target else None)
+    return schemes.numpy_impl(scheme, options or {}, fmt(target) if target else None)
 
 
 def store(values, target):
@@ -117,8 +119,8 @@ class TestEveryCode:
         f = impl("split16")
         x = np.arange(65536, dtype=F32) / F32(65535)
         try:
-            packing.build("s", "split16", {}, fmt(target), None)
-        except packing.PipegenError as exc:
+            schemes.build("s", "split16", {}, fmt(target), None)
+        except PipegenError as exc:
             # Refused only where codes would be lost: 8-bit snorm holds 7 bits of [0,1].
             assert fmt(target).kind is formats.Kind.SNORM and fmt(target).bits[0] == 8
             assert "8 exact bits" in exc.message
@@ -126,8 +128,8 @@ class TestEveryCode:
             assert lost.sum() == 49152
             return
         assert np.array_equal(f["unpack"](store(f["pack"](x), target)), x)
-        error, _ = packing.measure_split16_error(target)
-        assert error == packing.SPLIT16_ERROR
+        error, _ = measure_split16_error(target)
+        assert error == error_tables.SPLIT16_ERROR
 
     def test_split16_error_is_the_max_over_a_whole_binade(self):
         """Every float32 x in [0.5, 1) (8,388,608 values, the binade where the measured
@@ -139,19 +141,19 @@ class TestEveryCode:
             x = chunk.view(F32)
             err = np.abs(f["unpack"](store(f["pack"](x), "rg8")).astype(np.float64) - x)
             worst = max(worst, float(err.max()))
-        assert worst == packing.SPLIT16_ERROR
-        assert packing.build("s", "split16", {}, None, None).error == packing.SPLIT16_ERROR
+        assert worst == error_tables.SPLIT16_ERROR
+        assert schemes.build("s", "split16", {}, None, None).error == error_tables.SPLIT16_ERROR
         assert 0.5 / 65535 < worst < 0.504 / 65535
 
     @pytest.mark.parametrize("target", color_formats_by_storage())
     def test_bitfield_exact_width_is_measured_and_tight(self, target):
         f = fmt(target)
-        claimed = packing._exact_bits(f)
-        assert packing.bitfield_round_trip_failure(f, claimed) is None     # every value
-        assert packing.bitfield_round_trip_failure(f, claimed + 1) is not None
-        packing.build("b", "bitfield", {"fields": [("v", claimed)]}, f, None)
-        with pytest.raises(packing.PipegenError):
-            packing.build("b", "bitfield", {"fields": [("v", claimed + 1)]}, f, None)
+        claimed = exact_bits(f)
+        assert bitfield_round_trip_failure(f, claimed) is None     # every value
+        assert bitfield_round_trip_failure(f, claimed + 1) is not None
+        schemes.build("b", "bitfield", {"fields": [("v", claimed)]}, f, None)
+        with pytest.raises(PipegenError):
+            schemes.build("b", "bitfield", {"fields": [("v", claimed + 1)]}, f, None)
 
     def test_bitfield_16_bit_ids_every_value_every_field(self):
         f = impl("bitfield", {"fields": [("object", 8), ("group", 8)]})
@@ -161,8 +163,8 @@ class TestEveryCode:
         for target in ("r16", "rg16", "rgba16", "rg16_snorm"):
             f16 = impl("bitfield", {"fields": [("object", 8), ("group", 8)]})
             if target == "rg16_snorm":                                     # 15 exact bits
-                with pytest.raises(packing.PipegenError):
-                    packing.build("b", "bitfield", {"fields": [("object", 8), ("group", 8)]},
+                with pytest.raises(PipegenError):
+                    schemes.build("b", "bitfield", {"fields": [("object", 8), ("group", 8)]},
                                   fmt(target), None)
                 continue
             back = f16["from_unorm"](store(f16["to_unorm"](v)[:, None], target)[:, 0])
@@ -217,7 +219,7 @@ def check_bitplanes(B, target, lights, mode):
     if n == 0:
         v = np.zeros((1, 4), F32)
     else:
-        v = packing.emulate_bitplanes(lights, B, target, mode)
+        v = light_index.emulate_bitplanes(lights, B, target, mode)
     got = decode_all(unpack, v, cap)
     assert np.array_equal(got[:n], lights[::-1]), (B, target, n, mode)
     assert np.all(got[n:] == 0)
@@ -291,7 +293,7 @@ class TestMaxPairsEverySequence:
         unpack = impl("max_pairs", {}, "rgba8")["unpack"]
         for n in range(5):
             for seq in itertools.product([1, 77, 128, 254, 255], repeat=n):
-                v = packing.emulate_max_pairs(list(seq))
+                v = light_index.emulate_max_pairs(list(seq))
                 codes = np.rint(v.astype(np.float64) * 255).astype(int)
                 first, rest = seq[:2], seq[2:]
                 want = [max(first, default=0), 255 - min(first, default=255),
@@ -389,32 +391,32 @@ def search_margin(storage: str) -> float:
 
 class TestNormalFigures:
     def test_the_table_covers_every_encoding_format_and_domain(self):
-        want = {(s, g, d) for s in NORMAL_SCHEMES for g in packing.NORMAL_FORMATS
+        want = {(s, g, d) for s in NORMAL_SCHEMES for g in error_tables.NORMAL_FORMATS
                 for d in domains(s)}
-        assert set(packing.NORMAL_ERRORS) == want
-        for (s, g, d), (mx, mean) in packing.NORMAL_ERRORS.items():
+        assert set(error_tables.NORMAL_ERRORS) == want
+        for (s, g, d), (mx, mean) in error_tables.NORMAL_ERRORS.items():
             assert 0 < mean < mx
             if d == "sphere":          # the hemisphere is part of the sphere
-                assert mx >= packing.NORMAL_ERRORS[(s, g, "hemisphere")][0]
+                assert mx >= error_tables.NORMAL_ERRORS[(s, g, "hemisphere")][0]
 
     @pytest.mark.parametrize("scheme", NORMAL_SCHEMES)
     def test_build_reports_the_table(self, scheme):
         for name in normal_formats():
-            spec = packing.build("n", scheme, {}, fmt(name), None)
-            storage = packing.normal_storage(name)
-            mx, mean = packing.NORMAL_ERRORS[(scheme, storage, domains(scheme)[0])]
+            spec = schemes.build("n", scheme, {}, fmt(name), None)
+            storage = error_tables.normal_storage(name)
+            mx, mean = error_tables.NORMAL_ERRORS[(scheme, storage, domains(scheme)[0])]
             assert spec.error == mx
             notes = " ".join(spec.notes)
             assert f"max {mx:.4g}, mean {mean:.4g} degrees" in notes
             if scheme != "kircher":
-                hmx, hmean = packing.NORMAL_ERRORS[(scheme, storage, "hemisphere")]
+                hmx, hmean = error_tables.NORMAL_ERRORS[(scheme, storage, "hemisphere")]
                 assert f"max {hmx:.4g}, mean {hmean:.4g} degrees" in notes
 
     def test_the_compile_report_prints_the_table(self):
         from pipegen.compiler.driver import compile_file
         from pipegen.views.report import render_report
         text = render_report(compile_file(ROOT / "pipelines" / "inferred.pipe"))
-        mx, mean = packing.NORMAL_ERRORS[("kircher", "rg16f", "hemisphere")]
+        mx, mean = error_tables.NORMAL_ERRORS[("kircher", "rg16f", "hemisphere")]
         assert f"error bound   {mx:.4g} degrees (max angular error, measured)" in text
         assert f"max {mx:.4g}, mean {mean:.4g} degrees" in text
 
@@ -422,24 +424,24 @@ class TestNormalFigures:
         text = (ROOT / "docs" / "encodings.md").read_text()
         rows = re.findall(r"^\| (kircher|spheremap|octahedral) \| ([^|]+) \| [^|]+ \| "
                           r"(sphere|z ≥ 0) \| ([^|]+) \| ([^|]+) \|", text, re.M)
-        assert len(rows) == len(packing.NORMAL_ERRORS)
+        assert len(rows) == len(error_tables.NORMAL_ERRORS)
         for scheme, names, dom, mx, mean in rows:
             storage = names.split(",")[0].strip()
             key = (scheme, storage, "sphere" if dom == "sphere" else "hemisphere")
-            assert (float(mx), float(mean)) == packing.NORMAL_ERRORS[key]
-        assert f"**{packing.SPLIT16_ERROR:.4g}**" in text
+            assert (float(mx), float(mean)) == error_tables.NORMAL_ERRORS[key]
+        assert f"**{error_tables.SPLIT16_ERROR:.4g}**" in text
 
     @pytest.mark.parametrize("key", [("kircher", "rg16f", "hemisphere"),
                                      ("octahedral", "rg8", "sphere"),
                                      ("spheremap", "rg16", "sphere")])
     def test_a_fresh_measurement_reproduces_the_table(self, key):
-        m = packing.measure_normal_error(key[0], key[1], key[2] == "hemisphere")
-        assert_reproduces(m, packing.NORMAL_ERRORS[key], key)
+        m = measurement.measure_normal_error(key[0], key[1], key[2] == "hemisphere")
+        assert_reproduces(m, error_tables.NORMAL_ERRORS[key], key)
 
     @pytest.mark.exhaustive      # the three keys above and the test below prove it cheaper
     def test_a_fresh_measurement_reproduces_the_whole_table(self):
-        for key, figures in packing.NORMAL_ERRORS.items():
-            m = packing.measure_normal_error(key[0], key[1], key[2] == "hemisphere")
+        for key, figures in error_tables.NORMAL_ERRORS.items():
+            m = measurement.measure_normal_error(key[0], key[1], key[2] == "hemisphere")
             assert_reproduces(m, figures, key)
 
     def test_the_search_decides_without_numpy_transcendentals(self, monkeypatch):
@@ -447,18 +449,18 @@ class TestNormalFigures:
         log and exp made to differ in their last bits (as they do between CPUs and numpy
         versions), it finds the same worst normal and the same maximum to the bit."""
         key = ("spheremap", "rg16", "sphere")
-        want = packing.measure_normal_error(key[0], key[1], False, 1 << 14)
-        packing.measure_normal_error.cache_clear()
-        packing._normal_grid.cache_clear()
+        want = measurement.measure_normal_error(key[0], key[1], False, 1 << 14)
+        measurement.measure_normal_error.cache_clear()
+        measurement.normal_grid.cache_clear()
         for name in ("arcsin", "sin", "cos", "log", "exp", "log10", "power"):
             exact = getattr(np, name)
             monkeypatch.setattr(np, name, lambda *a, _f=exact, **k: np.nextafter(
                 _f(*a, **k), np.inf))
         try:
-            got = packing.measure_normal_error(key[0], key[1], False, 1 << 14)
+            got = measurement.measure_normal_error(key[0], key[1], False, 1 << 14)
         finally:
-            packing.measure_normal_error.cache_clear()
-            packing._normal_grid.cache_clear()
+            measurement.measure_normal_error.cache_clear()
+            measurement.normal_grid.cache_clear()
         assert (got.max, got.worst, got.points) == (want.max, want.worst, want.points)
         assert abs(got.mean - want.mean) <= 1e-12 * want.mean
 
@@ -478,8 +480,8 @@ class TestNormalFigures:
                 m[:, 2] = np.abs(m[:, 2])
             f = impl(scheme)
             d = f["decode"](store(f["encode"](m.astype(F32)), storage))
-            err = packing.angular_error_deg(m, d)
-            mx, mean = packing.NORMAL_ERRORS[(scheme, storage, dom)]
+            err = measurement.angular_error_deg(m, d)
+            mx, mean = error_tables.NORMAL_ERRORS[(scheme, storage, dom)]
             assert err.max() <= mx * search_margin(storage)
             assert abs(err.mean() - mean) < 0.01 * mean
 
@@ -524,7 +526,7 @@ class TestPerturbation:
         ±0.49 codes, decodes what it decodes from the exact code."""
         f = impl(scheme, options, target)
         scale = fmt(target).max_code
-        cap = packing.build("p", scheme, options, fmt(target), None).capacity
+        cap = schemes.build("p", scheme, options, fmt(target), None).capacity
         codes = np.arange(scale + 1)
         exact = np.stack([(codes * (2 * c + 1) + 77 * c) % (scale + 1) for c in range(4)], -1)
         want = decode_all(f["unpack"], (exact / scale).astype(F32), cap)
@@ -646,12 +648,12 @@ class TestAgainstGL:
     def test_unpack_of_every_code_in_every_channel(self, gl, scheme, options, target, dtype):
         """The generated unpack reading a real unorm texture: every code in every channel
         (pixel p has code (p (2c+1) + 77c) mod 2^bits in channel c), equal to the mirror."""
-        src = packing.build("q", scheme, options, fmt(target), None).functions_source
+        src = schemes.build("q", scheme, options, fmt(target), None).functions_source
         f = impl(scheme, options, target)
         top = fmt(target).max_code
         p = np.arange(top + 1)
         codes = np.stack([(p * (2 * c + 1) + 77 * c) % (top + 1) for c in range(4)], -1)
-        cap = packing.build("q", scheme, options, fmt(target), None).capacity
+        cap = schemes.build("q", scheme, options, fmt(target), None).capacity
         got = gl_decode(Runner(gl), src, codes, cap + 1, dtype)    # k = capacity reads 0
         want = decode_all(f["unpack"], (codes / top).astype(F32), cap + 1)
         assert np.array_equal(got, want)
@@ -665,7 +667,7 @@ class TestAgainstGL:
         for scheme, options, fn, ch in [("bitplanes", {"index_bits": 8}, "plane_value", None),
                                         ("channel_slots", {"slots": 4}, "value", None),
                                         ("max_pairs", {}, "value", None)]:
-            src = packing.build("q", scheme, options, RGBA8, None).functions_source
+            src = schemes.build("q", scheme, options, RGBA8, None).functions_source
             got = run.run(src, f"o = q_{fn}(uint(a.x));", inputs, out="f1")
             want = RGBA8.quantize(impl(scheme, options, "rgba8")[fn](index))
             assert np.array_equal(got, want), scheme
@@ -675,7 +677,7 @@ class TestAgainstGL:
         generated unpack from the blended target."""
         import moderngl
         run = Runner(gl)
-        src = packing.build("q", "max_pairs", {}, RGBA8, None).functions_source
+        src = schemes.build("q", "max_pairs", {}, RGBA8, None).functions_source
         a, b = (x.ravel() for x in np.meshgrid(np.arange(1, 256), np.arange(1, 256)))
         h = (len(a) + 255) // 256
         dst = gl.texture((256, h), 4, dtype="f1")
@@ -710,7 +712,7 @@ class TestAgainstGL:
             from OpenGL import GL
         except Exception as exc:
             pytest.skip(f"no PyOpenGL: {exc}")
-        spec = packing.build("q", "bitplanes", {"index_bits": B}, RGBA8, None)
+        spec = schemes.build("q", "bitplanes", {"index_bits": B}, RGBA8, None)
         run = Runner(gl)
         c = spec.constants["blend_constant"][1]
         for n in range(1, spec.capacity + 1):
@@ -735,7 +737,7 @@ class TestAgainstGL:
                 gl.blend_func = moderngl.DEFAULT_BLENDING
                 gl.disable(moderngl.BLEND)
             codes = np.frombuffer(dst.read(), np.uint8).reshape(-1, 4)[:lights.shape[1]]
-            want = RGBA8.quantize(packing.emulate_bitplanes(lights, B, "rgba8", "unorm8"))
+            want = RGBA8.quantize(light_index.emulate_bitplanes(lights, B, "rgba8", "unorm8"))
             assert np.array_equal(codes, want), n
             got = gl_decode(run, spec.functions_source, codes, spec.capacity)
             assert np.array_equal(got[:n], lights[::-1]), n
@@ -745,7 +747,7 @@ class TestAgainstGL:
 
     def test_split16_every_code(self, gl):
         run = Runner(gl)
-        src = packing.build("s", "split16", {}, fmt("rg8"), None).functions_source
+        src = schemes.build("s", "split16", {}, fmt("rg8"), None).functions_source
         f = impl("split16")
         x = np.arange(65536, dtype=F32) / F32(65535)
         got = run.run(src, "o = vec4(s_pack(a.x), 0.0, 0.0);", np.stack([x] * 4, -1),
@@ -762,7 +764,7 @@ class TestAgainstGL:
         numpy model of the half store predicts."""
         run = Runner(gl)
         opts = {"fields": [("v", bits)]}
-        src = packing.build("b", "bitfield", opts, None, None).functions_source
+        src = schemes.build("b", "bitfield", opts, None, None).functions_source
         f = impl("bitfield", opts)
         v = np.arange(1 << bits)
         stored = run.run(src, "o = vec4(b_to_unorm(uint(a.x)));", np.stack([v] * 4, -1),
@@ -774,10 +776,10 @@ class TestAgainstGL:
         model = f["from_unorm"](read[:, 0])
         assert np.array_equal(back, model)
         wrong = np.nonzero(back != v)[0]
-        if bits <= packing._exact_bits(fmt(target)):
+        if bits <= exact_bits(fmt(target)):
             assert len(wrong) == 0
         else:
-            assert wrong[0] == packing.bitfield_round_trip_failure(target, bits)
+            assert wrong[0] == bitfield_round_trip_failure(target, bits)
 
     @pytest.mark.parametrize("scheme", NORMAL_SCHEMES)
     @pytest.mark.parametrize("storage, dtype", [("rg8", "f1"), ("rg16", "nu2"), ("rg16f", "f2"),
@@ -791,9 +793,9 @@ class TestAgainstGL:
         generated decode reads them back as the mirror does, and the angular error over the
         sample stays below the tabulated maximum, its grid mean near the tabulated mean."""
         hemi = scheme == "kircher"
-        grid = packing.fibonacci_sphere(1 << 16, hemi)
-        n = np.concatenate([grid, packing._special_normals(hemi)[::16]])
-        src = packing.build("nm", scheme, {}, fmt(storage), None).functions_source
+        grid = measurement.fibonacci_sphere(1 << 16, hemi)
+        n = np.concatenate([grid, measurement.special_normals(hemi)[::16]])
+        src = schemes.build("nm", scheme, {}, fmt(storage), None).functions_source
         f = impl(scheme)
         run = Runner(gl)
         n4 = np.concatenate([n, np.zeros((len(n), 1))], -1).astype(F32)
@@ -821,15 +823,15 @@ class TestAgainstGL:
         # llvmpipe reads code * (1/max) in float32: within an ulp of code/max
         assert np.allclose(read, store_values(codes, storage), rtol=2.5e-7, atol=0)
         assert np.allclose(got, f["decode"](read), atol=2e-6)
-        err = packing.angular_error_deg(n, got)
-        mx, mean = packing.NORMAL_ERRORS[(scheme, storage, domains(scheme)[0])]
+        err = measurement.angular_error_deg(n, got)
+        mx, mean = error_tables.NORMAL_ERRORS[(scheme, storage, domains(scheme)[0])]
         assert err.max() <= mx * search_margin(storage)
         assert abs(err[:len(grid)].mean() - mean) < 0.02 * mean
 
     def test_perturbation_floor_survives_ceil_does_not(self, gl):
         """Item 4 on llvmpipe: the generated decode (channel_slots' unpack) and Trebilco's
         ceil(x*254.5) on every code with every perturbation."""
-        src = packing.build("q", "channel_slots", {"slots": 4}, RGBA8, None).functions_source
+        src = schemes.build("q", "channel_slots", {"slots": 4}, RGBA8, None).functions_source
         c, d, x = perturbed()
         got = Runner(gl).run(src, "o = uvec4(q_unpack(a, 0), uint(ceil(a.x * 254.5)), 0u, 0u);",
                              np.stack([x] * 4, -1), out="u4")
@@ -892,7 +894,7 @@ class TestAgainstCL:
         code under every perturbation (item 4, with ceil(x*254.5) alongside)."""
         p = np.arange(256)
         codes = np.stack([(p * (2 * c + 1) + 77 * c) % 256 for c in range(4)], -1)
-        blended = [packing.emulate_bitplanes(covering_sequences(8, 4, n), 8, "rgba8")
+        blended = [light_index.emulate_bitplanes(covering_sequences(8, 4, n), 8, "rgba8")
                    for n in range(1, 5)]
         c, d, x = perturbed()
         v = np.concatenate([codes / 255.0, *blended, np.stack([x] * 4, -1)]).astype(F32)

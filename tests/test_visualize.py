@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from pipegen.core import formats
-from pipegen.packing import schemes as packing
+from pipegen.packing import light_index, schemes
 from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.views.visualize import (
     DEPTH_FAR, category_color, compose, target_label, target_panels, target_views, to_rgb8,
@@ -153,7 +153,7 @@ def test_a_target_written_by_several_passes_keeps_its_packing():
 
 
 def test_bitfield_decode_separates_the_fields(inferred):
-    impl = packing.numpy_impl("bitfield", {"fields": (("object", 8), ("group", 8))})
+    impl = schemes.numpy_impl("bitfield", {"fields": (("object", 8), ("group", 8))})
     H, W = 6, 8
     obj = np.broadcast_to(np.arange(W) + 1, (H, W))              # object id: by column
     group = np.broadcast_to((np.arange(H) * 7)[:, None], (H, W))  # normal group: by row
@@ -195,7 +195,7 @@ pass p {
 
 def test_light_index_target_shows_light_sets_and_counts(lidr):
     # pixel 0: lights 1 and 3 (0-based 0 and 2); pixel 1: light 2 only; pixel 2: none
-    v = packing.emulate_bitplanes(np.array([[1, 2, 0], [3, 0, 0]]), 8, "rgba8")
+    v = light_index.emulate_bitplanes(np.array([[1, 2, 0], [3, 0, 0]]), 8, "rgba8")
     codes = np.rint(v * 255).astype(np.uint8)[None]             # (1, 3, 4)
     sets, counts = target_panels("lightidx", codes, lidr, NEAR, FAR)
     assert dict(counts.legend).keys() == {"0", "1", "2"}

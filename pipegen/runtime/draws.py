@@ -45,7 +45,7 @@ def light_filter(draw: ir.Draw) -> bool:
 class LightSelection:
     """The lights each light draw of a plan instances for one scene, in table order: all of
     them, those of the draw's ``light_types``, and/or those of its CPU-sorted ``light_set``
-    ``(pack, k)`` (``packing.sort_lights_into_slots`` into ``plan.light_sets[pack]`` slots).
+    ``(pack, k)`` (``light_index.sort_lights_into_slots`` into ``plan.light_sets[pack]`` slots).
 
     The sorted sets are computed once per scene and pack; ``dropped[pack]`` lists the lights
     no set could take (more overlapping lights than the packing holds)."""
@@ -96,7 +96,7 @@ class LightSelection:
         """The CPU-sorted sets of ``pack``, over the lights its draws take: the light types
         of the draws ``in pack[k]`` (a directional light drawn elsewhere takes no place)."""
         if pack not in self.sets:
-            from pipegen.packing.schemes import sort_lights_into_slots
+            from pipegen.packing.light_index import sort_lights_into_slots
             slots = int(self.plan.light_sets.get(pack, 4))
             types = set()
             for p in self.plan.passes:

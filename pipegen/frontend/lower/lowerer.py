@@ -28,7 +28,6 @@ Format-valued parameters have type ``ir.VOID`` and a ``str`` value: they are not
 
 from __future__ import annotations
 
-import importlib
 from typing import Optional, Union
 
 from pipegen.frontend import ast, parse as syntax
@@ -329,11 +328,12 @@ class _Lowerer:
     def _packings(self, decls: list[ast.PackDecl]) -> None:
         if not decls:
             return
-        packing = importlib.import_module("pipegen.packing.schemes")
+        # imported per call: the front end's tests stand a stub in for the schemes
+        from pipegen.packing.schemes import SCHEMES, build
         for decl in decls:
-            self._packing(decl, packing)
+            self._packing(decl, SCHEMES, build)
 
-    def _packing(self, decl: ast.PackDecl, packing) -> None:
+    def _packing(self, decl: ast.PackDecl, schemes, build) -> None:
         name, scheme = decl.name.name, decl.scheme.name
         if scheme in self.params:      # `pack nrm = encoding(…)`: the scheme a parameter holds
             p = self.params[scheme]
@@ -343,15 +343,14 @@ class _Lowerer:
                             "declare it like `param encoding = octahedral in {kircher, "
                             "octahedral}`")
             scheme = str(p.default)
-        schemes = getattr(packing, "SCHEMES", None)
-        if schemes is not None and scheme not in schemes:
+        if scheme not in schemes:
             raise error(decl.scheme.span, f"unknown packing scheme '{scheme}'",
                         did_you_mean(scheme, schemes, f"schemes: {listing(schemes)}"))
         options = self._pack_options(decl.options)
         target_format = None
         if "target" in options:
             target_format = self.targets[options["target"]].format
-        spec = packing.build(name, scheme, options, target_format, decl.scheme.span)
+        spec = build(name, scheme, options, target_format, decl.scheme.span)
         self.packs[name] = decl
         self.pack_schemes[name] = scheme
         self.pack_specs[name] = spec
