@@ -161,7 +161,7 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                     f"{'is' if len(missed) == 1 else 'are'} missed (lights "
                     f"{', '.join(map(str, missed))})"))
     for pack, slots, types in cap.slot_packings:
-        from pipegen.packing.schemes import sort_lights_into_slots
+        from pipegen.packing.light_index import sort_lights_into_slots
         members = [i for i, l in enumerate(scene.lights) if l.type in types]
         _, dropped = sort_lights_into_slots([tuple(scene.lights[i].position) for i in members],
                                             [float(scene.lights[i].radius) for i in members],
