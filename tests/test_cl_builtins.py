@@ -161,9 +161,9 @@ def _kernels() -> str:
 
 @pytest.fixture(scope="module")
 def prog():
-    from pipegen.backends.opencl import emit as clgen
+    from pipegen.backends.opencl.programs import prelude_source
     from pipegen.runtime.cl import context as cl_context
-    pre = clgen.templating.render("cl_prelude.cl.j2", tile=clgen.TILE, enums=clgen._enum_defines())
+    pre = prelude_source()
     return cl_context.build_program("#define PG_LIBRARY_BUILTINS\n" + pre + _kernels())
 
 

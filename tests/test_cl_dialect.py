@@ -9,8 +9,11 @@ from __future__ import annotations
 import pytest
 
 from pipegen.ir import nodes as ir
-from pipegen.backends.opencl.emit import (
-    OpenCLLanguage, cl_format, emit_cl, pass_program, state_values)
+from pipegen.backends.opencl.abi import state_values
+from pipegen.backends.opencl.dialect import OpenCLLanguage
+from pipegen.backends.opencl.emit import emit_cl
+from pipegen.backends.opencl.formats import cl_format
+from pipegen.backends.opencl.programs import pass_program
 from pipegen.compiler.driver import compile_source
 
 F, I, U, B = ir.FLOAT, ir.INT, ir.UINT, ir.BOOL

@@ -336,7 +336,7 @@ def test_unorm8_and_d24_codes_round_like_convert_sat_rte():
     of 20,000 d24 edges, on specials (NaN, infinities, signed zeros, denormals) and on 10^6
     random floats; and the codes round half to even (numpy's float32 arithmetic)."""
     import pyopencl as cl
-    from pipegen.backends.opencl import emit as opencl
+    from pipegen.backends.opencl.programs import prelude_source
     from pipegen.runtime.cl import context as cl_context
 
     rng = np.random.default_rng(7)
@@ -355,7 +355,7 @@ def test_unorm8_and_d24_codes_round_like_convert_sat_rte():
     n = max(len(u8), len(d24))
     x = np.zeros((2, n), f32)
     x[0, :len(u8)], x[1, :len(d24)] = u8, d24
-    src = opencl.prelude_source() + """
+    src = prelude_source() + """
 __kernel void k(__global const float *x, const int n, __global uint *got, __global uint *ref) {
     const int i = get_global_id(0);
     const float4 u = (float4)(x[i], 0.0f, 0.0f, 0.0f);

@@ -43,9 +43,9 @@ def test_renders_in_a_row_match_fresh_pipelines_and_full_argument_setting(techni
 def test_typed_arguments_take_numpy_scalars_only():
     """A Python number has no OpenCL type to declare: ``set_args`` refuses it."""
     import pyopencl as cl
-    from pipegen.backends.opencl import emit as clgen
+    from pipegen.backends.opencl import programs as cl_programs
     from pipegen.runtime.cl import context as cl_context
-    kern = cl.Kernel(cl_context.build_program(clgen.bin_program()), "pg_bin_starts")
+    kern = cl.Kernel(cl_context.build_program(cl_programs.bin_program()), "pg_bin_starts")
     ctx, _ = cl_context.get_context()
     bufs = [cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=64) for _ in range(4)]
     with pytest.raises(TypeError, match="numpy scalars"):

@@ -1,4 +1,4 @@
-"""The CL backend's wide fragment function (``backends/cl_wide.py``: the fragment code for 8
+"""The CL backend's wide fragment function (``backends/opencl/wide/``: the fragment code for 8
 pixels at once, explicit SIMD over pixels) computes, lane for lane, what the scalar
 ``pg_fragment`` computes: every target of every shipped technique that has wide passes is
 bit-identical with and without it, and so is a technique written to exercise what the wide
@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipegen.backends.opencl import wide as cl_wide, emit as opencl
+from pipegen.backends.opencl import wide as cl_wide
+from pipegen.backends.opencl.dialect import OpenCLLanguage
+from pipegen.backends.opencl.programs import prelude_source
 from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.scene.load import load_scene
 
@@ -190,7 +192,7 @@ def test_unsupported_code_falls_back():
                           " c += q * n;")
     tech = compile_source(src).technique
     p = next(p for p in tech.passes if p.name == "base")
-    assert cl_wide.wide_fragment(tech, p, opencl.OpenCLLanguage(tech, p)) is None
+    assert cl_wide.wide_fragment(tech, p, OpenCLLanguage(tech, p)) is None
 
 
 SAMPLES = """
@@ -287,7 +289,7 @@ def test_wide_half_decoding_is_exact(f16c):
     import pyopencl as cl
     from pipegen.runtime.cl import context as cl_context
 
-    src = (opencl.prelude_source() + ("" if f16c else "\n#undef __F16C__\n")
+    src = (prelude_source() + ("" if f16c else "\n#undef __F16C__\n")
            + cl_wide.wide_helpers() + """
 __kernel void k(__global const ushort *p, __global uint *wide, __global uint *scalar) {
     const int g = get_global_id(0);

@@ -1,6 +1,6 @@
 """The guarded builtins (backends/cstyle.py: sqrt/pow of negatives through max(x, 0), the pow,
 inversesqrt, log, log2 and normalize helpers, shift counts masked ``& 31``, ``uint(float)`` of
-negatives and NaN) give the same bits on the wide path (cl_wide.py, 8 pixels per call) as on the
+negatives and NaN) give the same bits on the wide path (opencl/wide/, 8 pixels per call) as on the
 scalar path on hard inputs: NaN, +-inf, +-0, denormals, FLT_MIN, values around 2^31 and 2^32,
 shift counts negative and >= 32.  A full-screen technique picks operand a from frag_coord.x and
 b from frag_coord.y out of a table of such values (a ternary chain: per pixel, so nothing is

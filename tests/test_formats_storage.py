@@ -1,6 +1,6 @@
 """``formats.Format`` describes its storage (bits, kind, packing, conversions, dtype) and the
 backends derive everything from that: GL's enums (``runtime/gl_formats.py``), OpenCL's buffer
-layout and conversions (``backends/opencl.cl_format``), the CL runtime's packing."""
+layout and conversions (``backends/opencl/formats.cl_format``), the CL runtime's packing."""
 
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def test_scale_bits16():
 
 
 def test_opencl_layouts_are_derived():
-    from pipegen.backends.opencl.emit import cl_format
+    from pipegen.backends.opencl.formats import cl_format
     for name, f in F.FORMATS.items():
         d = cl_format(name)
         assert d["storage"] and d["load"] and d["store"] and d["name"] == name
@@ -84,7 +84,7 @@ def test_opencl_layouts_are_derived():
 
 
 def test_opencl_prelude_conversions_follow_the_table():
-    from pipegen.backends.opencl.emit import scaled16_conversions
+    from pipegen.backends.opencl.formats import scaled16_conversions
     (conv,) = scaled16_conversions()
     assert conv["name"] == "rgb10a2"
     assert conv["expr"] == "c.xyz >> 6, ((c.w >> 2) * 3u + 8192u) >> 14"

@@ -11,7 +11,8 @@ import pytest
 from pipegen.ir import nodes as ir, walk as irwalk, verify
 from pipegen.backends.cstyle import CStyleLanguage
 from pipegen.backends.glsl import GLSLLanguage, emit_gl
-from pipegen.backends.opencl.emit import OpenCLLanguage, emit_cl
+from pipegen.backends.opencl.dialect import OpenCLLanguage
+from pipegen.backends.opencl.emit import emit_cl
 from pipegen.compiler.driver import compile_source
 from pipegen.passes import lower_mix_constant
 

@@ -124,7 +124,7 @@ def test_snorm_quantize_follows_llvmpipe():
 
 
 def test_snorm_opencl_layout():
-    from pipegen.backends.opencl.emit import cl_format
+    from pipegen.backends.opencl.formats import cl_format
     f = cl_format("rg16_snorm")
     assert f["cls"] == "snorm" and f["storage"] == "short2" and f["reg"] == "uint4"
     assert "convert_int4_rte" in f["encode"] and "-1.0f" in f["read"]

@@ -22,8 +22,8 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.backends.opencl import emit as clgen
-from pipegen.backends.opencl.emit import SUBPIXEL
+from pipegen.backends.opencl import programs as cl_programs
+from pipegen.backends.opencl.abi import SUBPIXEL
 from pipegen.runtime.cl import context as cl_context
 
 __all__ = ["DeviceBinner", "DeviceBins", "enabled"]
@@ -103,7 +103,7 @@ class DeviceBinner:
     def _kernels_once(self):
         import pyopencl as cl
         if self._kernels is None:
-            prog = cl_context.build_program(clgen.bin_program())
+            prog = cl_context.build_program(cl_programs.bin_program())
             self._kernels = tuple(cl.Kernel(prog, name) for name in
                                   ("pg_bin_count", "pg_bin_starts", "pg_bin_write"))
         return self._kernels

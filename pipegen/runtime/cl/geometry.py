@@ -22,7 +22,7 @@ from typing import Optional
 import numpy as np
 
 from pipegen.ir import nodes as ir
-from pipegen.backends.opencl import emit as clgen
+from pipegen.backends.opencl import abi as cl_abi
 from pipegen.backends.plan import PassPlan, Plan
 from pipegen.runtime.cl import (
     bin as cl_bin, context as cl_context, setup_device as cl_setup_device)
@@ -450,9 +450,9 @@ class DrawGeometry:
                 continue
             if self._raster_key(q, *sizes[k]) != key:
                 continue
-            members.append((k, clgen.varying_slots(q), "frag_coord" in q.code.inputs))
+            members.append((k, cl_abi.varying_slots(q), "frag_coord" in q.code.inputs))
         union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
-        names = [n for n in clgen.SCENE_VARYINGS if n in union]
+        names = [n for n in cl_abi.SCENE_VARYINGS if n in union]
         providers, missing = [], set(names)
         for k, slots, _ in sorted(members, key=lambda m: -len(m[1])):
             have = [v["name"] for v in slots]
@@ -500,7 +500,7 @@ class DrawGeometry:
         if kind is ir.DrawKind.LIGHTS:
             key = key + (lights,)
         elif kind is ir.DrawKind.SCENE:
-            names = [v["name"] for v in clgen.varying_slots(p)]
+            names = [v["name"] for v in cl_abi.varying_slots(p)]
             pkey = key + (tuple(names),)
             if pkey in self.frame:
                 return self.frame[pkey]

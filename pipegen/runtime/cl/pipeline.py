@@ -16,7 +16,7 @@ for after a frame (a frame's count buffers stay until the next frame's first ble
 zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P
 codes/ulps per pixel from it (DESIGN.md §7).
 
-Per pass (see ``backends/opencl.py`` for the program, ``cl_setup_device.py`` and
+Per pass (see ``backends/opencl/`` for the program, ``cl_setup_device.py`` and
 ``cl_bin.py`` for the set-up and binning kernels, ``cl_setup.py`` for the numpy set-up and
 binning they replace):
 
@@ -89,7 +89,7 @@ from typing import Optional
 import numpy as np
 
 from pipegen.ir import nodes as ir
-from pipegen.backends.opencl import emit as clgen
+from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime import draws
@@ -154,7 +154,7 @@ def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
 class CLPipeline:
     def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None,
                  cache_dir: Optional[str] = None, dynamic_state: bool = False,
-                 tile: int = clgen.TILE):
+                 tile: int = cl_abi.TILE):
         plan = plan_from_dict(plan)
         assert plan.backend in ("cl", ""), "CLPipeline needs a plan from emit_cl"
         # a pass without code (a plan written by hand) has no fragment function
@@ -206,8 +206,9 @@ class CLPipeline:
 
     def source(self, k: int) -> str:
         p = self.plan.passes[k]
-        if self.dynamic_state or p.code is None or not p.code.kernel or self.tile != clgen.TILE:
-            return clgen.pass_program(self.plan, p, dynamic=self.dynamic_state, tile=self.tile)
+        if self.dynamic_state or p.code is None or not p.code.kernel or self.tile != cl_abi.TILE:
+            return cl_programs.pass_program(self.plan, p, dynamic=self.dynamic_state,
+                                            tile=self.tile)
         return p.code.kernel
 
     # -- targets ----------------------------------------------------------------------------------
@@ -392,7 +393,7 @@ class CLPipeline:
         dev = self.device
         st = dev.dummy
         if self.dynamic_state:
-            st = dev.buffer(np.asarray(clgen.state_words(p), np.int32))
+            st = dev.buffer(np.asarray(cl_abi.state_words(p), np.int32))
         args = [np.int32(width), np.int32(height), np.int32(tb.tiles_x), tb.tile_list,
                 tb.tile_start, tb.tile_tris, bufs["a"], bufs["b"], bufs["c"],
                 bufs["z"], bufs["w"], bufs["coef"], np.int32(geo.ncoef),

@@ -62,7 +62,7 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.backends.opencl.emit import SUBPIXEL  # 1/256 pixel, one place for it
+from pipegen.backends.opencl.abi import SUBPIXEL  # 1/256 pixel, one place for it
 
 
 @dataclass

@@ -33,7 +33,7 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.backends.opencl import emit as clgen
+from pipegen.backends.opencl import programs as cl_programs
 from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime.cl.setup import Triangles, setup_triangles
 
@@ -97,7 +97,7 @@ class DeviceSetup:
         import pyopencl as cl
         kerns = self._kernels.get(switches)
         if kerns is None:
-            prog = cl_context.build_program(clgen.setup_program(*switches))
+            prog = cl_context.build_program(cl_programs.setup_program(*switches))
             kerns = self._kernels[switches] = (cl.Kernel(prog, "pg_setup"),
                                                cl.Kernel(prog, "pg_clip_setup"))
         return kerns

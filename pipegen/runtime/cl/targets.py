@@ -292,8 +292,8 @@ class TargetStore:
             return self._resolvers[key]
         kern = None
         if not self.f64:
-            from pipegen.backends.opencl import emit as clgen
-            src = clgen.resolve_program(fmt.name, t.samples)
+            from pipegen.backends.opencl import programs as cl_programs
+            src = cl_programs.resolve_program(fmt.name, t.samples)
             if src is not None:
                 kern = cl.Kernel(cl_context.build_program(src), "pg_resolve")
         self._resolvers[key] = kern

@@ -1,0 +1,228 @@
+"""The OpenCL programs, assembled from the templates: the prelude every pass program starts with
+(``prelude_source``), the program of one pass (``pass_program``: the fragment code the emitter
+rendered, the pass's fixed-function state as ``S_*`` macros, the vertex and raster kernels of
+``templates/cl_pass.cl.j2``), and the runtime's own programs: triangle set-up, binning and
+multisample resolve."""
+
+from __future__ import annotations
+
+import functools
+import textwrap
+from typing import Optional
+
+from pipegen.core import formats as F
+from pipegen.core.float32 import f32
+from pipegen.ir import nodes as ir
+from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS
+from pipegen.backends import templating
+from pipegen.backends.cstyle import FLT_MIN
+from pipegen.backends.plan import CLPassCode, PassPlan, Plan
+from pipegen.backends.opencl import wide as cl_wide
+from pipegen.backends.opencl.abi import (
+    SCENE_FLAT, SETUP_CULL, SUBPIXEL, TILE, enum_defines, inside_func, sample_positions,
+    state_values, varying_slots)
+from pipegen.backends.opencl.dialect import OpenCLLanguage, dialect
+from pipegen.backends.opencl.formats import (
+    cl_format, cl_format64, pad_to_four, rcp_literal, read_expr, scaled16_conversions)
+
+# ---- the prelude -----------------------------------------------------------------------------
+
+
+@templating.template_filter
+def c_comment(text: str, width: int = 95) -> str:
+    """``text`` as a C block comment wrapped at ``width`` columns."""
+    lines = textwrap.wrap(text + " */", width, initial_indent="/* ", subsequent_indent=" * ",
+                          break_on_hyphens=False, break_long_words=False)
+    return "\n".join(lines)
+
+
+@functools.lru_cache(maxsize=None)
+def prelude_source(tile: int = TILE, precision: str = "f32", previous: bool = False) -> str:
+    """The prelude every pass program starts with (``templates/cl_prelude.cl.j2``); with
+    ``precision="f64"`` followed by the float64 evaluation's building blocks; ``previous``:
+    the frame structs end with the previous frame's camera (``prev_view``, ``prev_proj``).
+    Rendered once per arguments (every pass program of a plan starts with the same one)."""
+    return templating.render("cl_prelude.cl.j2", tile=tile, enums=enum_defines(),
+                             scaled16=scaled16_conversions(), f64=precision == "f64",
+                             previous=previous)
+
+
+# ---- per-pass program --------------------------------------------------------------------------
+
+
+def _state_defines(pass_: PassPlan, dynamic: bool,
+                   precision: str = "f32") -> list[tuple[str, str]]:
+    lang = dialect(precision)()
+    out = []
+    for k, (name, kind, value) in enumerate(state_values(pass_)):
+        if dynamic:
+            out.append((name, f"as_float(pg_st[{k}])" if kind == "f" else f"(pg_st[{k}])"))
+        else:
+            out.append((name, lang.render_float(value) if kind == "f" else str(value)))
+    names = {name for name, _ in out}
+    for i, (name, value) in enumerate(out):
+        if name + "_IN" in names:     # per triangle: the `inside` test or the pass's own
+            out[i] = (name, f"(pg_inside ? {name}_IN : {value})")
+    return out
+
+
+# scene varyings in the float64 kernel: (type, value) over the parent triangle's attributes
+# interpolated at the pixel with exact perspective-correct weights (``P``: position, ``N``:
+# normal, double3) and its provoking vertex ``pv`` (flat values); a varying that is an affine
+# function of an attribute (view-space position, view-space normal) is that function of the
+# interpolated attribute -- the same value as interpolating it per vertex, without rounding
+SCENE_VARYINGS64 = {
+    "world_pos": ("double3", "P"),
+    "view_pos": ("double3", "pg_dm4_mul_v4(frame64->view, (double4)(P, 1.0)).xyz"),
+    "normal": ("double3", "N"),
+    "view_normal": ("double3", "pg_dm3_mul_v3(pg_dm3_from_m4(frame64->view), N)"),
+    "albedo": ("double3", "convert_double3(a_albedo[pv].xyz)"),
+    "specular": ("double", "(double)a_material[pv].x"),
+    "shininess": ("double", "(double)a_material[pv].y"),
+    "alpha": ("double", "(double)a_material[pv].z"),
+}
+
+
+def prelude_file(precision: str = "f32", previous: bool = False) -> str:
+    """The file name ``pipegen compile`` writes a prelude to (``prelude_source``'s arguments;
+    the pass programs ``#include`` it, see ``CLPassCode.included``)."""
+    return "prelude" + ("_previous_frame" if previous else "") + \
+        ("" if precision == "f32" else f"_{precision}") + ".cl"
+
+
+def pass_prelude(pass_: PassPlan, tile: int, precision: str) -> tuple[str, str]:
+    """(file name, text) of the prelude the program of ``pass_`` starts with."""
+    code = pass_.code if pass_.code is not None else CLPassCode("", None)
+    previous = bool(set(code.inputs) & set(PREVIOUS_FRAME_INPUTS))
+    return prelude_file(precision, previous), prelude_source(tile, precision, previous)
+
+
+def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int = TILE) -> str:
+    """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument),
+    in the plan's precision (``plan.precision``: "f32", or "f64" for the float64 evaluation:
+    the same program with double arithmetic and storage, docs/internals.md)."""
+    if not 1 <= int(tile) <= 64:       # pg_raster keeps a row's drawn pixels in a ulong mask
+        raise ValueError(f"tile size {tile}: the raster kernel supports 1 to 64")
+    precision = plan.precision
+    f64 = precision == "f64"
+    fmt_of = cl_format64 if f64 else cl_format
+    code = pass_.code if pass_.code is not None else CLPassCode("", None)
+    writes = []
+    for k, name in enumerate(pass_.writes):
+        f = fmt_of(plan.target(name).format.name)
+        writes.append({**f, "k": k, "name": name, "format": f["name"],
+                       "bpp": plan.target(name).format.bytes_per_pixel})
+    depth = None
+    stencil = False
+    if pass_.depth_target:
+        fmt = plan.target(pass_.depth_target).format
+        depth = fmt_of(fmt.name)
+        stencil = fmt.has_stencil
+    reads = []
+    for name in pass_.reads:
+        f = fmt_of(plan.target(name).format.name)
+        reads.append({**f, "name": name, "format": f["name"], "decoded": read_expr(f),
+                      "integer": f["cls"] == "uint",
+                      "linear": f["cls"] in ("unorm8", "unorm", "snorm", "half", "float", "f64"),
+                      "sampled": name in code.sampled})
+    inputs = set(code.inputs)
+    draw = pass_.draw
+    fields = [f[0] for f in plan.lights.fields]
+    volume = (draw.volume or ir.Volume.SPHERE).value
+    slots = {f: k for k, f in enumerate(fields)}
+    # the previous frame's camera: in the frame struct of the programs that read it only
+    # (the host's frame buffer always holds it, after the common fields)
+    prelude = pass_prelude(pass_, tile, precision)[1]
+    samples = plan.pass_samples(pass_)
+    sx, sy = sample_positions(samples)
+    varyings = varying_slots(pass_)
+    # the wide fragment function (cl_wide.py: PG_W pixels per call), when the emitter made one
+    wide = not f64 and cl_wide.has_wide(code.fragment)
+    early_z = code.discard and not _writes_stencil(pass_, stencil, dynamic)
+    depth_store = dynamic or _writes_depth(pass_)
+    # batches across triangles (cl_pass.cl.j2): wide passes without varyings, unless a
+    # fragment's late depth write could be one a later triangle's early test must see
+    xbatch = wide and cl_wide.CROSS_TRIANGLE and not varyings and not (early_z and depth_store)
+    if f64:
+        for v in varyings:
+            v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
+    return templating.render(
+        "cl_pass.cl.j2",
+        technique=plan.technique, pass_name=pass_.name, prelude=prelude,
+        dynamic=dynamic, state=_state_defines(pass_, dynamic, precision),
+        kind=draw.kind.value, volume=volume, slots=slots, light_fields=len(fields),
+        varyings=varyings,
+        flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
+        writes=writes, depth=depth, stencil=stencil, reads=reads,
+        fragment=code.fragment, discard=code.discard, early_z=early_z, depth_store=depth_store,
+        stencil_load=stencil and (dynamic or pass_.state.stencil.enabled),
+        stencil_store=_writes_stencil(pass_, stencil, dynamic),
+        flt_min=OpenCLLanguage().render_float(FLT_MIN),
+        scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
+        inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
+        wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
+        wide_w=cl_wide.W)
+
+
+def _writes_depth(pass_: PassPlan) -> bool:
+    """Whether a pass (its baked state) may write its depth attachment: the raster kernel
+    stores the depth it keeps per row only then."""
+    rows = {name: value for name, _, value in state_values(pass_)}
+    return bool(rows.get("S_DEPTH_WRITE") or rows.get("S_DEPTH_WRITE_IN"))
+
+
+def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
+    """Whether a pass may write its stencil attachment.  A pass whose fragment function may
+    discard tests depth and stencil before shading and writes depth after it (llvmpipe's
+    EARLY_DEPTH_TEST | LATE_DEPTH_WRITE, lp_state_fs.c) unless it writes stencil: a stencil op
+    runs on the test's outcome, which a later discard must undo.  Dynamic-state programs
+    (tests) take any state, so any stencil attachment counts."""
+    if not stencil:
+        return False
+    if dynamic:
+        return True
+    keep = ir.StencilOp.KEEP
+    return any(f.write_mask & 0xFF and (f.fail, f.zfail, f.zpass) != (keep, keep, keep)
+               for f in (pass_.state.stencil.front, pass_.state.stencil.back))
+
+
+# ---- runtime programs: triangle set-up, binning and multisample resolve ---------------------
+
+
+def setup_program(cull: str, depth_clamp: bool, samples: Optional[int], has_flat: bool,
+                  has_scissor: bool, w_plane: bool, with_zq: bool, smooth: tuple,
+                  slots: int) -> str:
+    """The device set-up program (``cl_setup.cl.j2``: ``pg_setup``, ``pg_clip_setup``) for one
+    combination of the set-up's switches (``runtime/cl/setup_device.py``)."""
+    lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
+    return templating.render(
+        "cl_setup.cl.j2", cull=SETUP_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
+        box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor), w_plane=int(w_plane),
+        with_zq=int(with_zq), smooth=list(smooth), slots=int(slots))
+
+
+def bin_program() -> str:
+    """The device binning program (``cl_bin.cl.j2``: ``pg_bin_count``, ``pg_bin_starts``,
+    ``pg_bin_write``; ``runtime/cl/bin.py``)."""
+    return templating.render("cl_bin.cl.j2", subpixel=SUBPIXEL)
+
+
+def resolve_program(format_name: str, samples: int) -> Optional[str]:
+    """The device multisample resolve (``cl_resolve.cl.j2``, ``pg_resolve``) of a target
+    format, or None for the formats it does not take (float32, snorm, integer: the runtime
+    resolves those in numpy)."""
+    fmt = F.get(format_name)
+    f = cl_format(format_name)
+    if not (f["cls"] in ("unorm8", "unorm", "half")
+            or (fmt.kind is F.Kind.DEPTH_STENCIL and fmt.bits[0] == 24)):
+        return None
+    top = rcp_literal(1.0)
+    if f["cls"] in ("unorm8", "unorm"):
+        tops = pad_to_four([float((1 << b) - 1) for b in fmt.bits], len(fmt.bits))
+        top = "(float4)(" + ", ".join(rcp_literal(v) for v in tops) + ")"
+    return templating.render(
+        "cl_resolve.cl.j2", prelude=prelude_source(TILE, "f32", False), f=f,
+        stencil=fmt.kind is F.Kind.DEPTH_STENCIL, samples=samples,
+        inv_samples=rcp_literal(float(f32(1.0 / samples))), top=top,
+        d24_rcp=rcp_literal(float(f32(1.0 / 16777215.0))))
+

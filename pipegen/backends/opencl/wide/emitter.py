@@ -1,0 +1,36 @@
+"""``WideEmitter``: renders ``pg_fragment_w``, the fragment code of a pass for ``W`` pixels per
+call, from the IR (statements and functions: ``statements``; expressions: ``expressions``)."""
+
+from __future__ import annotations
+
+from pipegen.ir import nodes as ir
+from pipegen.backends.opencl.wide.expressions import WideExpressions
+from pipegen.backends.opencl.wide.statements import WideStatements
+from pipegen.backends.opencl.wide.values import MARK, W, Val
+
+
+class WideEmitter(WideStatements, WideExpressions):
+    """The lowering of one pass (``tech``, ``pass_``) through ``lang`` (``OpenCLLanguage``: the
+    scalar dialect, whose spellings of literals, inputs and builtins it shares)."""
+
+    def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang):
+        self.tech, self.pass_, self.lang = tech, pass_, lang
+        self.functions: dict = {}
+        # what the emitted text holds: the structs and specialised functions the current
+        # render uses (a discarded render's additions are taken back, see _function_body)
+        self.out_funcs: dict[str, str] = {}      # specialised name -> source
+        self.structs: dict[str, str] = {}
+        self.func_ret: dict[str, Val] = {}       # specialised name -> return shape (all renders)
+        # specialised name -> the (dict, key, text) entries its emission added, itself last:
+        # a function a discarded render emitted is put back without rendering it again
+        self.emitted: dict[str, list] = {}
+
+    # ---- entry -------------------------------------------------------------------------------
+    def fragment(self, functions) -> str:
+        self.functions = {f.name: f for f in functions}
+        body = self._function_body(self.pass_.body, {}, main=True)
+        lines = [f"static inline int{W} pg_fragment_w(const pg_in *in, const pgw_in *win, "
+                 "pgw_out *out) {", f"    int{W} pg_live = (int{W})(-1);", *body,
+                 "    return pg_live;", "}"]
+        parts = [MARK] + list(self.structs.values()) + list(self.out_funcs.values())
+        return "\n\n".join(parts + ["\n".join(lines)]) + "\n"
