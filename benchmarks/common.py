@@ -8,6 +8,8 @@ import statistics
 import time
 from pathlib import Path
 
+from pipegen.tools.timing import interleave
+
 ROOT = Path(__file__).resolve().parents[1]
 # Every shipped technique (pipelines/*.pipe), the default of the benchmarks that take a list.
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
@@ -43,24 +45,14 @@ def interleaved(fns: dict, frames: int, alternate: bool = True, cpu=None,
     drift in the machine's load hits all alike: in the dict's order, reversed on odd frames if
     ``alternate`` (ABBA: none always runs first), after one untimed call of each if ``warmup``.
     Returns, per name, the wall time (s) of each call and, if ``cpu`` (a clock in seconds, e.g.
-    ``time.process_time``) is given, under ``name + "_cpu"`` the CPU time of each call."""
-    if warmup:
-        for fn in fns.values():
-            fn()
+    ``time.process_time``) is given, under ``name + "_cpu"`` the CPU time of each call.  The
+    loop is ``pipegen.tools.timing.interleave``, the one ``pipegen sweep`` times with."""
     out: dict[str, list[float]] = {}
-    for name in fns:
-        out[name] = []
+    for name, s in interleave(fns, frames, alternate=alternate, cpu=cpu,
+                              warmup=warmup).items():
+        out[name] = s.wall
         if cpu is not None:
-            out[name + "_cpu"] = []
-    order = list(fns.items())
-    for i in range(frames):
-        for name, fn in (order[::-1] if alternate and i % 2 else order):
-            c0 = cpu() if cpu is not None else 0.0
-            t0 = time.perf_counter()
-            fn()
-            out[name].append(time.perf_counter() - t0)
-            if cpu is not None:
-                out[name + "_cpu"].append(cpu() - c0)
+            out[name + "_cpu"] = s.cpu
     return out
 
 

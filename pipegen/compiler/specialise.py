@@ -24,8 +24,9 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from pipegen.core.units import format_bytes
 from pipegen.ir import nodes as ir
-from pipegen.views.graph import human_bytes, target_memory
+from pipegen.ir.memory import specialisation_bytes
 from pipegen.ir.verify import verify as verify_ir
 from pipegen.scene.features import SceneFeatures, scene_features
 from pipegen.passes import (
@@ -66,7 +67,7 @@ class Specialisation:
 
     def memory(self, w: int, h: int) -> tuple[int, int]:
         """Bytes of all targets at output size ``w`` x ``h``, before and after."""
-        return target_memory(self.general, w, h), target_memory(self.special, w, h)
+        return specialisation_bytes(self.general, self.special, w, h)
 
     def cut_lines(self, params: bool = False) -> list[str]:
         """The facts specialised for, then each cut with its reason (and, with ``params``,
@@ -95,8 +96,8 @@ class Specialisation:
                 f"         after  ({len(after_p)}): {', '.join(after_p)}",
                 f"targets  before ({len(before_t)}): {', '.join(before_t)}",
                 f"         after  ({len(after_t)}): {', '.join(after_t)}",
-                f"target memory at {w}x{h}: {human_bytes(before_m)} -> {human_bytes(after_m)} "
-                f"({human_bytes(before_m - after_m)} saved)"]
+                f"target memory at {w}x{h}: {format_bytes(before_m)} -> {format_bytes(after_m)} "
+                f"({format_bytes(before_m - after_m)} saved)"]
 
 
 _CACHE: dict = {}

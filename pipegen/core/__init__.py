@@ -5,5 +5,5 @@
 ``formats`` (the render-target formats: the one source of truth for codes, ranges and
 rounding), ``sources`` (reading ``.pipe`` files and ``include``), ``outdir`` (output folders
 pipegen owns, written atomically), ``package_files`` (shipped files and the cache folder),
-``defaults`` (the default frame size and the version).
+``defaults`` (the default frame size and the version), ``units`` (byte counts as text).
 """

@@ -14,7 +14,7 @@ import dataclasses
 from typing import Optional
 
 from pipegen.ir import nodes as ir
-from pipegen.passes.cull_unread import reads
+from pipegen.ir.access import reads
 
 
 def run(tech: ir.Technique) -> ir.Technique:

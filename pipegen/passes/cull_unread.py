@@ -4,12 +4,13 @@
 Walking the passes backwards from the technique's output, a pass is live when it writes a
 target that is needed: the output, or a target a later live pass reads (``reads``, its depth
 target when it tests depth or stencil).  A pass writes its colour targets, its clears and its
-depth target when it writes depth or stencil.  A ``repeat per light`` group runs its passes in
-turn for every light, so a group is walked until nothing changes (a pass may feed an earlier
-one of the group for the next light).  Dead passes and the targets no live pass touches are
-removed, each with the reason: the targets it writes, and the culled passes that were their
-only readers.  Runs only on scene-specialised techniques (``tech.scene``): without a scene
-the technique's every target is an output the user asked for.
+depth target when it writes depth or stencil (``reads`` and ``writes`` are ``ir/access.py``'s,
+the one definition).  A ``repeat per light`` group runs its passes in turn for every light, so
+a group is walked until nothing changes (a pass may feed an earlier one of the group for the
+next light).  Dead passes and the targets no live pass touches are removed, each with the
+reason: the targets it writes, and the culled passes that were their only readers.  Runs only
+on scene-specialised techniques (``tech.scene``): without a scene the technique's every target
+is an output the user asked for.
 """
 
 from __future__ import annotations
@@ -17,28 +18,7 @@ from __future__ import annotations
 import dataclasses
 
 from pipegen.ir import nodes as ir
-
-
-def _stencil_writes(f: ir.StencilFace) -> bool:
-    ops = (f.fail, f.zfail, f.zpass)
-    return f.write_mask != 0 and any(op is not ir.StencilOp.KEEP for op in ops)
-
-
-def reads(p: ir.Pass) -> set[str]:
-    out = set(p.reads)
-    s = p.state
-    if p.depth_target and (s.depth.enabled or s.stencil.enabled):
-        out.add(p.depth_target)
-    return out
-
-
-def writes(p: ir.Pass) -> set[str]:
-    out = set(p.writes) | {name for name, _ in p.clears}
-    s = p.state
-    if p.depth_target and (s.depth.write or _stencil_writes(s.stencil.front)
-                           or _stencil_writes(s.stencil.back)):
-        out.add(p.depth_target)
-    return out
+from pipegen.ir.access import reads, writes
 
 
 def _groups(passes) -> list[list[int]]:
@@ -60,7 +40,7 @@ def live_passes(tech: ir.Technique) -> set[int]:
             before = (len(live), len(needed))
             for k in reversed(block):
                 p = tech.passes[k]
-                if k in live or writes(p) & needed:
+                if k in live or writes(tech, p) & needed:
                     live.add(k)
                     needed |= reads(p)
             if (len(live), len(needed)) == before:
@@ -77,7 +57,7 @@ def run(tech: ir.Technique) -> ir.Technique:
     cuts = []
     for p in culled:
         parts = []
-        for t in sorted(writes(p)):
+        for t in sorted(writes(tech, p)):
             readers = [q.name for q in tech.passes if t in reads(q) and q.name != p.name]
             readers += [name for name, r in earlier.items() if t in r]
             if not readers:
@@ -89,14 +69,14 @@ def run(tech: ir.Technique) -> ir.Technique:
         cuts.append(ir.Cut("pass", p.name, "it writes " + "; ".join(parts),
                            tuple(sorted(reads(p)))))
     passes = tuple(p for k, p in enumerate(tech.passes) if k in live)
-    used = {tech.output} | {t for p in passes for t in reads(p) | writes(p) | set(p.writes)}
+    used = {tech.output} | {t for p in passes for t in reads(p) | writes(tech, p)}
     used |= {p.depth_target for p in passes if p.depth_target}
     targets = []
     for t in tech.targets:
         if t.name in used:
             targets.append(t)
             continue
-        users = [p.name for p in tech.passes if t.name in reads(p) | writes(p)
+        users = [p.name for p in tech.passes if t.name in reads(p) | writes(tech, p)
                  or t.name == p.depth_target]
         users += [name for name, r in earlier.items() if t.name in r and name not in users]
         why = ("no pass uses it" if not users else "used only by culled pass"

@@ -55,6 +55,9 @@ from pathlib import Path
 from typing import Callable, Optional
 
 from pipegen.core.diagnostics import PipegenError
+from pipegen.core.units import format_bytes, mebibytes
+from pipegen.ir.memory import technique_bytes
+from pipegen.tools.timing import interleave
 
 # at least these columns, in this order, then the extras
 COLUMNS = ["technique", "params", "backend", "frame_ms", "target_bytes", "rmse_scene",
@@ -170,15 +173,6 @@ def plan_variants(files: list, axes: Optional[dict] = None) -> tuple[list[Varian
                                      f"{', '.join(map(repr, unknown))}",
                                hint="pipegen info FILE lists a technique's parameters")
     return variants, compiled
-
-
-def target_bytes(technique, width: int, height: int) -> int:
-    """Bytes of every target at the output size (format bytes per pixel x samples)."""
-    total = 0
-    for t in technique.targets:
-        tw, th = t.size.resolve(width, height)
-        total += tw * th * t.format.bytes_per_pixel * t.samples
-    return total
 
 
 def f64_supported() -> bool:
@@ -326,20 +320,14 @@ def _timing_main() -> int:
             bar.update(1)
             row[b] = fn
         pipes.append(row)
-    times = [{b: [] for b in backends} for _ in pipes]
-    cpu = [{b: [] for b in backends} for _ in pipes]
-    order = list(range(len(pipes)))
-    for r in range(frames):
-        for b in backends:
-            for i in (order if r % 2 == 0 else order[::-1]):
-                c0, t0 = time.process_time(), time.perf_counter()
-                pipes[i][b]()
-                times[i][b].append(time.perf_counter() - t0)
-                cpu[i][b].append(time.process_time() - c0)
-                bar.update(1)
+    samples = interleave({(b, i): row[b] for b in backends for i, row in enumerate(pipes)},
+                         frames, cpu=time.process_time, warmup=False,
+                         after_call=lambda _: bar.update(1))
     bar.close()
-    ms = [{b: statistics.median(t[b]) * 1e3 for b in backends} for t in times]
-    cpu_ms = [{b: statistics.median(t[b]) * 1e3 for b in backends} for t in cpu]
+    ms = [{b: statistics.median(samples[b, i].wall) * 1e3 for b in backends}
+          for i in range(len(pipes))]
+    cpu_ms = [{b: statistics.median(samples[b, i].cpu) * 1e3 for b in backends}
+              for i in range(len(pipes))]
     how = (f"frame times: median of {frames} frames after 1 warm-up, "
            f"in one fresh process ({os.uname().nodename}, "
            f"pid {os.getpid()}) with LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {threads}, "
@@ -498,7 +486,7 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
 
     rows, maps = [], {}
     for v, res in zip(variants, results):
-        tb = target_bytes(compiled[v.index].technique, s.width, s.height)
+        tb = technique_bytes(compiled[v.index].technique, s.width, s.height)
         for b in backends:
             m = res["metrics"][b]
             row = dict(technique=v.technique, params=v.params_text, backend=b,
@@ -532,7 +520,7 @@ def format_table(rows: list[dict]) -> str:
     header = ("technique", "params", "backend", "frame ms", "targets MiB", "rmse", "p99",
               "max", "ꟻLIP", "rmse f64", "p99 f64", "max f64", "agree")
     body = [(r["technique"], r["params"] or "-", r["backend"], _fmt(r["frame_ms"], 1),
-             f"{r['target_bytes'] / 2 ** 20:.2f}", _fmt(r["rmse_scene"], 2),
+             format_bytes(r["target_bytes"], "MiB", suffix=False), _fmt(r["rmse_scene"], 2),
              _fmt(r["p99_scene"], 0), _fmt(r["max_scene"], 0), _fmt(r["flip_scene"], 4),
              _fmt(r["rmse_f64"], 3), _fmt(r["p99_f64"], 0), _fmt(r["max_f64"], 0),
              {True: "yes", False: "NO", None: "-"}[r["agree"]]) for r in rows]
@@ -621,7 +609,7 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
     names = {"gl": "GL (llvmpipe)", "cl": "CL (PoCL)"}
     for ax, b in zip(axes[0], backends):
         rows = [r for r in result.rows if r["backend"] == b]
-        pts = [(r["rmse_scene"], r["frame_ms"] if timed else r["target_bytes"] / 2 ** 20)
+        pts = [(r["rmse_scene"], r["frame_ms"] if timed else mebibytes(r["target_bytes"]))
                for r in rows]
         order = sorted(range(len(rows)), key=lambda i: pts[i][1])
         for rank, i in enumerate(order):

@@ -25,8 +25,11 @@ import textwrap
 from pathlib import Path
 from typing import Optional
 
-from pipegen.ir import nodes as ir
 from pipegen.core.diagnostics import PipegenError
+from pipegen.core.units import format_bytes
+from pipegen.ir import nodes as ir
+from pipegen.ir.access import depth_use
+from pipegen.ir.memory import specialisation_bytes, technique_bytes
 
 TEXT_SUFFIXES = (".dot", ".gv")
 RENDERED_SUFFIXES = (".svg", ".png", ".pdf")
@@ -35,51 +38,6 @@ SUFFIXES = TEXT_SUFFIXES + RENDERED_SUFFIXES
 # colours: live, culled, reads, depth/stencil
 INK, GREY, FAINT, READ, DEPTH = "#222222", "#9a9a9a", "#efefef", "#2060b0", "#2e7d32"
 PASS_FILL, TARGET_FILL, OUTPUT_FILL = "#fff4d6", "#e3eefc", "#d4f0d4"
-
-
-# ---- memory ------------------------------------------------------------------------------------
-
-
-def target_memory(tech: ir.Technique, w: int, h: int) -> int:
-    """Bytes of all targets at output size ``w`` x ``h`` (samples included)."""
-    total = 0
-    for t in tech.targets:
-        tw, th = t.size.resolve(w, h)
-        total += tw * th * t.format.bytes_per_pixel * t.samples
-    return total
-
-
-def human_bytes(n: int) -> str:
-    if abs(n) >= 1 << 20:
-        return f"{n / (1 << 20):.2f} MiB"
-    if abs(n) >= 1 << 10:
-        return f"{n / (1 << 10):.1f} KiB"
-    return f"{n} B"
-
-
-# ---- what a pass does to a target --------------------------------------------------------------
-
-
-def _stencil_writes(f: ir.StencilFace) -> bool:
-    return f.write_mask != 0 and any(op is not ir.StencilOp.KEEP
-                                     for op in (f.fail, f.zfail, f.zpass))
-
-
-def depth_use(p: ir.Pass) -> tuple[list[str], list[str]]:
-    """(tests, writes) of a pass on its depth attachment: "depth", "stencil"."""
-    s = p.state
-    tests, writes = [], []
-    if s.depth.func is not ir.CompareFunc.ALWAYS:
-        tests.append("depth")
-    if s.depth.write:
-        writes.append("depth")
-    if s.stencil.enabled:
-        faces = (s.stencil.front, s.stencil.back)
-        if any(f.func is not ir.CompareFunc.ALWAYS for f in faces):
-            tests.append("stencil")
-        if any(_stencil_writes(f) for f in faces):
-            writes.append("stencil")
-    return tests, writes
 
 
 # ---- DOT ---------------------------------------------------------------------------------------
@@ -202,7 +160,7 @@ def build_dot(compiled, size: tuple[int, int] = (1280, 720), title: Optional[str
         for t in p.reads:
             edge(_tid(t), pid, READ, targets=(t,))
         if p.depth_target:
-            tests, writes = depth_use(p)
+            tests, writes = depth_use(tech, p)
             d = p.depth_target
             if p.depth_target in cleared and not writes:
                 writes = ["clear"]
@@ -224,20 +182,20 @@ def _title(compiled, tech: ir.Technique, spec, size) -> str:
     legend = ("edges: black writes (blend: blended), blue reads, green depth/stencil"
               + ("; grey, dashed: culled, with the reason" if spec is not None else ""))
     if spec is None:
-        return (f"{head}\ntargets at {w}x{h}: {human_bytes(target_memory(tech, w, h))}\n"
+        return (f"{head}\ntargets at {w}x{h}: {format_bytes(technique_bytes(tech, w, h))}\n"
                 f"{legend}")
     special = compiled.technique
     passes = sum(c.kind == "pass" for c in spec.cuts)
     targets = sum(c.kind == "target" for c in spec.cuts)
     branches = sum(c.kind == "branch" for c in spec.cuts)
     other = [c.describe() for c in spec.cuts if c.kind == "table"]
-    before, after = target_memory(tech, w, h), target_memory(special, w, h)
+    before, after = specialisation_bytes(tech, special, w, h)
     out = [head, f"specialised for: {spec.facts.describe()}",
            f"culled (grey): {passes} of {len(tech.passes)} passes, {targets} of "
            f"{len(tech.targets)} targets; {branches} light-type branch"
            f"{'' if branches == 1 else 'es'} removed",
            *other,
-           f"target memory at {w}x{h}: {human_bytes(before)} -> {human_bytes(after)}", legend]
+           f"target memory at {w}x{h}: {format_bytes(before)} -> {format_bytes(after)}", legend]
     return "\n".join(out)
 
 

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 from typing import Optional
 
+from pipegen.core.units import format_bytes
 from pipegen.ir import nodes as ir
+from pipegen.ir.memory import target_bytes, technique_bytes
 
 
 def describe(compiled, output_size: tuple[int, int],
@@ -35,20 +37,18 @@ def describe(compiled, output_size: tuple[int, int],
 
     lines += ["", f"targets at output size {w}x{h} (* = the output image)"]
     rows = [("name", "format", "size", "samples", "B/px", "bytes")]
-    total = 0
     for t in tech.targets:
         tw, th = t.size.resolve(w, h)
-        nbytes = tw * th * t.format.bytes_per_pixel * t.samples
-        total += nbytes
         size = f"{tw}x{th}"
         if not t.size.relative:
             size += " (fixed)"
         elif t.size.scale != 1.0:
             size += f" (output*{t.size.scale:g})"
         rows.append((t.name + (" *" if t.name == tech.output else ""), t.format.name, size,
-                     str(t.samples), str(t.format.bytes_per_pixel), byte_text(nbytes)))
+                     str(t.samples), str(t.format.bytes_per_pixel),
+                     format_bytes(target_bytes(t, w, h), "MiB", exact=True)))
     lines += table(rows)
-    lines.append(f"  total: {byte_text(total)}")
+    lines.append(f"  total: {format_bytes(technique_bytes(tech, w, h), 'MiB', exact=True)}")
 
     lines += ["", "passes (in order)"]
     for i, p in enumerate(tech.passes, 1):
@@ -95,10 +95,6 @@ def option_text(v) -> str:
     if isinstance(v, tuple) and all(isinstance(x, tuple) and len(x) == 2 for x in v):
         return "{" + ", ".join(f"{k}: {option_text(x)}" for k, x in v) + "}"
     return value_text(v)
-
-
-def byte_text(n: int) -> str:
-    return f"{n} ({n / (1 << 20):.2f} MiB)"
 
 
 def table(rows: list[tuple[str, ...]]) -> list[str]:

@@ -3,7 +3,9 @@ pass, packing capacities and errors."""
 
 from __future__ import annotations
 
+from pipegen.core.units import format_bytes
 from pipegen.ir import nodes as ir
+from pipegen.ir.memory import target_bytes, technique_bytes
 
 
 def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
@@ -33,7 +35,7 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
         before, after = spec.memory(w, h)
         lines += ["", "scene specialisation", *[f"  {x}" for x in spec.features.describe()],
                   *[f"  {x}" for x in spec.summary()],
-                  f"  target memory saved at {w}x{h}: {_mib(before - after)}"]
+                  f"  target memory saved at {w}x{h}: {format_bytes(before - after, 'MiB')}"]
     return "\n".join(lines) + "\n"
 
 
@@ -48,21 +50,19 @@ def _error_bound(p: ir.Packing) -> str:
 
 def target_table(tech: ir.Technique, w: int, h: int) -> list[str]:
     rows = [("target", "format", "size", "samples", "B/px", "memory", "written by", "read by")]
-    total = 0
     for t in tech.targets:
         tw, th = t.size.resolve(w, h)
-        nbytes = tw * th * t.format.bytes_per_pixel * t.samples
-        total += nbytes
         writers = [p.name for p in tech.passes
                    if t.name in p.writes or p.depth_target == t.name]
         readers = [p.name for p in tech.passes if t.name in p.reads]
         size = f"{tw}x{th}" + ("" if not t.size.relative or t.size.scale == 1.0
                                else f" (output*{t.size.scale:g})")
         rows.append((t.name + (" *" if t.name == tech.output else ""), t.format.name, size,
-                     str(t.samples), str(t.format.bytes_per_pixel), _mib(nbytes),
+                     str(t.samples), str(t.format.bytes_per_pixel),
+                     format_bytes(target_bytes(t, w, h), "MiB"),
                      ",".join(writers) or "-", ",".join(readers) or "-"))
     out = [f"targets at {w}x{h} (* = output)"] + _table(rows)
-    out.append(f"  total target memory: {_mib(total)}")
+    out.append(f"  total target memory: {format_bytes(technique_bytes(tech, w, h), 'MiB')}")
     return out
 
 
@@ -130,10 +130,6 @@ def _clear(c: ir.Clear) -> str:
     if c.stencil is not None:
         parts.append(f"stencil {c.stencil}")
     return " ".join(parts)
-
-
-def _mib(n: int) -> str:
-    return f"{n / (1 << 20):.2f} MiB"
 
 
 def _value(v) -> str:
