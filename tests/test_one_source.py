@@ -1,7 +1,7 @@
 """One source per fact (issue 23): what a pass does to its attachments (``ir/access.py``),
-target memory (``ir/memory.py``), byte counts as text (``core/units.py``) and the interleaved
-timer (``tools/timing.py``).  Each test states the fact independently and holds every user
-to it."""
+target memory (``ir/memory.py``), byte counts as text (``core/units.py``), the scene checks both
+runtimes run (``runtime/common.check_scene``) and the interleaved timer (``tools/timing.py``).
+Each test states the fact independently and holds every user to it."""
 
 from __future__ import annotations
 
@@ -16,11 +16,13 @@ import pytest
 
 from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.core import formats as F
+from pipegen.core.diagnostics import PipegenError
 from pipegen.core.units import format_bytes, mebibytes
 from pipegen.ir import access, memory, nodes as ir
 from pipegen.passes import cull_unread
 from pipegen.reference.fixed_function import stencil_update
-from pipegen.scene.load import load_scene
+from pipegen.runtime.common import check_scene
+from pipegen.scene.load import Light, load_scene
 from pipegen.tools.timing import interleave
 from pipegen.views.graph import build_dot
 from pipegen.views.info import describe
@@ -188,6 +190,30 @@ def test_no_view_spells_its_own_byte_unit():
                 "pipegen/tools/sweep.py", "pipegen/compiler/specialise.py"):
         text = (ROOT / rel).read_text()
         assert not re.search(r"1 << 20|2 \*\* 20|1 << 10|bytes_per_pixel \*", text), rel
+
+
+# ---- the scene checks both runtimes run ------------------------------------------------------
+
+
+def test_check_scene_refuses_what_the_plan_cannot_draw():
+    plan = compile_file(ROOT / "pipelines/forward.pipe", params={"max_lights": 4}).plan("gl")
+    base = load_scene(ROOT / "examples/scenes/small.toml")
+    light = Light("point", (1, 1, 1), position=(0.0, 1.0, 0.0), radius=3.0)
+    check_scene(plan, dataclasses.replace(base, lights=(light,) * 4))
+    with pytest.raises(PipegenError, match="has 5 lights but technique 'forward' holds 4"):
+        check_scene(plan, dataclasses.replace(base, lights=(light,) * 5))
+    special = compile_file(ROOT / "pipelines/forward.pipe", scene=base).plan("gl")
+    sun = Light("directional", (1, 1, 1), direction=(0.0, -1.0, 0.0))
+    if "directional" not in special.scene.light_types:
+        with pytest.raises(PipegenError, match="specialised for 0 directional lights"):
+            check_scene(special, dataclasses.replace(base, lights=base.lights + (sun,)))
+
+
+def test_both_runtimes_check_a_scene_with_the_one_function():
+    for rel in ("pipegen/runtime/gl/pipeline.py", "pipegen/runtime/cl/pipeline.py"):
+        text = (ROOT / rel).read_text()
+        assert text.count("check_scene(self.plan, scene)") == 1, rel
+        assert not re.search(r"check_(scene_facts|light_capacity|shadow_capacity)\(", text), rel
 
 
 # ---- the interleaved timer -------------------------------------------------------------------

@@ -1,6 +1,6 @@
-"""What both runtimes check the same way: the light capacity, a specialised pipeline's scene
-assumptions and parameter overrides at render time.  (Which lights and passes a frame draws
-is ``draws.py``.)"""
+"""What both runtimes check the same way: a new scene (``check_scene``: a specialised
+pipeline's scene assumptions, the light capacity, the shadow tiles) and parameter overrides at
+render time.  (Which lights and passes a frame draws is ``draws.py``.)"""
 
 from __future__ import annotations
 
@@ -66,6 +66,15 @@ def check_scene_facts(plan: Plan, scene) -> None:
     if broken:
         raise PipegenError(None, f"technique '{plan.technique}' " + "; ".join(broken),
                            hint="compile it for this scene (--scene), or without a scene")
+
+
+def check_scene(plan: Plan, scene) -> None:
+    """Everything a pipeline checks before it takes a new scene, the same on both runtimes: the
+    specialised scene facts, the light table's capacity and the shadow atlas's tiles (each a
+    user error with a hint, raised before anything is uploaded)."""
+    check_scene_facts(plan, scene)
+    check_light_capacity(len(scene.lights), plan)
+    check_shadow_capacity(plan, scene)
 
 
 def check_param_overrides(plan: Plan, params) -> None:

@@ -93,8 +93,7 @@ from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime import draws
-from pipegen.runtime.common import (
-    check_light_capacity, check_param_overrides, check_scene_facts, check_shadow_capacity)
+from pipegen.runtime.common import check_param_overrides, check_scene
 from pipegen.runtime.cl.device import Device
 from pipegen.runtime.cl.geometry import DrawGeometry, FrameState, ShadowView
 from pipegen.runtime.cl.targets import TargetStore, d24_resolve
@@ -322,9 +321,7 @@ class CLPipeline:
     def _use_scene(self, scene) -> None:
         if self._scene is scene:
             return
-        check_scene_facts(self.plan, scene)
-        check_light_capacity(len(scene.lights), self.plan)
-        check_shadow_capacity(self.plan, scene)
+        check_scene(self.plan, scene)
         self._scene = scene
         self._selection = draws.LightSelection(self.plan, list(scene.lights))
         self.geometry.use_scene()

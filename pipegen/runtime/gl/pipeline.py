@@ -50,8 +50,7 @@ from pipegen.runtime import draws
 from pipegen.runtime.gl import formats as GF
 from pipegen.runtime.gl import state as GS
 from pipegen.runtime.gl import transitions as GT
-from pipegen.runtime.common import (
-    check_light_capacity, check_param_overrides, check_scene_facts, check_shadow_capacity)
+from pipegen.runtime.common import check_param_overrides, check_scene
 from pipegen.runtime.gl.context import (
     GL, check_error, clear_stale_errors, debug_enabled, get_context)
 
@@ -374,9 +373,7 @@ class GLPipeline:
     def _use_scene(self, scene) -> None:
         if self._scene is scene:
             return
-        check_scene_facts(self.plan, scene)
-        check_light_capacity(len(scene.lights), self.plan)
-        check_shadow_capacity(self.plan, scene)
+        check_scene(self.plan, scene)
         for p in self.passes:
             for key in [k for k in p.vaos if k[0] == "scene"]:
                 p.vaos.pop(key).release()
