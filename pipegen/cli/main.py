@@ -32,6 +32,8 @@ EXAMPLES = {
       with a parameter overridden; the report's memory figures at 1920x1080
   pipegen compile pipelines/inferred.pipe --scene examples/scenes/small.toml -o build/inferred-small
       specialised for the scene's features; report.txt says what was culled and why
+  pipegen compile pipelines/forward.pipe --dump-after fold -o build/forward
+      the IR after the fold pass, in .pipe spelling, on stdout (all: after every pass)
 """,
     "run": """\
   pipegen run pipelines/forward.pipe -o out/forward
@@ -192,6 +194,11 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
                    help="specialise for this scene's features: light types, light count, "
                         "translucent objects; report.txt lists every cut and its reason "
                         "(default: the general technique)")
+    c.add_argument("--dump-after", metavar="PASS|all", type=dump_after_arg,
+                   help="print the IR after this compiler pass (several: comma-separated; "
+                        "all: after every pass) to stdout, each headed // after PASS, then "
+                        "compile as usual; with --scene also the scene passes "
+                        "(default: print no IR)")
     strict(c, needs_scene=True)
     force(c)
 
@@ -299,6 +306,20 @@ def param_arg(text: str) -> tuple[str, object]:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
+def dump_after_arg(text: str) -> frozenset | str:
+    """``--dump-after``: ``all`` or pass names (comma-separated), each one a compile may run."""
+    from pipegen.passes.pipelines import all_pass_names
+    if text.strip() == "all":
+        return "all"
+    names = frozenset(n.strip() for n in text.split(",") if n.strip())
+    unknown = sorted(names - set(all_pass_names()))
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(
+            f"unknown pass {', '.join(map(repr, unknown)) or repr(text)}: the passes are "
+            f"{', '.join(all_pass_names())} (or all)")
+    return names
+
+
 def parse_size(text: str) -> tuple[int, int]:
     """``WxH`` -> (w, h); a ``PipegenError`` when malformed or out of range."""
     try:
@@ -329,11 +350,12 @@ def cmd_compile(args) -> int:
     from pipegen.core.outdir import OutputDir
     if args.strict and not args.scene:
         args.parser.error("--strict needs --scene: a scene to check the technique against")
+    watch = _dump_watch(args)
     out = OutputDir(args.out, "compile", args.force)          # before any work
-    compiled = _compile(args)
+    compiled = _compile(args, watch)
     if args.scene:
         scene = _scene(args, size=False)
-        compiled = _specialise(args, compiled, scene)
+        compiled = _specialise(args, compiled, scene, watch=watch)
         report_mismatches(compiled, scene, args.strict, _scene_label(args))
     backends = tuple(registry.BACKENDS) if args.backend == "all" else (args.backend,)
     compiled.write(out, backends, args.size)
@@ -451,19 +473,39 @@ def cmd_info(args) -> int:
     return 0
 
 
-def _compile(args):
+def _dump_watch(args):
+    """``--dump-after``: a ``Watch`` printing the IR after the passes named (None: none), a
+    usage error (exit 2) for a scene pass without ``--scene``."""
+    if not args.dump_after:
+        return None
+    from pipegen.passes.manager import Watch
+    from pipegen.passes.pipelines import GENERAL, SCENE, pass_names
+    if not args.scene and args.dump_after != "all":
+        scene_only = sorted(args.dump_after - set(pass_names(GENERAL)))
+        if scene_only:
+            args.parser.error(f"--dump-after {', '.join(scene_only)}: runs only with --scene "
+                              f"(the passes are {', '.join(pass_names(GENERAL))}; with --scene "
+                              f"also {', '.join(pass_names(SCENE))})")
+
+    def dump(name, tech) -> None:
+        from pipegen.ir.printer import print_technique
+        print(f"// after {name}\n{print_technique(tech)}", flush=True)
+    return Watch(dump_after=args.dump_after, dump=dump)
+
+
+def _compile(args, watch=None):
     """Compile ``args.file`` with ``args.param``; a scene file given instead says so."""
-    return compile_technique(args.file, args.param)
+    return compile_technique(args.file, args.param, watch=watch)
 
 
-def _specialise(args, compiled, scene, say_variant: bool = False):
+def _specialise(args, compiled, scene, say_variant: bool = False, watch=None):
     """``compiled`` specialised for ``scene`` (the light table recompiled smaller, as
     ``compile_file(..., scene=)`` does); with ``say_variant``, whether the variant was compiled
-    or reused from this process's cache, on stderr."""
+    or reused from this process's cache, on stderr.  ``watch``: what to show of the passes."""
     from pipegen.compiler.driver import compile_file
     from pipegen.compiler.specialise import specialise
-    special = specialise(compiled, scene,
-                         recompile=lambda ps: compile_file(args.file, ps))
+    special = specialise(compiled, scene, watch=watch,
+                         recompile=lambda ps: compile_file(args.file, ps, watch=watch))
     if say_variant:
         spec = special.specialisation
         print(f"variant: {'reused' if spec.reused else 'compiled'} (specialised for "

@@ -6,8 +6,11 @@ and, compiled for a scene (``compile_file(..., scene=)``, ``specialise.py``), th
 after ``prune``: assume_scene → spec_light_types → fold → prune → cull_empty_draws →
 cull_unread.
 
-Each phase after ``lower`` is a ``run(ir) -> ir`` from ``pipegen.passes``; with
-``verify_each=True`` (the tests' setting) the IR verifier runs after every phase.  Nothing here
+Each phase after ``lower`` is a ``run(ir) -> ir`` from ``pipegen.passes``, run by the pass
+manager (``passes/manager.py``) from the pipelines as data (``passes/pipelines.py``); with
+``verify_each=True`` (the tests' setting) the IR verifier runs after every phase, and a
+``manager.Watch`` sees each pass run and the IR after the ones it names
+(``pipegen compile --dump-after``).  Nothing here
 imports moderngl or pyopencl: ``pipegen compile`` works on any machine; ``Compiled.pipeline``
 imports a runtime only when asked to render.
 """
@@ -17,7 +20,7 @@ from __future__ import annotations
 import os
 from dataclasses import field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Optional
+from typing import TYPE_CHECKING, Optional
 
 from pipegen.core.records import record
 from pipegen.ir import nodes as ir, verify
@@ -29,15 +32,10 @@ from pipegen.backends.plan import Plan
 
 if TYPE_CHECKING:
     from pipegen.compiler.specialise import Specialisation
-from pipegen.passes import opt_fold_constants, opt_unused_functions, specialise_params
+from pipegen.passes import pipelines
+from pipegen.passes.manager import Watch, run_pipeline
 
-Phase = tuple[str, Callable[[ir.Technique], ir.Technique]]
-
-PHASES: tuple[Phase, ...] = (
-    ("specialise", specialise_params.run),
-    ("fold", opt_fold_constants.run),
-    ("prune", opt_unused_functions.run),
-)
+PHASES = pipelines.GENERAL      # read when a compile runs: a test may put another in its place
 
 
 @record
@@ -108,16 +106,17 @@ class Compiled:
 
 
 def compile_source(text: str, filename: str = "<string>", params: Optional[dict] = None,
-                   verify_each: bool = False) -> Compiled:
+                   verify_each: bool = False, watch: Optional[Watch] = None) -> Compiled:
     module = syntax.parse(text, filename)
     tech = lower.lower(module, filename, params=params)
-    return _run_phases(tech, params or {}, verify_each)
+    return _run_phases(tech, params or {}, verify_each, watch or _UNWATCHED)
 
 
 def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
-                 verify_each: bool = False, scene=None) -> Compiled:
+                 verify_each: bool = False, scene=None, watch: Optional[Watch] = None) -> Compiled:
     """Compile a ``.pipe`` file; with ``scene``, specialised for what the scene calls for
-    (``specialise.py``: cuts with reasons, guards, a cached variant per scene-feature key)."""
+    (``specialise.py``: cuts with reasons, guards, a cached variant per scene-feature key).
+    ``watch``: what to show of the passes as they run (``manager.Watch``)."""
     from pipegen.core.sources import MAX_SOURCE_BYTES, read_source
     p = Path(path)
     try:
@@ -130,20 +129,19 @@ def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
         raise PipegenError(None, f"cannot read {p}: {e.strerror or e}",
                            hint=f"pass a .pipe file (a regular file of at most "
                                 f"{MAX_SOURCE_BYTES >> 20} MiB)") from None
-    compiled = compile_source(text, str(p), params, verify_each)
+    compiled = compile_source(text, str(p), params, verify_each, watch)
     if scene is None:
         return compiled
     from pipegen.compiler.specialise import specialise
-    return specialise(compiled, scene, verify_each=verify_each,
-                      recompile=lambda ps: compile_source(text, str(p), ps, verify_each))
+    return specialise(compiled, scene, verify_each=verify_each, watch=watch,
+                      recompile=lambda ps: compile_source(text, str(p), ps, verify_each, watch))
 
 
-def _run_phases(tech: ir.Technique, params: dict, verify_each: bool) -> Compiled:
-    run = ["lower", "validate"]
+_UNWATCHED = Watch()
+
+
+def _run_phases(tech: ir.Technique, params: dict, verify_each: bool, watch: Watch) -> Compiled:
     verify.verify(tech)
-    for name, phase in PHASES:
-        tech = phase(tech)
-        run.append(name)
-        if verify_each:
-            verify.verify(tech)
-    return Compiled(tech, dict(params), run)
+    tech, ran = run_pipeline(PHASES, tech, verify_each, watch.progress, watch.dump_after,
+                             watch.dump)
+    return Compiled(tech, dict(params), ["lower", "validate", *ran])

@@ -46,15 +46,15 @@ def parse_params(items: list) -> dict:
     return params
 
 
-def compile_technique(file, params: list):
+def compile_technique(file, params: list, watch=None):
     """Compile the technique ``file`` with ``params`` (``NAME=VALUE`` texts or pairs); a scene
-    file given instead says so."""
+    file given instead says so.  ``watch``: what to show of the passes (``manager.Watch``)."""
     from pipegen.compiler.driver import compile_file
     path = Path(file)
     if path.suffix.lower() == ".toml":
         raise scene_not_technique(path)
     try:
-        return compile_file(path, parse_params(params))
+        return compile_file(path, parse_params(params), watch=watch)
     except PipegenError:
         if looks_like_scene(path):
             raise scene_not_technique(path) from None

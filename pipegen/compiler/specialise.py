@@ -3,10 +3,11 @@ made, and refuse scenes that break the assumptions.
 
 ``specialise(compiled, scene)`` (or ``compile_file(path, scene=scene)``) turns the scene's
 features (``features.scene_features``) into compile-time facts (``ir.SceneFacts``) and runs
-the scene phases, each a pass in ``passes/`` verified after it in tests:
+the scene phases, ``passes/pipelines.SCENE`` run by the pass manager, verified after each in
+tests:
 
-    assume_scene → spec_light_types → spec_shadows → fold → prune → cull_empty_draws →
-    cull_unread
+    assume_scene → spec_light_types → spec_shadows → fold → dead_code → unread_reads →
+    prune → cull_empty_draws → cull_unread
 
 and, before them, shrinks the light table: the parameter that sizes it is set to the smallest
 power of two (within its allowed values) that holds the scene's lights, so similar scenes
@@ -27,20 +28,11 @@ import numpy as np
 from pipegen.core.units import format_bytes
 from pipegen.ir import nodes as ir
 from pipegen.ir.memory import specialisation_bytes
-from pipegen.ir.verify import verify as verify_ir
 from pipegen.scene.features import SceneFeatures, scene_features
-from pipegen.passes import (
-    cull_empty_draws, cull_unread, opt_fold_constants, opt_unused_functions, spec_light_types,
-    spec_shadows)
+from pipegen.passes import pipelines
+from pipegen.passes.manager import Watch, run_pipeline
 
-SCENE_PHASES: tuple[tuple[str, Callable[[ir.Technique], ir.Technique]], ...] = (
-    ("spec_light_types", spec_light_types.run),
-    ("spec_shadows", spec_shadows.run),
-    ("fold", opt_fold_constants.run),
-    ("prune", opt_unused_functions.run),
-    ("cull_empty_draws", cull_empty_draws.run),
-    ("cull_unread", cull_unread.run),
-)
+SCENE_PHASES = pipelines.SCENE  # read when a variant compiles: a test may put another in its place
 
 
 @dataclass(frozen=True)
@@ -118,10 +110,11 @@ def _key(compiled, facts: ir.SceneFacts, shrinks: bool) -> tuple:
 
 def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
                recompile: Optional[Callable[[dict], object]] = None,
-               verify_each: bool = False):
+               verify_each: bool = False, watch: Optional[Watch] = None):
     """``compiled`` specialised for ``scene``: a new ``Compiled`` whose ``specialisation``
     lists the cuts.  ``recompile(params)`` compiles the same source with other parameters
-    (used to shrink the light table); without it the table keeps its size."""
+    (used to shrink the light table); without it the table keeps its size.  ``watch``: what
+    to show of the scene passes as they run (``manager.Watch``; a cached variant runs none)."""
     features = features or scene_features(scene)
     facts = features.facts()
     key = _key(compiled, facts, recompile is not None)
@@ -134,12 +127,10 @@ def specialise(compiled, scene, features: Optional[SceneFeatures] = None,
     if recompile is not None:
         base, set_params, cuts = _shrink_light_table(compiled, facts, recompile)
     tech = dataclasses.replace(base.technique, scene=facts, cuts=tuple(cuts))
-    phases = list(base.phases_run) + ["assume_scene"]
-    for name, phase in SCENE_PHASES:
-        tech = phase(tech)
-        phases.append(name)
-        if verify_each:
-            verify_ir(tech)
+    watch = watch or Watch()
+    tech, ran = run_pipeline(SCENE_PHASES, tech, verify_each, watch.progress, watch.dump_after,
+                             watch.dump)
+    phases = [*base.phases_run, "assume_scene", *ran]
     spec = Specialisation(features, facts, tech.cuts, general, tech,
                           tuple(set_params.items()))
     # the compiled technique ``base`` with the scene's IR (and no plans emitted yet): the
