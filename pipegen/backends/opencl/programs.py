@@ -22,6 +22,7 @@ from pipegen.backends.opencl.abi import (
     SCENE_FLAT, SETUP_CULL, SUBPIXEL, TILE, enum_defines, inside_func, sample_positions,
     state_values, varying_slots)
 from pipegen.backends.opencl.dialect import OpenCLLanguage, dialect
+from pipegen.backends.opencl.expansions import prelude_forms
 from pipegen.backends.opencl.formats import (
     cl_format, cl_format64, pad_to_four, rcp_literal, read_expr, scaled16_conversions)
 
@@ -44,7 +45,7 @@ def prelude_source(tile: int = TILE, precision: str = "f32", previous: bool = Fa
     Rendered once per arguments (every pass program of a plan starts with the same one)."""
     return templating.render("cl_prelude.cl.j2", tile=tile, enums=enum_defines(),
                              scaled16=scaled16_conversions(), f64=precision == "f64",
-                             previous=previous)
+                             previous=previous, order=prelude_forms())
 
 
 # ---- per-pass program --------------------------------------------------------------------------

@@ -6,10 +6,11 @@ functions whose wide forms may differ lane by lane.  A mixin of ``emitter.WideEm
 
 from __future__ import annotations
 
-from pipegen.ir import nodes as ir
+from pipegen.ir import expand, nodes as ir
 from pipegen.ir.builtins import BIT_CAST_BUILTINS
 from pipegen.ir.nodes import Scalar, Type
 from pipegen.backends.cstyle import guard_call_args, guard_construct_args, guard_shift_count
+from pipegen.backends.opencl.expansions import c_text
 from pipegen.backends.opencl.wide.values import (
     C_TYPES_W, W, Unsupported, Val, varying_inputs, widen)
 
@@ -111,22 +112,17 @@ class WideExpressions:
             return Val([f"{name}.{'xyzw'[k]}" for k in range(e.type.size)], e.type, False)
         if e.op != "*":
             raise Unsupported("varying matrix arithmetic")
-        if lt.is_matrix and rt.is_vector:        # m * v = ((c0 v.x + c1 v.y) + c2 v.z) + c3 v.w
+        # the prelude's products component by component, in expand's order
+        if lt.is_matrix and rt.is_vector:
             m, v = a.comps[0], self.tmp(b)
             n = lt.mat
-            out = []
-            for k in range(n):
-                terms = [f"({m}.c[{j}].{'xyzw'[k]} * {v.comps[j]})" for j in range(n)]
-                acc = terms[0]
-                for t in terms[1:]:
-                    acc = f"({acc} + {t})"
-                out.append(acc)
-            return Val(out, e.type, True)
-        if lt.is_vector and rt.is_matrix:        # v * m = (dot(v, c0), dot(v, c1), ...)
+            return Val([c_text(expand.matrix_vector([f"{m}.c[{j}].{'xyzw'[k]}" for j in range(n)],
+                                                    v.comps)) for k in range(n)], e.type, True)
+        if lt.is_vector and rt.is_matrix:
             v, m = self.tmp(a), b.comps[0]
             n = rt.mat
-            return Val([_dot([f"({v.comps[j]} * {m}.c[{k}].{'xyzw'[j]})" for j in range(n)])
-                        for k in range(n)], e.type, True)
+            columns = [[f"{m}.c[{k}].{'xyzw'[j]}" for j in range(n)] for k in range(n)]
+            return Val([c_text(d) for d in expand.vector_matrix(v.comps, columns)], e.type, True)
         raise Unsupported("varying matrix arithmetic")
 
     def _cvec(self, v: Val) -> str:
@@ -309,28 +305,27 @@ class WideExpressions:
 
     def _builtin(self, name: str, vals: list, ret: Type) -> Val:
         vary = any(v.varying for v in vals)
-        if name in ("dot", "length", "distance"):
-            if name == "distance":
-                a, b = vals
-                vals = [Val([f"({x} - {y})" for x, y in zip(a.comps, b.comps)], a.type, vary)]
-                name = "length"
-            if name == "length":
-                v = self.tmp(vals[0])
-                d = _dot([f"({c} * {c})" for c in v.comps])
-                return Val([self._render1("sqrt", [d], ir.FLOAT)], ret, vary)
+        # expand's trees, the prelude's order, over the components; an operand used twice
+        # is in temporaries first
+        if name == "dot":
             a, b = vals
-            return Val([_dot([f"({x} * {y})" for x, y in zip(a.comps, b.comps)])], ret, vary)
+            return Val([c_text(expand.dot(a.comps, b.comps))], ret, vary)
+        if name in ("length", "distance"):
+            def length(comps: list):
+                v = self.tmp(Val([c_text(c) for c in comps], vals[0].type, vary))
+                return expand.length(v.comps)
+            tree = length(vals[0].comps) if name == "length" else expand.distance(
+                vals[0].comps, vals[1].comps, length=length)
+            return Val([c_text(tree, call=lambda f, args: self._render1(f, args, ir.FLOAT))],
+                       ret, vary)
         if name == "cross":
             a, b = self.tmp(vals[0]), self.tmp(vals[1])
-            x, y = a.comps, b.comps
-            return Val([f"(({x[1]} * {y[2]}) - ({x[2]} * {y[1]}))",
-                        f"(({x[2]} * {y[0]}) - ({x[0]} * {y[2]}))",
-                        f"(({x[0]} * {y[1]}) - ({x[1]} * {y[0]}))"], ret, vary)
+            return Val([c_text(c) for c in expand.cross(a.comps, b.comps)], ret, vary)
         if name == "mix":
             a, b, t = self.tmp(vals[0]), vals[1], vals[2]
             n = ret.size
             tc = t.comps if len(t.comps) == n else t.comps * n
-            return Val([f"({x} + (({y} - {x}) * {z}))" for x, y, z in zip(a.comps, b.comps, tc)],
+            return Val([c_text(expand.mix(x, y, z)) for x, y, z in zip(a.comps, b.comps, tc)],
                        ret, vary)
         if name in BIT_CAST_BUILTINS:
             if vary:
@@ -375,12 +370,3 @@ class WideExpressions:
         name = f"pg_wt{self.ntmp}"
         self.pre.append(f"const {self.lang.type_name(t)} {name} = {text};")
         return Val([f"{name}.{'xyzw'[k]}" for k in range(t.size)], t, False)
-
-
-def _dot(products: list) -> str:
-    """x + (y + (z + w)) of the products (the prelude's pg_dot)."""
-    acc = products[-1]
-    for p in reversed(products[:-1]):
-        acc = f"({p} + {acc})"
-    return acc
-
