@@ -30,6 +30,7 @@ class CodeFacts:
     sampled: frozenset[str]         # targets sampled bilinearly (``ir.Sample``)
     outputs: frozenset[str]         # targets written (``ir.Output``)
     discard: bool                   # holds a ``discard``
+    reads: frozenset[str]           # targets read (``load``, ``sample``, ``size``)
 
 
 _FACTS: dict[int, tuple[Any, CodeFacts]] = {}
@@ -43,7 +44,7 @@ def code_facts(stmts) -> CodeFacts:
     if hit is not None and hit[0] is stmts:
         return hit[1]
     calls: list[str] = []
-    inputs, sampled = set(), set()
+    inputs, sampled, reads = set(), set(), set()
     loads = 0
     for e in irwalk.walk_exprs(stmts):
         t = type(e)
@@ -58,9 +59,13 @@ def code_facts(stmts) -> CodeFacts:
                 inputs.add("light")
         elif t is ir.Sample:
             sampled.add(e.target)
+            reads.add(e.target)
             loads += 1
         elif t is ir.Load:
+            reads.add(e.target)
             loads += 1
+        elif t is ir.TargetSize:
+            reads.add(e.target)
     outputs, discard = set(), False
     for s in irwalk.walk_stmts(stmts):
         if isinstance(s, ir.Output):
@@ -68,7 +73,7 @@ def code_facts(stmts) -> CodeFacts:
         elif isinstance(s, ir.Discard):
             discard = True
     facts = CodeFacts(tuple(dict.fromkeys(calls)), tuple(calls), loads, frozenset(inputs),
-                      frozenset(sampled), frozenset(outputs), discard)
+                      frozenset(sampled), frozenset(outputs), discard, frozenset(reads))
     if isinstance(stmts, tuple):
         if len(_FACTS) >= _FACTS_MAX:
             _FACTS.clear()

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import dataclasses
 
-from pipegen.ir import nodes as ir, walk as irwalk
-from pipegen.ir.facts import pass_functions
+from pipegen.ir import nodes as ir
+from pipegen.ir.facts import code_facts, pass_functions
 
 
 def run(tech: ir.Technique) -> ir.Technique:
@@ -26,16 +26,14 @@ def run(tech: ir.Technique) -> ir.Technique:
 def _pass(tech: ir.Technique, p: ir.Pass) -> ir.Pass:
     if not p.reads:
         return p
-    used = targets_read(tech, p)
-    reads = tuple(r for r in p.reads if r in used)
-    return p if len(reads) == len(p.reads) else dataclasses.replace(p, reads=reads)
-
-
-def targets_read(tech: ir.Technique, p: ir.Pass) -> set[str]:
-    """The targets the code of pass ``p`` (its body and the functions it reaches) reads."""
-    out: set[str] = set()
-    for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]:
-        for e in irwalk.walk_exprs(stmts):
-            if isinstance(e, (ir.Load, ir.Sample, ir.TargetSize)):
-                out.add(e.target)
-    return out
+    # ``code_facts`` walks each body once and keeps it for the emitters, which ask the same;
+    # the functions are looked at only for the reads the body itself does not make
+    missing = set(p.reads) - code_facts(p.body).reads
+    if missing:
+        for f in pass_functions(tech, p.body):
+            missing -= code_facts(f.body).reads
+            if not missing:
+                break
+    if not missing:
+        return p
+    return dataclasses.replace(p, reads=tuple(r for r in p.reads if r not in missing))
