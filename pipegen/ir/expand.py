@@ -14,7 +14,7 @@ an infix operator (``+``, ``-``, ``*``) or a call (any other name).
 
 from __future__ import annotations
 
-from typing import Callable, NamedTuple, Sequence
+from typing import Callable, NamedTuple, Optional, Sequence
 
 
 class Op(NamedTuple):
@@ -51,15 +51,16 @@ def dot(a: Sequence, b: Sequence) -> Op:
     return acc
 
 
-def length(v: Sequence, dot: Callable[[Sequence, Sequence], object] = dot) -> Op:
-    """``sqrt(dot(v, v))``; ``dot``: how the caller spells the dot (the prelude calls its own
-    ``pg_dot``, which is ``dot`` above)."""
-    return call("sqrt", dot(v, v))
+def length(v: Sequence, dot_of: Optional[Callable[[Sequence, Sequence], object]] = None) -> Op:
+    """``sqrt(dot(v, v))``; ``dot_of``: how the caller spells the dot (the prelude calls its
+    own ``pg_dot``, which is ``dot`` above), by default ``dot``."""
+    return call("sqrt", (dot_of or dot)(v, v))
 
 
-def distance(a: Sequence, b: Sequence, length: Callable[[list], object] = length):
-    """``length(a - b)``, the difference per component."""
-    return length([sub(x, y) for x, y in zip(a, b, strict=True)])
+def distance(a: Sequence, b: Sequence, length_of: Optional[Callable[[list], object]] = None):
+    """``length(a - b)``, the difference per component (``length_of``: how the caller spells
+    the length, by default ``length``)."""
+    return (length_of or length)([sub(x, y) for x, y in zip(a, b, strict=True)])
 
 
 def cross(a: Sequence, b: Sequence) -> tuple[Op, Op, Op]:
@@ -85,7 +86,7 @@ def matrix_vector(columns: Sequence, v: Sequence) -> Op:
 
 
 def vector_matrix(v: Sequence, columns: Sequence[Sequence],
-                  dot: Callable[[Sequence, Sequence], object] = dot) -> list:
+                  dot_of: Optional[Callable[[Sequence, Sequence], object]] = None) -> list:
     """``v * m``: the dot of ``v`` with each column (``columns[k]``: column k's components, or
     the column itself as a one-element list for a caller that spells the dot as a call)."""
-    return [dot(v, c) for c in columns]
+    return [(dot_of or dot)(v, c) for c in columns]

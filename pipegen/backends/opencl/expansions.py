@@ -75,8 +75,8 @@ def prelude_forms() -> dict:
     return {
         "dot": {1: c_text(expand.dot(["a"], ["b"]), **tight),
                 **{n: _dot_of_products(n) for n in (2, 3, 4)}},
-        "length": c_text(expand.length(["(v)"], dot=_pg_dot), **tight),
-        "distance": c_text(expand.distance(["(a)"], ["(b)"], length=lambda v: expand.call(
+        "length": c_text(expand.length(["(v)"], dot_of=_pg_dot), **tight),
+        "distance": c_text(expand.distance(["(a)"], ["(b)"], length_of=lambda v: expand.call(
             "pg_length", *v)), **tight),
         "mix": c_text(expand.mix("(a)", "(b)", "(t)"), **tight),
         "cross": ", ".join(c_text(c, **tight) for c in expand.cross(
@@ -85,5 +85,5 @@ def prelude_forms() -> dict:
             [f"m.c[{k}]" for k in range(n)], [f"v.{c}" for c in XYZW[:n]]), **tight)
             for n in (3, 4)},
         "vector_matrix": {n: ", ".join(c_text(d, **tight) for d in expand.vector_matrix(
-            ["v"], [[f"m.c[{k}]"] for k in range(n)], dot=_pg_dot)) for n in (3, 4)},
+            ["v"], [[f"m.c[{k}]"] for k in range(n)], dot_of=_pg_dot)) for n in (3, 4)},
     }

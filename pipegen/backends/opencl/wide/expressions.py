@@ -315,7 +315,7 @@ class WideExpressions:
                 v = self.tmp(Val([c_text(c) for c in comps], vals[0].type, vary))
                 return expand.length(v.comps)
             tree = length(vals[0].comps) if name == "length" else expand.distance(
-                vals[0].comps, vals[1].comps, length=length)
+                vals[0].comps, vals[1].comps, length_of=length)
             return Val([c_text(tree, call=lambda f, args: self._render1(f, args, ir.FLOAT))],
                        ret, vary)
         if name == "cross":
