@@ -71,10 +71,12 @@ def target(t: ir.Target) -> str:
         text += f" size output * {_value(s.scale)}"
     if t.samples != 1:
         text += f" samples {t.samples}"
-    return text + _clear(t.clear)
+    clear = _clear(t.clear)
+    return text + (f" clear {clear}" if clear else "")
 
 
 def _clear(c: ir.Clear) -> str:
+    """What ``clear`` sets: ``(r, g, b, a)``, ``depth D``, ``stencil S`` ("" for nothing)."""
     parts = []
     if c.color is not None:
         parts.append("(" + ", ".join(_value(v) for v in c.color) + ")")
@@ -82,7 +84,7 @@ def _clear(c: ir.Clear) -> str:
         parts.append(f"depth {_value(c.depth)}")
     if c.stencil is not None:
         parts.append(f"stencil {c.stencil}")
-    return " clear " + " ".join(parts) if parts else ""
+    return " ".join(parts)
 
 
 def packing(k: ir.Packing) -> list[str]:
@@ -158,7 +160,7 @@ def pass_(p: ir.Pass, repeat_types: bool = False) -> list[str]:
     if p.writes:
         lines.append("writes " + ", ".join(p.writes))
     lines += _state(p)
-    lines += [f"clear {name}{_clear(c)[len(' clear'):]}" for name, c in p.clears]
+    lines += [f"clear {name} {_clear(c)}" for name, c in p.clears]
     if p.body:
         lines += ["fragment {", *block(p.body, 1), "}"]
     return [f"pass {p.name} {{", *(INDENT + line for line in lines), "}"]
@@ -380,8 +382,6 @@ def _value(v) -> str:
         return "true" if v else "false"
     if isinstance(v, float):
         return repr(v)
-    if isinstance(v, ir.Const):
-        return expr(v)
     return str(getattr(v, "name", v))
 
 
