@@ -3,8 +3,8 @@
     parse → lower → validate → specialise → fold → prune → emit
 
 and, compiled for a scene (``compile_file(..., scene=)``, ``specialise.py``), the scene phases
-after ``prune``: assume_scene → spec_light_types → fold → prune → cull_empty_draws →
-cull_unread.
+after ``prune``: assume_scene → spec_light_types → spec_shadows → fold → dead_code →
+unread_reads → prune → cull_empty_draws → cull_unread.
 
 Each phase after ``lower`` is a ``run(ir) -> ir`` from ``pipegen.passes``, run by the pass
 manager (``passes/manager.py``) from the pipelines as data (``passes/pipelines.py``); with
