@@ -8,7 +8,11 @@
 - ``programs``: the programs, assembled from ``templates/cl_*.cl.j2`` (prelude, pass program,
   set-up, binning, resolve);
 - ``emit``: the driver, ``emit_cl`` and the fragment functions;
-- ``wide``: the 8-pixel fragment function (explicit SIMD over pixels).
+- ``wide``: the 8-pixel fragment function (explicit SIMD over pixels);
+- ``expansions``: ``pipegen/ir/expand.py``'s evaluation orders as C, for both paths.
+
+The inline builtins of the prelude are macros (``templates/cl_builtins.cl.j2``) that the
+prelude renders for the scalar types and the wide path's helpers for the 8-lane ones.
 
 The program of a pass (``pass["kernel"]``) is the software reference of that pass: the same
 pipeline the GLSL backend describes, with the fixed-function stages written out.  It holds
@@ -61,14 +65,15 @@ Arithmetic follows llvmpipe where the two could differ (each measured bit-exact 
 no contraction of ``a * b + c`` (``FP_CONTRACT OFF``), correctly rounded ``/`` and ``sqrt``,
 ``inversesqrt`` = ``1 / sqrt``, ``dot`` = ``x + (y + (z + w))`` of unfused products (and
 ``length``, ``distance``, matrix products built on it), ``mix`` = ``a + (b - a) t`` or, for a
-constant t, ``a (1 - t) + b t`` (``passes/lower_mix_constant``, run by ``emit_cl``),
+constant t, ``a (1 - t) + b t`` (``passes/lower_mix_constant``, run by ``emit_cl``); these
+orders are ``pipegen/ir/expand.py``'s, which the prelude and the wide path both render;
 ``smoothstep`` = ``t (t (3 - 2t))``, gallivm's ``exp2`` / ``log2`` polynomials (so ``pow``,
 ``exp``, ``log``), unorm reads as ``code * (1 / max)``, unorm8 bilinear filtering in 8-bit fixed
 point, bilinear filtering of other formats with llvmpipe's clamp-to-edge texel coordinates and
 fused lerps (x then y), unorm16 stores ``x * (65535/65536) + 128`` (the low mantissa bits) and
 narrower unorm channels store that 16-bit code scaled down (Mesa's ``scale_bits``: 10 bits
 ``>> 6``), snorm stores and reads as ``formats.Encode`` says, varyings interpolated with
-llvmpipe's float32 planes (``cl_setup.attribute_planes``).  Not mirrored: ``atan``, ``sin``,
+llvmpipe's float32 planes (``runtime/cl/setup.attribute_planes``).  Not mirrored: ``atan``, ``sin``,
 ``cos`` (OpenCL's, within a few ulp) and NIR's constant reassociation (``(x * 3.0) * 0.7``
 folded to ``x * 2.1``).
 """

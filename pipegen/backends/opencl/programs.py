@@ -137,7 +137,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     samples = plan.pass_samples(pass_)
     sx, sy = sample_positions(samples)
     varyings = varying_slots(pass_)
-    # the wide fragment function (cl_wide.py: PG_W pixels per call), when the emitter made one
+    # the wide fragment function (wide/: PG_W pixels per call), when the emitter made one
     wide = not f64 and cl_wide.has_wide(code.fragment)
     early_z = code.discard and not _writes_stencil(pass_, stencil, dynamic)
     depth_store = dynamic or _writes_depth(pass_)

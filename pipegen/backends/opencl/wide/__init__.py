@@ -11,7 +11,8 @@ None when the code uses what this form does not support (the pass then keeps the
 
 - every value is a list of scalar *components* (a ``vec3`` is three values, matrices stay
   whole and must be uniform); arithmetic is per component in the scalar code's operation
-  order: ``dot`` = ``x + (y + (z + w))`` of unfused products, the guarded forms of
+  order: ``dot`` = ``x + (y + (z + w))`` of unfused products (``pipegen/ir/expand.py``'s
+  trees for dot, length, distance, cross, mix and the matrix products), the guarded forms of
   ``cstyle`` (normalize, pow, inversesqrt, log, sqrt, ``uint(float)``) rendered from the same
   IR, the matrix products of the prelude component by component; ``FP_CONTRACT OFF`` holds, so
   each lane computes exactly what the scalar function computes for its pixel;
