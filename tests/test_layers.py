@@ -90,3 +90,14 @@ def test_a_cycle_inside_one_folder_is_caught(copy):
 def test_an_import_from_an_earlier_layer_or_its_own_folder_is_allowed(copy):
     _plant(copy, "views/info.py", "from pipegen.ir import walk\nfrom pipegen.views import graph\n")
     assert layers.violations(copy / "pipegen") == layers.violations(PACKAGE_DIR)
+
+
+def test_the_wheel_lists_every_folder():
+    # setuptools ships only the packages pyproject.toml names: a new folder left out of the
+    # list imports in the repository and fails in a non-editable install
+    import tomllib
+    config = tomllib.loads((PACKAGE_DIR.parent / "pyproject.toml").read_text(encoding="utf-8"))
+    listed = set(config["tool"]["setuptools"]["packages"])
+    on_disk = {".".join(p.parent.relative_to(PACKAGE_DIR.parent).parts)
+               for p in PACKAGE_DIR.rglob("__init__.py")}
+    assert on_disk <= listed, sorted(on_disk - listed)

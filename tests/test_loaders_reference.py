@@ -23,7 +23,7 @@ MODELS = ROOT / "examples" / "models"
 
 
 def _reference_smooth_normals(faces, fn_raw, crease_deg):
-    unit = meshes._normalize(fn_raw)
+    unit = meshes.normalize_rows(fn_raw)
     cos_crease = math.cos(math.radians(crease_deg))
     corners = faces.reshape(-1)
     out = np.repeat(unit, 3, axis=0)
@@ -32,7 +32,7 @@ def _reference_smooth_normals(faces, fn_raw, crease_deg):
     for group in np.split(order, bounds):
         tris = group // 3
         close = unit[tris] @ unit[tris].T >= cos_crease
-        out[group] = meshes._normalize(close.astype(np.float64) @ fn_raw[tris])
+        out[group] = meshes.normalize_rows(close.astype(np.float64) @ fn_raw[tris])
     return out
 
 
@@ -62,8 +62,8 @@ def _reference_normal_groups(positions, normals, tol=1e-5):
         e1 = np.concatenate([e1, [p[1] for p in extra]])
 
     def agree(c0, c1):
-        return np.einsum("ij,ij->i", meshes._normalize(normals[c0]),
-                         meshes._normalize(normals[c1])) > 1 - tol
+        return np.einsum("ij,ij->i", meshes.normalize_rows(normals[c0]),
+                         meshes.normalize_rows(normals[c1])) > 1 - tol
 
     smooth = agree(lo[e0], lo[e1]) & agree(hi[e0], hi[e1])
     parent = np.arange(tri_count)
@@ -115,7 +115,7 @@ def _reference_obj(path, crease_deg=45.0):
     N = np.array(vnormals, dtype=np.float64) if vnormals else np.zeros((0, 3))
     for t, ni in enumerate(tri_n):
         if ni is not None:
-            normals[3 * t: 3 * t + 3] = meshes._normalize(N[list(ni)])
+            normals[3 * t: 3 * t + 3] = meshes.normalize_rows(N[list(ni)])
     keep = meshes._non_degenerate(positions)
     positions = positions.reshape(-1, 3, 3)[keep].reshape(-1, 3)
     normals = normals.reshape(-1, 3, 3)[keep].reshape(-1, 3)
@@ -203,7 +203,7 @@ def test_smooth_normals_high_valence_and_degenerate():
     F = np.concatenate([F, [[0, 0, 1]]])
     fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     for crease in (1.0, 45.0, 179.0):
-        np.testing.assert_allclose(meshes._smooth_normals(F, fn, crease),
+        np.testing.assert_allclose(meshes.smooth_normals(F, fn, crease),
                                    _reference_smooth_normals(F, fn, crease), atol=1e-12)
 
 
