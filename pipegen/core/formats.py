@@ -32,6 +32,12 @@ class Kind(enum.Enum):
     DEPTH_STENCIL = "depth_stencil"  # packed depth + 8-bit stencil (d24s8)
 
 
+def stencil_mask(stencil_bits: int) -> int:
+    """The bits of a stencil value an attachment of ``stencil_bits`` bits holds (GL masks
+    stencil writes, references and clears to them)."""
+    return (1 << stencil_bits) - 1
+
+
 @record(frozen=True)
 class Tolerance:
     """How far two backends may disagree on one channel of one pixel.
@@ -305,7 +311,7 @@ class Format:
 
     def clear_stencil(self, stencil=None) -> int:
         """A clear stencil -> the stencil code (None -> 0, cut to ``stencil_bits``)."""
-        return int(stencil or 0) & ((1 << self.stencil_bits) - 1)
+        return int(stencil or 0) & stencil_mask(self.stencil_bits)
 
     def clear_codes(self, color=None, depth=None) -> np.ndarray:
         """The codes of one pixel cleared to ``color`` (colour formats: ``(channels,)`` in

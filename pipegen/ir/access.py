@@ -19,12 +19,10 @@ from __future__ import annotations
 
 from typing import Optional
 
+from pipegen.core.formats import stencil_mask
 from pipegen.ir import nodes as ir
 
 
-def stencil_mask(stencil_bits: int) -> int:
-    """The bits of a stencil value an attachment of ``stencil_bits`` bits holds."""
-    return (1 << stencil_bits) - 1
 
 
 def stencil_bits(tech: ir.Technique, p: ir.Pass) -> int:

@@ -12,7 +12,7 @@ from typing import Optional
 
 from pipegen.core import formats as F
 from pipegen.core.float32 import f32
-from pipegen.ir import nodes as ir
+from pipegen.ir import access, nodes as ir
 from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS
 from pipegen.backends import templating
 from pipegen.backends.cstyle import FLT_MIN
@@ -114,11 +114,12 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         writes.append({**f, "k": k, "name": name, "format": f["name"],
                        "bpp": plan.target(name).format.bytes_per_pixel})
     depth = None
-    stencil = False
+    stencil_bits = 0
     if pass_.depth_target:
         fmt = plan.target(pass_.depth_target).format
         depth = fmt_of(fmt.name)
-        stencil = fmt.has_stencil
+        stencil_bits = fmt.stencil_bits
+    stencil = stencil_bits > 0
     reads = []
     for name in pass_.reads:
         f = fmt_of(plan.target(name).format.name)
@@ -139,7 +140,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     varyings = varying_slots(pass_)
     # the wide fragment function (wide/: PG_W pixels per call), when the emitter made one
     wide = not f64 and cl_wide.has_wide(code.fragment)
-    early_z = code.discard and not _writes_stencil(pass_, stencil, dynamic)
+    early_z = code.discard and not _writes_stencil(pass_, stencil_bits, dynamic)
     depth_store = dynamic or _writes_depth(pass_)
     # batches across triangles (cl_pass.cl.j2): wide passes without varyings, unless a
     # fragment's late depth write could be one a later triangle's early test must see
@@ -157,7 +158,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         writes=writes, depth=depth, stencil=stencil, reads=reads,
         fragment=code.fragment, discard=code.discard, early_z=early_z, depth_store=depth_store,
         stencil_load=stencil and (dynamic or pass_.state.stencil.enabled),
-        stencil_store=_writes_stencil(pass_, stencil, dynamic),
+        stencil_store=_writes_stencil(pass_, stencil_bits, dynamic),
         flt_min=OpenCLLanguage().render_float(FLT_MIN),
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
@@ -172,19 +173,17 @@ def _writes_depth(pass_: PassPlan) -> bool:
     return bool(rows.get("S_DEPTH_WRITE") or rows.get("S_DEPTH_WRITE_IN"))
 
 
-def _writes_stencil(pass_: PassPlan, stencil: bool, dynamic: bool) -> bool:
+def _writes_stencil(pass_: PassPlan, stencil_bits: int, dynamic: bool) -> bool:
     """Whether a pass may write its stencil attachment.  A pass whose fragment function may
     discard tests depth and stencil before shading and writes depth after it (llvmpipe's
     EARLY_DEPTH_TEST | LATE_DEPTH_WRITE, lp_state_fs.c) unless it writes stencil: a stencil op
     runs on the test's outcome, which a later discard must undo.  Dynamic-state programs
     (tests) take any state, so any stencil attachment counts."""
-    if not stencil:
+    if not stencil_bits:
         return False
     if dynamic:
         return True
-    keep = ir.StencilOp.KEEP
-    return any(f.write_mask & 0xFF and (f.fail, f.zfail, f.zpass) != (keep, keep, keep)
-               for f in (pass_.state.stencil.front, pass_.state.stencil.back))
+    return access.state_writes_stencil(pass_.state, stencil_bits)
 
 
 # ---- runtime programs: triangle set-up, binning and multisample resolve ---------------------
