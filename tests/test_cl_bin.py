@@ -1,4 +1,4 @@
-"""Binning on the device (``runtime/cl_bin.py``, ``templates/cl_bin.cl.j2``) gives the numpy
+"""Binning on the device (``runtime/cl/bin.py``, ``templates/cl_bin.cl.j2``) gives the numpy
 binning's tile lists (``cl_setup.bin_pairs`` + ``bins_from_pairs``): the same tiles, the
 same triangles in each, in submission order; frames rendered with either are identical."""
 

@@ -1,4 +1,4 @@
-"""The device set-up (runtime/cl_setup_device.py, templates/cl_setup.cl.j2) against the numpy
+"""The device set-up (runtime/cl/setup_device.py, templates/cl_setup.cl.j2) against the numpy
 set-up it replaces (cl_setup.setup_triangles): every field of every triangle bit for bit,
 on random clip-space triangles (many cross the clip planes: the device clipper sets up
 their fans, merged back in submission order; its new vertices are numbered apart, so vertex

@@ -1,5 +1,5 @@
 """``formats.Format`` describes its storage (bits, kind, packing, conversions, dtype) and the
-backends derive everything from that: GL's enums (``runtime/gl_formats.py``), OpenCL's buffer
+backends derive everything from that: GL's enums (``runtime/gl/formats.py``), OpenCL's buffer
 layout and conversions (``backends/opencl/formats.cl_format``), the CL runtime's packing."""
 
 from __future__ import annotations

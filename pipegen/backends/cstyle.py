@@ -98,7 +98,7 @@ def _max0(x: ir.Expr) -> ir.Call:
 
 
 # The inline guards (no helper function), as IR rewrites: the scalar emitter below and the
-# OpenCL wide emitter (cl_wide.py) both apply these, so the rules live here only.
+# OpenCL wide emitter (backends/opencl/wide/) both apply these, so the rules live here only.
 def guard_shift_count(right: ir.Expr) -> ir.Expr:
     """The count of ``a << b`` / ``a >> b``: masked to 0..31 (``b & 31``) unless a constant
     already in range."""

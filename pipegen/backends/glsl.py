@@ -194,7 +194,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
     kind = p.draw.kind
     scene_varyings = sorted({INPUTS[n][1] for n in inputs if n in INPUTS and INPUTS[n][1]},
                             key=list(SCENE_VARYINGS).index)
-    # lower.py rejects scene inputs outside scene draws and `light` outside light passes
+    # the front end (frontend/lower/) rejects scene inputs outside scene draws and `light` outside light passes
     assert not scene_varyings or kind is DrawKind.SCENE, (p.name, scene_varyings)
     uses_light = bool(inputs & {"light", "light_index"})
     assert not uses_light or kind is DrawKind.LIGHTS or p.repeat_per_light, p.name
@@ -238,7 +238,7 @@ def emit_vertex(tech: ir.Technique, p: ir.Pass, common: dict, varyings: list,
     if kind is DrawKind.LIGHTS:
         volume = p.draw.volume or Volume.SPHERE
         slots = {f.name: k for k, f in enumerate(tech.lights.fields)}
-        assert all(f in slots for f in VOLUME_LIGHT_FIELDS[volume.value]), p.name   # lower.py
+        assert all(f in slots for f in VOLUME_LIGHT_FIELDS[volume.value]), p.name   # frontend/lower/
         return templating.render("gl_vertex_lights.glsl.j2", **common, stage="vertex",
                                  varyings=varyings, attributes=attributes, volume=volume.value,
                                  slots=slots, flt_min=GLSLLanguage().render_float(FLT_MIN))

@@ -1,8 +1,8 @@
 """Render-target formats: the single source of truth.
 
 Every consumer reads formats from here: the language front end (which names exist), the GL
-runtime (``runtime/gl_formats.py`` derives GL's enums from a format's properties), the CL code
-generator (storage, loads, stores and conversions, ``backends/opencl.py``), the CL runtime
+runtime (``runtime/gl/formats.py`` derives GL's enums from a format's properties), the CL code
+generator (storage, loads, stores and conversions, ``backends/opencl/formats.py``), the CL runtime
 (``Format.pack``/``unpack``), the numpy oracle (quantize/dequantize) and the cross-backend
 comparator (tolerances).  No other module names a format: adding one is a row in ``FORMATS``
 (plus tests), as long as the backends already know its kind of storage and conversion
@@ -402,7 +402,8 @@ def flush_denormals(x: np.ndarray) -> np.ndarray:
 U, S, FL, UI = Kind.UNORM, Kind.SNORM, Kind.FLOAT, Kind.UINT
 
 # THE table.  A new format is one row here (plus tests); the backends derive the rest
-# (gl_formats.py GL's spelling, opencl.py the OpenCL storage and conversions).
+# (runtime/gl/formats.py GL's spelling, backends/opencl/formats.py the OpenCL storage and
+# conversions).
 FORMATS: dict[str, Format] = {
     f.name: f
     for f in [

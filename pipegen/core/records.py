@@ -3,7 +3,7 @@ syntax tree, cheaper to define.
 
 Python 3.11's ``dataclass`` writes ``__init__``, ``__eq__``, ``__hash__``, ``__repr__`` and, for
 frozen classes, ``__setattr__`` and ``__delattr__`` as source text for every class and compiles
-each with ``exec``: for the ~100 classes of ``ir.py`` and ``ast.py`` that was about a sixth of
+each with ``exec``: for the ~100 classes of ``ir/nodes.py`` and ``frontend/ast.py`` that was about a sixth of
 every ``pipegen compile`` (callgrind: 1309 M instructions in all; defining the two modules 160 M
 of them).  A ``record`` is a dataclass for which ``dataclass`` only collects the fields (the
 ``fields``, ``replace``, ``__match_args__`` and pickling machinery work as for any dataclass)

@@ -1,7 +1,7 @@
 """The backend-neutral intermediate representation.
 
 Frozen dataclasses (``records.record``) and enums only: no GL enums, no moderngl strings, no OpenCL types.  The front
-end (``lower.py``) builds it from the AST; compiler passes (``passes/``) rewrite it; backends
+end (``frontend/lower/``) builds it from the AST; compiler passes (``passes/``) rewrite it; backends
 (``backends/``) turn it into text.  ``verify.py`` checks its invariants after every phase.
 
 Spans (``Span``) are carried on user-visible objects so that later phases can still report

@@ -4,7 +4,7 @@ llvmpipe's GLSL compiler (NIR) rewrites a ``mix`` whose weight is a constant int
 and a sum, with ``1 - t`` folded in float32 (measured on Mesa 22.3: bit-exact), while a
 variable weight is evaluated as ``x + (y - x) * t``.  The two round differently, so the OpenCL
 reference must see the same split: the CL backend runs this pass on the technique before it
-emits (``backends/opencl.emit_cl``); the GLSL backend does not (llvmpipe does it itself), and
+emits (``backends/opencl/emit.py``); the GLSL backend does not (llvmpipe does it itself), and
 the IR stays backend-neutral.
 
 ``lower_call`` is the rewrite of one call (``None`` when it does not apply); the OpenCL dialect

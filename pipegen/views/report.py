@@ -40,7 +40,7 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
 
 
 def _error_bound(p: ir.Packing) -> str:
-    """The packing's static error as measured (pipegen/packing/schemes.py, docs/encodings.md)."""
+    """The packing's static error as measured (pipegen/packing/error_tables.py, docs/encodings.md)."""
     if p.scheme in ("kircher", "spheremap", "octahedral"):
         return f"{p.error:.4g} degrees (max angular error, measured)"
     if p.scheme == "split16":

@@ -76,7 +76,7 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass,
     inputs = planlib.stage_inputs(p.body, functions)
     kind = p.draw.kind
     scene_only = sorted(n for n in inputs if n in SCENE_VARYINGS or n in SCENE_FLAT)
-    # lower.py rejects these programs: here they are invariants
+    # the front end rejects these programs: here they are invariants
     assert not scene_only or kind is DrawKind.SCENE, (p.name, scene_only)
     assert not (inputs & {"light", "light_index"}) or kind is DrawKind.LIGHTS \
         or p.repeat_per_light, p.name

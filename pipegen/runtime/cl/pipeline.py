@@ -16,9 +16,8 @@ for after a frame (a frame's count buffers stay until the next frame's first ble
 zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P
 codes/ulps per pixel from it (DESIGN.md §7).
 
-Per pass (see ``backends/opencl/`` for the program, ``cl_setup_device.py`` and
-``cl_bin.py`` for the set-up and binning kernels, ``cl_setup.py`` for the numpy set-up and
-binning they replace):
+Per pass (see ``backends/opencl/`` for the program, ``setup_device.py`` and ``bin.py`` for
+the set-up and binning kernels, ``setup.py`` for the numpy set-up and binning they replace):
 
     pg_vertex (CL) -> pg_setup, pg_clip_setup (CL) -> pg_bin_* (CL) -> pg_raster (CL)
 
@@ -31,7 +30,7 @@ once per light in turn (the group's passes for light 0, then for light 1, ...; a
 light filter or ``repeat_types`` excludes the light is skipped for it), the light index
 reaching the fragment function as ``in->light``; light draws instance the pass's light list
 (``draws.LightSelection``: types, CPU-sorted ``light_set`` via
-``packing.sort_lights_into_slots``), ``scissor`` light draws clip each
+``packing.light_index.sort_lights_into_slots``), ``scissor`` light draws clip each
 light's triangles to ``draws.scissor_rect``, ``cull auto`` light draws keep
 each light's front or back faces as ``draws.light_runs`` chooses.  All as ``GLPipeline`` does
 (``draws.schedule`` orders the passes of both).

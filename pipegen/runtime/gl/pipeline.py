@@ -16,7 +16,7 @@ clear value, then runs the passes in order:
   ``Geometry.interleaved()`` plus ``Geometry.layer``, attributes ``a_position`` … ``a_layer``);
   light volumes instanced over the light list
   with a per-instance ``a_light`` (all lights, the pass's ``light_types``, or the CPU-sorted
-  set ``light_sets[pack][k]`` from ``packing.sort_lights_into_slots``); ``scissor`` light draws
+  set ``light_sets[pack][k]`` from ``packing.light_index.sort_lights_into_slots``); ``scissor`` light draws
   go one light at a time under ``draws.scissor_rect``; full-screen
   draws are one 3-vertex triangle.
 

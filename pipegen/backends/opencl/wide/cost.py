@@ -54,7 +54,7 @@ def gathers(body, functions: dict) -> int:
 
 
 def _gathers(body, functions: dict, memo: dict) -> int:
-    facts = planlib.code_facts(body)      # one walk per body (memoised in codefacts.py)
+    facts = planlib.code_facts(body)      # one walk per body (memoised in ir/facts.py)
     n = facts.loads
     for name in facts.call_list:
         if name in functions:
