@@ -17,6 +17,7 @@ from pipegen.compiler.mismatches import mismatches
 from pipegen.scene.features import scene_features
 from pipegen.scene.load import Light, load_scene
 from pipegen.compiler.specialise import SCENE_PHASES, clear_cache, specialise, verify
+from pipegen.passes.manager import run_pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "examples/scenes"
@@ -157,12 +158,9 @@ pass layer {{ draw scene.translucent reads tint writes color depth ds less nowri
 
 
 def _phases(tech, facts):
-    """The scene phases one by one, the IR verifier after each."""
+    """The scene phases, the IR verifier after each."""
     tech = dataclasses.replace(tech, scene=facts)
-    for _, phase in SCENE_PHASES:
-        tech = phase(tech)
-        ir_verify.verify(tech)
-    return tech
+    return run_pipeline(SCENE_PHASES, tech, verify_each=True)[0]
 
 
 def test_light_type_branches_fold_through_function_parameters():

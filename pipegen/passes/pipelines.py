@@ -11,7 +11,7 @@ from __future__ import annotations
 from pipegen.passes import (
     cull_empty_draws, cull_unread, opt_dead_code, opt_fold_constants, opt_unread_reads,
     opt_unused_functions, spec_light_types, spec_shadows, specialise_params)
-from pipegen.passes.manager import Pass, Pipeline, pass_names
+from pipegen.passes.manager import Fixpoint, Pass, Pipeline, pass_names
 
 GENERAL: Pipeline = (
     Pass("specialise", specialise_params.run),
@@ -20,14 +20,18 @@ GENERAL: Pipeline = (
 )
 
 # The scene facts first make tests of light types and shadow tiles constant; folding then
-# removes the branches, dead code and the reads they held, and culling what nothing needs.
+# removes the branches, dead code and the reads they held (until none of them changes the IR:
+# a read dropped can make a function unused, whose constants may fold), and culling removes
+# the passes and targets nothing needs.
 SCENE: Pipeline = (
     Pass("spec_light_types", spec_light_types.run),
     Pass("spec_shadows", spec_shadows.run),
-    Pass("fold", opt_fold_constants.run),
-    Pass("dead_code", opt_dead_code.run),
-    Pass("unread_reads", opt_unread_reads.run),
-    Pass("prune", opt_unused_functions.run),
+    Fixpoint("simplify", (
+        Pass("fold", opt_fold_constants.run),
+        Pass("dead_code", opt_dead_code.run),
+        Pass("unread_reads", opt_unread_reads.run),
+        Pass("prune", opt_unused_functions.run),
+    )),
     Pass("cull_empty_draws", cull_empty_draws.run),
     Pass("cull_unread", cull_unread.run),
 )
