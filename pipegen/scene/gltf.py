@@ -286,186 +286,255 @@ def load_gltf(path: str | Path, first_id: int = 1, intensity_scale: float = 1.0)
     if not path.exists():
         raise FileNotFoundError(2, "No such file or directory", str(path))
     doc = _Doc(path)
-    g = doc.g
-    notes: list[str] = []
-    required = set(g.extensionsRequired or [])
-    unsupported = sorted(required - SUPPORTED_REQUIRED)
+    notes = _extension_notes(doc.g, path.name)
+    walk = _NodeWalk(doc, path.name, first_id, intensity_scale, _punctual_lights(doc.g))
+    walk.run(_root_nodes(doc.g))
+    if not walk.objects:
+        raise GltfError("the scene has no triangles")
+    camera = None
+    if walk.camera_node is not None:
+        camera, camera_note = _file_camera(doc.g, *walk.camera_node, walk.objects, path.name)
+        if camera_note:
+            notes.append(camera_note)
+    notes += walk.notes()
+    return GltfImport(tuple(walk.objects), camera, tuple(walk.lights), tuple(notes), walk.dropped)
+
+
+def _extension_notes(g, file_name: str) -> list[str]:
+    """Refuse a file that requires an extension pipegen cannot do without; note the used ones
+    it ignores."""
+    unsupported = sorted(set(g.extensionsRequired or []) - SUPPORTED_REQUIRED)
     if unsupported:
         raise GltfError(f"the file requires {', '.join(unsupported)}, which pipegen does not read")
-    ignored_ext = sorted(set(g.extensionsUsed or []) - {"KHR_lights_punctual", "KHR_mesh_quantization"})
-    if ignored_ext:
-        notes.append(f"{path.name}: extensions ignored: {', '.join(ignored_ext)}")
-    lights_def = ((g.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
+    ignored = sorted(set(g.extensionsUsed or []) - {"KHR_lights_punctual", "KHR_mesh_quantization"})
+    return [f"{file_name}: extensions ignored: {', '.join(ignored)}"] if ignored else []
 
+
+def _punctual_lights(g) -> list:
+    """The document's ``KHR_lights_punctual`` light definitions (nodes refer to them by index)."""
+    return ((g.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
+
+
+def _root_nodes(g) -> list[int]:
+    """The default scene's root nodes; without scenes, every node that is nobody's child."""
     if g.scenes:
         scene_index = g.scene if g.scene is not None else 0
-        roots = list(g.scenes[scene_index].nodes or [])
-    else:
-        children = {c for n in g.nodes for c in (n.children or [])}
-        roots = [i for i in range(len(g.nodes)) if i not in children]
+        return list(g.scenes[scene_index].nodes or [])
+    children = {c for n in g.nodes for c in (n.children or [])}
+    return [i for i in range(len(g.nodes)) if i not in children]
 
-    materials_cache: dict[Optional[int], Material] = {}
-    dropped_textures: set[str] = set()
-    material_notes: set[str] = set()
 
-    def material(i: Optional[int]) -> Material:
-        if i not in materials_cache:
-            if i is None:
-                materials_cache[i] = pbr_material()
-                material_notes.add("primitives without a material get the glTF default "
-                                   "(white, metallic 1, roughness 1)")
-            else:
-                m = g.materials[i]
-                pbr = m.pbrMetallicRoughness
-                base = (pbr.baseColorFactor if pbr and pbr.baseColorFactor is not None
-                        else [1.0, 1.0, 1.0, 1.0])
-                metallic = pbr.metallicFactor if pbr and pbr.metallicFactor is not None else 1.0
-                rough = pbr.roughnessFactor if pbr and pbr.roughnessFactor is not None else 1.0
-                mode = m.alphaMode or "OPAQUE"
-                materials_cache[i] = pbr_material(base, metallic, rough, mode)
-                label = m.name or f"material {i}"
-                for key, tex in (("baseColorTexture", pbr and pbr.baseColorTexture),
-                                 ("metallicRoughnessTexture", pbr and pbr.metallicRoughnessTexture),
-                                 ("normalTexture", m.normalTexture),
-                                 ("occlusionTexture", m.occlusionTexture),
-                                 ("emissiveTexture", m.emissiveTexture)):
-                    if tex is not None:
-                        dropped_textures.add(f"{label}.{key}")
-                if m.emissiveFactor and any(float(x) > 0 for x in m.emissiveFactor):
-                    material_notes.add("emissiveFactor ignored (no emission in the scene model)")
-                if mode == "MASK":
-                    material_notes.add("alphaMode MASK drawn opaque (alphaCutoff needs textures)")
-                if m.extensions:
-                    material_notes.add("material extensions ignored: "
-                                       + ", ".join(sorted(m.extensions)))
-        return materials_cache[i]
+class _Materials:
+    """The scene material of each glTF material index, made on first use (a material no drawn
+    primitive uses adds no notes), and what the mapping left out."""
 
-    objects: list[SceneObject] = []
-    lights: list[Light] = []
-    camera_node: Optional[tuple[int, np.ndarray]] = None
-    ignored_attrs: set[str] = set()
-    skipped_modes: set[str] = set()
-    dropped = 0
-    stack = [(r, np.eye(4)) for r in reversed(roots)]
-    visited = set()
-    while stack:
-        ni, parent = stack.pop()
-        if ni in visited:
-            raise GltfError(f"node {ni} is reached twice (the node hierarchy must be a tree)")
-        visited.add(ni)
-        if not 0 <= ni < len(g.nodes):
-            raise GltfError(f"node {ni} does not exist")
-        node = g.nodes[ni]
-        world = parent @ _local_matrix(node)
-        if node.camera is not None and camera_node is None:
-            camera_node = (node.camera, world)
+    def __init__(self, g):
+        self._g = g
+        self._cache: dict[Optional[int], Material] = {}
+        self.dropped_textures: set[str] = set()
+        self.notes: set[str] = set()
+
+    def __call__(self, i: Optional[int]) -> Material:
+        if i not in self._cache:
+            self._cache[i] = self._default() if i is None else self._convert(i)
+        return self._cache[i]
+
+    def _default(self) -> Material:
+        self.notes.add("primitives without a material get the glTF default "
+                       "(white, metallic 1, roughness 1)")
+        return pbr_material()
+
+    def _convert(self, i: int) -> Material:
+        m = self._g.materials[i]
+        pbr = m.pbrMetallicRoughness
+        base = (pbr.baseColorFactor if pbr and pbr.baseColorFactor is not None
+                else [1.0, 1.0, 1.0, 1.0])
+        metallic = pbr.metallicFactor if pbr and pbr.metallicFactor is not None else 1.0
+        rough = pbr.roughnessFactor if pbr and pbr.roughnessFactor is not None else 1.0
+        mode = m.alphaMode or "OPAQUE"
+        material = pbr_material(base, metallic, rough, mode)
+        label = m.name or f"material {i}"
+        for key, tex in (("baseColorTexture", pbr and pbr.baseColorTexture),
+                         ("metallicRoughnessTexture", pbr and pbr.metallicRoughnessTexture),
+                         ("normalTexture", m.normalTexture),
+                         ("occlusionTexture", m.occlusionTexture),
+                         ("emissiveTexture", m.emissiveTexture)):
+            if tex is not None:
+                self.dropped_textures.add(f"{label}.{key}")
+        if m.emissiveFactor and any(float(x) > 0 for x in m.emissiveFactor):
+            self.notes.add("emissiveFactor ignored (no emission in the scene model)")
+        if mode == "MASK":
+            self.notes.add("alphaMode MASK drawn opaque (alphaCutoff needs textures)")
+        if m.extensions:
+            self.notes.add("material extensions ignored: " + ", ".join(sorted(m.extensions)))
+        return material
+
+
+class _NodeWalk:
+    """Walks the node tree depth first, children in order, and collects what the nodes carry:
+    an object per drawn primitive, the lights, the first camera node and what was ignored."""
+
+    def __init__(self, doc: _Doc, file_name: str, first_id: int, intensity_scale: float,
+                 lights_def: list):
+        self.doc, self.g, self.file_name = doc, doc.g, file_name
+        self.first_id, self.intensity_scale, self.lights_def = first_id, intensity_scale, lights_def
+        self.materials = _Materials(doc.g)
+        self.objects: list[SceneObject] = []
+        self.lights: list[Light] = []
+        self.camera_node: Optional[tuple[int, np.ndarray]] = None    # (camera index, world)
+        self.ignored_attrs: set[str] = set()
+        self.skipped_modes: set[str] = set()
+        self.dropped = 0
+
+    def run(self, roots: list[int]) -> None:
+        stack = [(r, np.eye(4)) for r in reversed(roots)]
+        visited = set()
+        while stack:
+            ni, parent = stack.pop()
+            if ni in visited:
+                raise GltfError(f"node {ni} is reached twice (the node hierarchy must be a tree)")
+            visited.add(ni)
+            if not 0 <= ni < len(self.g.nodes):
+                raise GltfError(f"node {ni} does not exist")
+            node = self.g.nodes[ni]
+            world = parent @ _local_matrix(node)
+            self._visit(ni, node, world)
+            for c in reversed(node.children or []):
+                stack.append((c, world))
+
+    def _visit(self, ni: int, node, world: np.ndarray) -> None:
+        if node.camera is not None and self.camera_node is None:
+            self.camera_node = (node.camera, world)
         ext = (node.extensions or {}).get("KHR_lights_punctual")
         if ext is not None:
-            li = ext.get("light")
-            if li is None or not 0 <= li < len(lights_def):
-                raise GltfError(f"node {ni} refers to light {li}, which does not exist")
-            try:
-                lights.append(punctual_light(lights_def[li], world, intensity_scale))
-            except GltfError as e:
-                raise GltfError(f"light {li}: {e}") from None
+            self._add_light(ni, ext.get("light"), world)
         if node.skin is not None:
-            ignored_attrs.add("skins")
+            self.ignored_attrs.add("skins")
         if node.mesh is not None:
-            mesh = g.meshes[node.mesh]
+            mesh = self.g.meshes[node.mesh]
             base_name = node.name or mesh.name or f"node{ni}"
             prims = mesh.primitives or []
             for pi, prim in enumerate(prims):
-                mode = 4 if prim.mode is None else prim.mode
-                if mode not in (4, 5, 6):
-                    skipped_modes.add(_MODES.get(mode, str(mode)))
-                    continue
-                attrs = prim.attributes
-                if attrs.POSITION is None:
-                    raise GltfError(f"mesh {node.mesh} primitive {pi} has no POSITION")
-                for a in ("TEXCOORD_0", "TEXCOORD_1", "COLOR_0", "TANGENT", "JOINTS_0", "WEIGHTS_0"):
-                    if getattr(attrs, a, None) is not None:
-                        ignored_attrs.add(a)
-                if prim.targets:
-                    ignored_attrs.add("morph targets")
-                pos = doc.accessor(attrs.POSITION)[:, :3].astype(np.float64)
-                bad = np.flatnonzero(~np.isfinite(pos).all(axis=1))
-                if len(bad):
-                    raise GltfError(f"mesh {node.mesh} ('{mesh.name or ''}') primitive {pi}: "
-                                    f"POSITION (accessor {attrs.POSITION}) vertex {int(bad[0])} is "
-                                    f"not finite: {pos[bad[0]].tolist()}")
-                idx = (doc.accessor(prim.indices)[:, 0] if prim.indices is not None
-                       else np.arange(len(pos)))
-                if idx.size and (idx.min() < 0 or idx.max() >= len(pos)):
-                    raise GltfError(f"mesh {node.mesh} primitive {pi}: index {int(idx.max())} out of "
-                                    f"range ({len(pos)} vertices)")
-                tris = _triangles(mode, idx)
-                if not len(tris):
-                    continue
-                p = pos[tris.reshape(-1)]
-                if attrs.NORMAL is not None:
-                    nrm = doc.accessor(attrs.NORMAL)[:, :3].astype(np.float64)
-                    n = meshes.normalize_rows(nrm[tris.reshape(-1)])
-                    n = np.where(np.isfinite(n).all(axis=1, keepdims=True), n, 0.0)
-                    flat = np.repeat(meshes.face_normals(p), 3, axis=0)
-                    n = np.where((np.linalg.norm(n, axis=1) > 0)[:, None], n, flat)
-                else:
-                    n = np.repeat(meshes.face_normals(p), 3, axis=0)
-                local = meshes.finish_mesh(p, n)
-                dropped += len(tris) - local.triangle_count
-                if not local.triangle_count:
-                    continue
                 name = base_name if len(prims) == 1 else f"{base_name}/{pi}"
-                obj_id = first_id + len(objects)
-                if obj_id > 255:
-                    raise GltfError("more than 255 mesh primitives: object ids are 8-bit (1..255)")
-                objects.append(make_object(name, obj_id, f"{path.name}#mesh{node.mesh}/{pi}", local,
-                                           material(prim.material), world))
-        for c in reversed(node.children or []):
-            stack.append((c, world))
-    if not objects:
-        raise GltfError("the scene has no triangles")
+                self._add_primitive(node.mesh, mesh, pi, prim, name, world)
 
-    camera = None
-    if camera_node is not None:
-        ci, world = camera_node
-        cam = g.cameras[ci]
-        if cam.type == "perspective" and cam.perspective is not None:
-            p = cam.perspective
-            eye = world[:3, 3]
-            fwd = world[:3, :3] @ np.array([0.0, 0.0, -1.0])
-            up = world[:3, :3] @ np.array([0.0, 1.0, 0.0])
-            fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
-            near = float(p.znear) if p.znear else 0.1
-            if p.zfar:
-                far = float(p.zfar)
-            else:
-                pts = np.concatenate([o.positions for o in objects])
-                corners = np.array([[x, y, z] for x in (pts[:, 0].min(), pts[:, 0].max())
-                                    for y in (pts[:, 1].min(), pts[:, 1].max())
-                                    for z in (pts[:, 2].min(), pts[:, 2].max())])
-                far = max(2.0 * float(np.linalg.norm(corners - eye, axis=1).max()), 10.0 * near)
-                notes.append(f"{path.name}: camera without zfar (infinite): far = {far:.4g}, twice "
-                             "the distance to the farthest corner of the scene's bounding box")
-            camera = Camera(position=tuple(float(x) for x in eye),
-                            target=tuple(float(x) for x in eye + fwd),
-                            up=tuple(float(x) for x in up),
-                            fov_y_deg=math.degrees(float(p.yfov)), near=near, far=far)
-        else:
-            notes.append(f"{path.name}: {cam.type} camera ignored (only perspective cameras)")
+    def _add_light(self, ni: int, li: Optional[int], world: np.ndarray) -> None:
+        if li is None or not 0 <= li < len(self.lights_def):
+            raise GltfError(f"node {ni} refers to light {li}, which does not exist")
+        try:
+            self.lights.append(punctual_light(self.lights_def[li], world, self.intensity_scale))
+        except GltfError as e:
+            raise GltfError(f"light {li}: {e}") from None
 
-    if dropped_textures:
-        shown = sorted(dropped_textures)
-        notes.append(f"{path.name}: textures dropped (not supported): {', '.join(shown[:8])}"
-                     + (f" and {len(shown) - 8} more" if len(shown) > 8 else ""))
-    for n in sorted(material_notes):
-        notes.append(f"{path.name}: {n}")
-    if ignored_attrs:
-        notes.append(f"{path.name}: ignored {', '.join(sorted(ignored_attrs))}")
-    if skipped_modes:
-        notes.append(f"{path.name}: primitives skipped (not triangles): {', '.join(sorted(skipped_modes))}")
-    if dropped:
-        notes.append(f"{path.name}: dropped {dropped} degenerate (zero-area) triangles")
-    return GltfImport(tuple(objects), camera, tuple(lights), tuple(notes), dropped)
+    def _add_primitive(self, mesh_index: int, mesh, pi: int, prim, name: str,
+                       world: np.ndarray) -> None:
+        mode = 4 if prim.mode is None else prim.mode
+        if mode not in (4, 5, 6):
+            self.skipped_modes.add(_MODES.get(mode, str(mode)))
+            return
+        if prim.attributes.POSITION is None:
+            raise GltfError(f"mesh {mesh_index} primitive {pi} has no POSITION")
+        for a in ("TEXCOORD_0", "TEXCOORD_1", "COLOR_0", "TANGENT", "JOINTS_0", "WEIGHTS_0"):
+            if getattr(prim.attributes, a, None) is not None:
+                self.ignored_attrs.add(a)
+        if prim.targets:
+            self.ignored_attrs.add("morph targets")
+        triangles, local = _primitive_mesh(self.doc, mesh_index, mesh, pi, prim, mode)
+        if local is None:
+            return
+        self.dropped += triangles - local.triangle_count
+        if not local.triangle_count:
+            return
+        obj_id = self.first_id + len(self.objects)
+        if obj_id > 255:
+            raise GltfError("more than 255 mesh primitives: object ids are 8-bit (1..255)")
+        self.objects.append(make_object(name, obj_id, f"{self.file_name}#mesh{mesh_index}/{pi}",
+                                        local, self.materials(prim.material), world))
+
+    def notes(self) -> list[str]:
+        """What the walk ignored or dropped, one note per kind, in a fixed order."""
+        name, notes = self.file_name, []
+        if self.materials.dropped_textures:
+            shown = sorted(self.materials.dropped_textures)
+            notes.append(f"{name}: textures dropped (not supported): {', '.join(shown[:8])}"
+                         + (f" and {len(shown) - 8} more" if len(shown) > 8 else ""))
+        for n in sorted(self.materials.notes):
+            notes.append(f"{name}: {n}")
+        if self.ignored_attrs:
+            notes.append(f"{name}: ignored {', '.join(sorted(self.ignored_attrs))}")
+        if self.skipped_modes:
+            notes.append(f"{name}: primitives skipped (not triangles): "
+                         f"{', '.join(sorted(self.skipped_modes))}")
+        if self.dropped:
+            notes.append(f"{name}: dropped {self.dropped} degenerate (zero-area) triangles")
+        return notes
+
+
+def _primitive_mesh(doc: _Doc, mesh_index: int, mesh, pi: int, prim,
+                    mode: int) -> tuple[int, Optional[meshes.Mesh]]:
+    """A triangle primitive as a local mesh, with the number of triangles it had before the
+    degenerate ones were dropped; ``(0, None)`` when its indices make no triangle."""
+    attrs = prim.attributes
+    pos = doc.accessor(attrs.POSITION)[:, :3].astype(np.float64)
+    bad = np.flatnonzero(~np.isfinite(pos).all(axis=1))
+    if len(bad):
+        raise GltfError(f"mesh {mesh_index} ('{mesh.name or ''}') primitive {pi}: "
+                        f"POSITION (accessor {attrs.POSITION}) vertex {int(bad[0])} is "
+                        f"not finite: {pos[bad[0]].tolist()}")
+    idx = (doc.accessor(prim.indices)[:, 0] if prim.indices is not None
+           else np.arange(len(pos)))
+    if idx.size and (idx.min() < 0 or idx.max() >= len(pos)):
+        raise GltfError(f"mesh {mesh_index} primitive {pi}: index {int(idx.max())} out of "
+                        f"range ({len(pos)} vertices)")
+    tris = _triangles(mode, idx)
+    if not len(tris):
+        return 0, None
+    p = pos[tris.reshape(-1)]
+    if attrs.NORMAL is None:                   # flat normals, as the glTF specification asks
+        return len(tris), meshes.finish_mesh(p, np.repeat(meshes.face_normals(p), 3, axis=0))
+    nrm = doc.accessor(attrs.NORMAL)[:, :3].astype(np.float64)
+    n = meshes.normalize_rows(nrm[tris.reshape(-1)])
+    n = np.where(np.isfinite(n).all(axis=1, keepdims=True), n, 0.0)
+    flat = np.repeat(meshes.face_normals(p), 3, axis=0)
+    n = np.where((np.linalg.norm(n, axis=1) > 0)[:, None], n, flat)   # unusable: the face's
+    return len(tris), meshes.finish_mesh(p, n)
+
+
+def _file_camera(g, ci: int, world: np.ndarray, objects: list[SceneObject],
+                 file_name: str) -> tuple[Optional[Camera], Optional[str]]:
+    """The camera of the first camera node and a note: None and why for a camera that is not
+    perspective; the far plane chosen for one without ``zfar``."""
+    cam = g.cameras[ci]
+    if cam.type != "perspective" or cam.perspective is None:
+        return None, f"{file_name}: {cam.type} camera ignored (only perspective cameras)"
+    p = cam.perspective
+    eye = world[:3, 3]
+    fwd = world[:3, :3] @ np.array([0.0, 0.0, -1.0])
+    up = world[:3, :3] @ np.array([0.0, 1.0, 0.0])
+    fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
+    near = float(p.znear) if p.znear else 0.1
+    note = None
+    if p.zfar:
+        far = float(p.zfar)
+    else:
+        far = _far_past_objects(objects, eye, near)
+        note = (f"{file_name}: camera without zfar (infinite): far = {far:.4g}, twice "
+                "the distance to the farthest corner of the scene's bounding box")
+    camera = Camera(position=tuple(float(x) for x in eye),
+                    target=tuple(float(x) for x in eye + fwd),
+                    up=tuple(float(x) for x in up),
+                    fov_y_deg=math.degrees(float(p.yfov)), near=near, far=far)
+    return camera, note
+
+
+def _far_past_objects(objects: list[SceneObject], eye: np.ndarray, near: float) -> float:
+    """A far plane for an infinite perspective: twice the distance from the eye to the farthest
+    corner of the objects' bounding box, and at least 10 x near."""
+    pts = np.concatenate([o.positions for o in objects])
+    corners = np.array([[x, y, z] for x in (pts[:, 0].min(), pts[:, 0].max())
+                        for y in (pts[:, 1].min(), pts[:, 1].max())
+                        for z in (pts[:, 2].min(), pts[:, 2].max())])
+    return max(2.0 * float(np.linalg.norm(corners - eye, axis=1).max()), 10.0 * near)
 
 
 def load_gltf_scene(path: str | Path) -> Scene:
