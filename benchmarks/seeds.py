@@ -15,8 +15,8 @@
   1.0 with ``dsf = false``, and the default inferred against single-pass ``forward``, all on
   ``examples/scenes/many_lights.toml`` (81 lights) at 1280x720.
 
-Timings come from ``pipegen.tools.sweep.time_job``, as ``pipegen sweep`` takes them: per scene one
-fresh process, pinned to ``--threads`` CPUs with ``LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT =
+Timings come from ``pipegen.tools.sweep.jobs.time_job``, as ``pipegen sweep`` takes them: per scene
+one fresh process, pinned to ``--threads`` CPUs with ``LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT =
 --threads``, one untimed warm-up render per variant and backend, then ``--frames`` rounds
 timing every variant once each, in alternating order; the median.  GL: ``frame()`` to
 ``glFinish`` (no read-back); CL: ``render()`` (with the read-back of every target).
@@ -83,7 +83,7 @@ def lights_per_pixel(scene_path: Path, size: tuple[int, int]) -> tuple[int, floa
 
 def time_group(scene_path, size, variants, frames, threads):
     """{(name, params as text): {"gl": (wall ms, cpu ms), "cl": ...}} and the timing note."""
-    from pipegen.tools.sweep import scene_spec, time_job
+    from pipegen.tools.sweep.jobs import scene_spec, time_job
     job = dict(variants=[dict(file=str(ROOT / f"pipelines/{name}.pipe"), params=params)
                          for name, params in variants],
                scene=scene_spec(scene_path, size), backends=["gl", "cl"], frames=frames,

@@ -19,8 +19,10 @@ from pathlib import Path
 import pytest
 
 from pipegen.core.diagnostics import PipegenError
-from pipegen.tools.sweep import (
-    COLUMNS, csv_text, declared_axes, pareto_front, parse_axes, plan_variants)
+from pipegen.tools.sweep.outputs import csv_text
+from pipegen.tools.sweep.pareto import pareto_front
+from pipegen.tools.sweep.result import COLUMNS
+from pipegen.tools.sweep.variants import declared_axes, parse_axes, plan_variants
 
 ROOT = Path(__file__).resolve().parents[1]
 INFERRED = str(ROOT / "pipelines/inferred.pipe")
@@ -237,7 +239,7 @@ def test_lidr_sweep_trades_capacity_for_error(tmp_path):
 @pytest.mark.cl
 def test_dask_local_cluster_gives_the_local_pool_results():
     distributed = pytest.importorskip("distributed")
-    from pipegen.tools.sweep import run_sweep
+    from pipegen.tools.sweep.run import run_sweep
 
     kw = dict(scene=str(ROOT / "examples/scenes/edges.toml"), size=(64, 36),
               axes=parse_axes(["lbuffer_scale=0.5,1.0", "dsf=true"]), frames=0,
