@@ -74,13 +74,13 @@ import sys, time
 T = [("start", time.perf_counter(), time.process_time())]
 def mark(name): T.append((name, time.perf_counter(), time.process_time()))
 import jinja2; mark("import jinja2")
-import pipegen.cli.main as cli; mark("import pipegen.cli.main (rest)")
+from pipegen.cli import parser as cli, technique_args; mark("import pipegen.cli.main (rest)")
 argv = ["compile", sys.argv[1], "-o", sys.argv[2], "--force"]
 args = cli.build_parser(argv[0]).parse_args(argv); mark("cli.build_parser + parse_args")
 from pipegen.core.outdir import OutputDir
 out = OutputDir(args.out, "compile", args.force); mark("output folder checked")
 import pipegen.compiler.driver; mark("import pipegen.compiler.driver (rest)")
-c = cli._compile(args); mark("parse (or load trees), lower, phases")
+c = technique_args.compile_from_args(args); mark("parse (or load trees), lower, phases")
 c.write(out, ("gl", "cl"), args.size); mark("emit GL + CL, write files")
 c.report(args.size); mark("report")
 print(f"  {'stage':<34} {'wall ms':>8} {'CPU ms':>7}")

@@ -314,7 +314,7 @@ def test_general_build_says_what_unused_shadow_maps_cost():
     none where lights cast shadows, none for the specialised variant (compile --scene), none
     for a technique without shadow maps."""
     from pipegen import compile_file, load_scene
-    from pipegen.cli.main import unused_cost_note
+    from pipegen.cli.scene_args import unused_cost_note
     small, shadows = load_scene(scene("small")), load_scene(scene("shadows"))
     forward = compile_file(tech("forward"))
     note = unused_cost_note(forward, small)

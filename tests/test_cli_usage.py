@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import pipegen
-from pipegen.cli.main import MAX_SIZE, main
+from pipegen.cli.arguments import MAX_SIZE
+from pipegen.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 FORWARD = str(ROOT / "pipelines/forward.pipe")
