@@ -101,6 +101,6 @@ def compile_spec(spec: str):
 
 
 def scene_at(path: str, size: str):
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     w, h = (int(v) for v in size.split("x"))
     return load_scene(path).with_size(w, h)

@@ -121,7 +121,7 @@ def main() -> int:
     ap.add_argument("--before", action="store_true", help="also time the loader of commit caa375c")
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    from pipegen.scene.load import load_scene, make_object, Material, transform_matrix
+    from pipegen.scene import load_scene, make_object, Material, transform_matrix
 
     work = Path(tempfile.mkdtemp())
     files = args.obj

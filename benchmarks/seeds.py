@@ -73,7 +73,7 @@ def lights_per_pixel(scene_path: Path, size: tuple[int, int]) -> tuple[int, floa
     """(max, mean over lit surface pixels) of the lights whose sphere contains the point."""
     from pipegen.reference.lighting import lights_per_pixel as lpp
     from pipegen.reference.raster import rasterize
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     scene = load_scene(scene_path).with_size(*size)
     gb = rasterize(scene, ("opaque",))
     n = lpp(gb, scene)[gb.coverage]

@@ -35,7 +35,7 @@ def main() -> int:
     from pipegen.compiler.driver import compile_file
     from pipegen.reference.metrics import error_image, heat_map, rgb_error, to_top_down
     from pipegen.reference.translucent import reference_composite
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
 
     scene = load_scene(ROOT / "examples/scenes/edges.toml").with_size(384, 216)
     ref, _ = reference_composite(scene)

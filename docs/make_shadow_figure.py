@@ -42,7 +42,7 @@ def main() -> int:
     from pipegen.proof.accuracy import scene_reference
     from pipegen.compiler.driver import compile_file
     from pipegen.reference.metrics import rgb_error, to_top_down
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
 
     scene = load_scene(ROOT / "examples/scenes/shadows.toml").with_size(320, 180)
     ref = scene_reference(scene).rgb

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipegen.scene.load import Geometry
+from pipegen.scene import Geometry
 
 FLAT_COLOR = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
               "    out->o_color = in->lights[in->object_id * PG_LIGHT_FIELDS];\n"

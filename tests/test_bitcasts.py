@@ -23,7 +23,7 @@ import pytest
 
 from pipegen.compiler.driver import compile_source
 from pipegen.reference import bitcasts as B
-from pipegen.scene.load import default_scene
+from pipegen.scene import default_scene
 
 SRC = """
 technique bitcasts "bit casts and half packing on every backend"

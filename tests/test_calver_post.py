@@ -47,7 +47,7 @@ from pipegen.compiler.driver import compile_file
 from pipegen.reference import post
 from pipegen.reference.lighting import to_rgba8
 from pipegen.reference.metrics import rgb_error
-from pipegen.scene.load import load_scene
+from pipegen.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 PIPE = ROOT / "pipelines/deferred_calver.pipe"

@@ -16,7 +16,7 @@ pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
 from pipegen.proof.check import check, first_divergent_pass  # noqa: E402
 from pipegen.compiler.driver import compile_file  # noqa: E402
-from pipegen.scene.load import default_scene, load_scene  # noqa: E402
+from pipegen.scene import default_scene, load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",

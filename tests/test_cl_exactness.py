@@ -30,7 +30,7 @@ from pipegen.proof.compare import compare_target, ulp_distance  # noqa: E402
 from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
 from pipegen.runtime.cl import setup as CS  # noqa: E402
 from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
-from pipegen.scene.load import load_scene  # noqa: E402
+from pipegen.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

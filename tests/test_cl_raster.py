@@ -19,7 +19,7 @@ from cl_util import FLAT_COLOR, TriScene, fullscreen, make_pass, make_plan, pixe
 from pipegen.reference import fixed_function as ff  # noqa: E402
 from pipegen.reference.raster import rasterize_triangles  # noqa: E402
 from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
-from pipegen.scene.load import Camera  # noqa: E402
+from pipegen.scene import Camera  # noqa: E402
 
 _PIPES: dict = {}
 

@@ -112,7 +112,7 @@ def test_device_setup_matches_numpy_setup(cull, samples, smooth, center, scissor
 @pytest.mark.parametrize("technique", ["deferred", "light_prepass", "lidr_transparent"])
 def test_frames_with_and_without_device_setup_are_identical(technique, monkeypatch):
     from pipegen.compiler.driver import compile_file
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     # the ground plane crosses the near and side planes: both set-up paths run
     scene = load_scene(os.path.join(root, "examples", "scenes", "many_lights.toml"))
@@ -133,7 +133,7 @@ def test_frames_reusing_buffers_are_identical_to_fresh_ones(technique):
     draws kept across frames): frames of two scenes with different triangle counts, in turn,
     give what a fresh pipeline gives each scene, and buffers were in fact handed out again."""
     from pipegen.compiler.driver import compile_file
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     compiled = compile_file(os.path.join(root, "pipelines", f"{technique}.pipe"))
     scenes = [load_scene(os.path.join(root, "examples", "scenes", f"{n}.toml")).with_size(96, 54)

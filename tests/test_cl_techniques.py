@@ -21,7 +21,7 @@ pytestmark = [pytest.mark.gl, pytest.mark.cl]
 from pipegen.core import formats as F  # noqa: E402
 from pipegen.proof.compare import compare_target  # noqa: E402
 from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
-from pipegen.scene.load import load_scene  # noqa: E402
+from pipegen.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",

@@ -17,7 +17,7 @@ from pipegen.backends.opencl import wide as cl_wide
 from pipegen.backends.opencl.dialect import OpenCLLanguage
 from pipegen.backends.opencl.programs import prelude_source
 from pipegen.compiler.driver import compile_file, compile_source
-from pipegen.scene.load import load_scene
+from pipegen.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

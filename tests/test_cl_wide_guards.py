@@ -18,7 +18,7 @@ import pytest
 
 from pipegen.backends.opencl import wide as cl_wide
 from pipegen.compiler.driver import compile_source
-from pipegen.scene.load import default_scene
+from pipegen.scene import default_scene
 
 pytestmark = pytest.mark.cl
 pytest.importorskip("pyopencl")

@@ -16,7 +16,7 @@ import pytest
 from pipegen.frontend import parse as syntax
 from pipegen.compiler.driver import compile_source
 from pipegen.core.diagnostics import PipegenError
-from pipegen.scene.load import parse_scene
+from pipegen.scene import parse_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]

@@ -32,7 +32,7 @@ from pipegen.proof.compare import compare_target  # noqa: E402
 from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
 from pipegen.core.diagnostics import PipegenError  # noqa: E402
 from pipegen.proof.precision import quantize_targets  # noqa: E402
-from pipegen.scene.load import load_scene  # noqa: E402
+from pipegen.scene import load_scene  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))

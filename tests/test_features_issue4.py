@@ -22,7 +22,7 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.ir.nodes import CompareFunc, CullMode, Volume
 from pipegen.scene.meshes import light_volume
 from pipegen.runtime import draws
-from pipegen.scene.load import Light, load_scene
+from pipegen.scene import Light, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -334,7 +334,7 @@ pass g {
 @pytest.mark.cl
 def test_stippled_layers_match_the_reference(backends):
     from pipegen.reference.translucent import stippled_gbuffer
-    from pipegen.scene.load import stipple_map
+    from pipegen.scene import stipple_map
     scene = load_scene(ROOT / "examples/scenes/translucent_layers.toml")
     schema = "lights[16] { position: vec3, radius: float, color: vec3 }"
     c = compile_source(technique(STIPPLE, schema, targets="target ids : rgba8ui clear 0")

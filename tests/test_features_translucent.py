@@ -20,7 +20,7 @@ import pytest
 
 from pipegen.compiler import capabilities, mismatches
 from pipegen.compiler.driver import compile_file, compile_source
-from pipegen.scene.load import load_scene, parse_scene
+from pipegen.scene import load_scene, parse_scene
 
 from scenes_for_tests import WALL, plane, planes_scene
 

@@ -69,7 +69,7 @@ def fs(outputs: str, body: str, extra: str = "") -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# a tiny scene with the Scene API (pipegen.scene.load), independent of scene files
+# a tiny scene with the Scene API (pipegen.scene), independent of scene files
 # ---------------------------------------------------------------------------------------------
 
 
@@ -503,8 +503,8 @@ def test_bad_shader_names_the_pass():
 
 
 def test_real_scene_if_available():
-    """With pipegen.scene.load: the default scene's geometry and lights go through unchanged."""
-    scene_mod = pytest.importorskip("pipegen.scene.load")
+    """With pipegen.scene: the default scene's geometry and lights go through unchanged."""
+    scene_mod = pytest.importorskip("pipegen.scene")
     scene = scene_mod.default_scene().with_size(32, 18)
     frag = fs("flat in uvec2 v_ids;\nlayout(location = 0) out uvec4 o_id;\n",
               "o_id = uvec4(v_ids.x, 0u, 0u, 0u);", extra="in vec3 v_albedo;\n")
@@ -550,7 +550,7 @@ def test_errors_left_by_other_moderngl_code_do_not_break_the_runtime():
     surface from the runtime's next (PyOpenGL-checked) call."""
     from pipegen.compiler.driver import compile_source
     from pipegen.runtime.gl.context import GL, get_context
-    from pipegen.scene.load import default_scene
+    from pipegen.scene import default_scene
     ctx = get_context()
     ctx.enable_direct(0xFFFF)            # GL_INVALID_ENUM, left pending by moderngl
     compiled = compile_source('technique t "x"\ntarget color : rgba8\n'

@@ -25,7 +25,7 @@ import pytest
 from pipegen.core import formats as F
 from pipegen.ir import nodes as ir
 from pipegen.compiler.driver import compile_file
-from pipegen.scene.load import load_scene
+from pipegen.scene import load_scene
 
 try:
     from pipegen.runtime.gl.context import GL, get_context

@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
 from pipegen.core import formats as F  # noqa: E402
 from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
-from pipegen.scene.load import Light, default_scene  # noqa: E402
+from pipegen.scene import Light, default_scene  # noqa: E402
 from pipegen.tools.stress import bounds as B  # noqa: E402
 from pipegen.tools.stress import cases as C  # noqa: E402
 from pipegen.tools.stress.run import Stress, compare_values  # noqa: E402

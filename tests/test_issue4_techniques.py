@@ -31,7 +31,7 @@ from pipegen.reference.light_buffer import light_buffer_reference
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.metrics import rgb_error
 from pipegen.reference.translucent import reference_composite
-from pipegen.scene.load import load_scene
+from pipegen.scene import load_scene
 
 pytestmark = [pytest.mark.gl]
 

@@ -49,7 +49,7 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.reference.metrics import dilate, rgb_error
 from pipegen.reference.translucent import reference_composite
 from pipegen.runtime import draws
-from pipegen.scene.load import load_scene, parse_scene
+from pipegen.scene import load_scene, parse_scene
 
 from scenes_for_tests import WALL, plane, planes_scene
 

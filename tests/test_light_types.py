@@ -55,7 +55,7 @@ from pipegen.reference.lighting import reference_image
 from pipegen.reference.rounding import as_float32
 from pipegen.reference.metrics import rgb_error, silhouette_mask
 from pipegen.reference.translucent import reference_composite
-from pipegen.scene.load import Light, load_scene
+from pipegen.scene import Light, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",

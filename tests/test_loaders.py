@@ -17,9 +17,9 @@ from pipegen.scene import meshes
 from pipegen.core.diagnostics import PipegenError
 from pipegen.scene.gltf import GltfError, framing_camera, load_gltf, pbr_material, punctual_light
 from pipegen.scene.obj import MtlMaterial, parse_mtl, read_obj
-from pipegen.scene.load import SceneLoadWarning, load_scene, parse_scene
+from pipegen.scene import SceneLoadWarning, load_scene, parse_scene
 
-pytestmark = pytest.mark.filterwarnings("ignore::pipegen.scene.load.SceneLoadWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::pipegen.scene.model.SceneLoadWarning")
 
 ROOT = Path(__file__).resolve().parents[1]
 CORNELL = ROOT / "examples" / "models" / "cornell_box"

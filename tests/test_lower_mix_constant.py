@@ -115,7 +115,7 @@ def test_mix_bit_exact_with_llvmpipe():
     lerped and 11644 of the 61440 values of ``b`` differed)."""
     pytest.importorskip("pyopencl")
     from pathlib import Path
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     try:
         from pipegen.runtime.gl.context import get_context
         get_context()

@@ -15,7 +15,7 @@ import pytest
 
 from pipegen.compiler.driver import compile_source
 from pipegen.core.diagnostics import PipegenError
-from pipegen.scene.load import Camera, load_scene, parse_scene
+from pipegen.scene import Camera, load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -22,7 +22,7 @@ from pipegen.ir import access, memory, nodes as ir
 from pipegen.passes import cull_unread
 from pipegen.reference.fixed_function import stencil_update
 from pipegen.runtime.common import check_scene
-from pipegen.scene.load import Light, load_scene
+from pipegen.scene import Light, load_scene
 from pipegen.tools.timing import interleave
 from pipegen.views.graph import build_dot
 from pipegen.views.info import describe

@@ -23,7 +23,7 @@ from pipegen.ir.printer import expr, print_technique, statement
 from pipegen.passes import opt_dead_code, opt_unread_reads, pipelines
 from pipegen.passes.manager import (
     ALL, Fixpoint, InternalError, Pass, Watch, pass_names, run_pipeline)
-from pipegen.scene.load import load_scene
+from pipegen.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((ROOT / "pipelines").glob("*.pipe"))

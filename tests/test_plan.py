@@ -96,7 +96,7 @@ def test_cull_auto_inside_a_repeat_group_agrees_across_backends(tmp_path):
     ``cull auto`` (an index array was taken for a mask): 78 codes off at light 1."""
     pytest.importorskip("pyopencl")
     from pipegen.proof.check import check
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     scene = load_scene(ROOT / "examples/scenes/small.toml")
     assert len(scene.lights) >= 2
     result = check(compile_source(CULL_AUTO_REPEAT), scene, tmp_path)

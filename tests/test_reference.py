@@ -12,7 +12,7 @@ from pipegen.reference.lighting import (
     attenuation, light_contribution, lights_per_pixel, reference_image, safe_normalize, shade,
     to_rgba8)
 from pipegen.reference.raster import edge_mask, rasterize, rasterize_each, rasterize_triangles
-from pipegen.scene.load import Light, default_scene, load_scene, parse_scene
+from pipegen.scene import Light, default_scene, load_scene, parse_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "examples" / "scenes"
 W, H = 16, 12

@@ -12,7 +12,7 @@ from pipegen.reference.lighting import reference_image, to_rgba8
 from pipegen.reference.metrics import (
     dilate, error_image, error_map_png, reference_codes, rgb_error, silhouette_mask, to_top_down)
 from pipegen.reference.translucent import reference_composite, stippled_gbuffer
-from pipegen.scene.load import load_scene, parse_scene, stipple_map
+from pipegen.scene import load_scene, parse_scene, stipple_map
 
 from scenes_for_tests import plane, planes_scene
 

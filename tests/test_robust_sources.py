@@ -13,7 +13,7 @@ from pipegen.core import sources
 from pipegen.frontend import parse as syntax, syntax_tree
 from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.core.diagnostics import PipegenError, Span
-from pipegen.scene.load import parse_scene
+from pipegen.scene import parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 FORWARD = (ROOT / "pipelines/forward.pipe").read_text()
@@ -255,7 +255,7 @@ def test_bad_utf8_after_a_byte_order_mark_is_located():
 
 def test_scene_file_that_is_not_utf8_is_located(tmp_path):
     """A scene file with a bad byte: an error at its line and column, not a traceback."""
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     bad = tmp_path / "bad.toml"
     bad.write_bytes(b"width = 64\n# \xff\xfe bad\n")
     with pytest.raises(PipegenError) as e:

@@ -10,7 +10,7 @@ import pytest
 
 from pipegen.scene import meshes, obj as objfile
 from pipegen.core.diagnostics import PipegenError
-from pipegen.scene.load import (
+from pipegen.scene import (
     Camera, Geometry, assign_layers, default_scene, load_scene, parse_scene, stipple_map,
     stipple_owner)
 

@@ -14,10 +14,10 @@ pytest.importorskip("pyopencl")
 
 from pipegen.proof.check import check  # noqa: E402
 from pipegen.compiler.driver import compile_file  # noqa: E402
-from pipegen.scene.load import load_scene  # noqa: E402
+from pipegen.scene import load_scene  # noqa: E402
 
 pytestmark = [pytest.mark.gl, pytest.mark.cl,
-              pytest.mark.filterwarnings("ignore::pipegen.scene.load.SceneLoadWarning")]
+              pytest.mark.filterwarnings("ignore::pipegen.scene.model.SceneLoadWarning")]
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -24,7 +24,7 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.reference.lighting import reference_image
 from pipegen.reference.metrics import error_image, rgb_error
 from pipegen.reference.shadows import ExactShadows, MappedShadows, shadow_factor, shadow_maps
-from pipegen.scene.load import load_scene, parse_scene
+from pipegen.scene import load_scene, parse_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "examples/scenes/shadows.toml"

@@ -151,7 +151,7 @@ def probe():
         get_context()
     except Exception as exc:   # pragma: no cover - no EGL here
         pytest.skip(f"no OpenGL context: {exc}")
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
     compiled = compile_source(SNORM_PROBE)
     scene = load_scene(ROOT / "examples/scenes/small.toml")
     gl = compiled.pipeline("gl").render(scene)

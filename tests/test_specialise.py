@@ -15,7 +15,7 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.compiler.capabilities import capabilities
 from pipegen.compiler.mismatches import mismatches
 from pipegen.scene.features import scene_features
-from pipegen.scene.load import Light, load_scene
+from pipegen.scene import Light, load_scene
 from pipegen.compiler.specialise import SCENE_PHASES, clear_cache, specialise, verify
 from pipegen.passes.manager import run_pipeline
 

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from pipegen.core import formats as F
-from pipegen.scene.load import default_scene, load_scene
+from pipegen.scene import default_scene, load_scene
 from pipegen.tools.stress import bounds as B
 from pipegen.tools.stress import cases as C
 

@@ -18,7 +18,7 @@ import pytest
 
 from pipegen.compiler.driver import compile_file
 from pipegen.reference.lighting import lights_per_pixel, reference_image
-from pipegen.scene.load import load_scene
+from pipegen.scene import load_scene
 
 pytestmark = [pytest.mark.gl]
 

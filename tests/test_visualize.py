@@ -260,7 +260,7 @@ def test_compose_puts_legends_under_the_panels(lidr):
 @pytest.mark.gl
 def test_run_writes_a_contact_sheet(tmp_path):
     from pipegen.views.outputs import write_render
-    from pipegen.scene.load import load_scene
+    from pipegen.scene import load_scene
 
     compiled = compile_file(ROOT / "pipelines/lidr_bitplanes.pipe")
     scene = load_scene(ROOT / "examples/scenes/small.toml").with_size(64, 36)

@@ -9,7 +9,6 @@ import re
 from pathlib import Path
 
 from pipegen.core.defaults import DEFAULT_SIZE
-from pipegen.core.diagnostics import PipegenError
 from pipegen.compiler.inputs import param_pair
 
 MAX_SIZE = 16384          # per side: GL_MAX_TEXTURE_SIZE of llvmpipe
@@ -56,14 +55,6 @@ def dump_after_arg(text: str) -> frozenset | str:
             f"unknown pass {', '.join(map(repr, unknown)) or repr(text)}: the passes are "
             f"{', '.join(all_pass_names())} (or all)")
     return names
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """``WxH`` -> (w, h); a ``PipegenError`` when malformed or out of range."""
-    try:
-        return size_arg(text)
-    except argparse.ArgumentTypeError as e:
-        raise PipegenError(None, str(e)) from None
 
 
 def join_negative_sizes(argv: list[str]) -> list[str]:

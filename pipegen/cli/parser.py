@@ -52,7 +52,7 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
         return parser
     from pipegen.tools.sweep.command import add_parser as add_sweep  # `pipegen sweep`: tools/sweep/
     add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
-    from pipegen.tools.stress.command import add_parser as add_stress  # `pipegen stress`: pipegen/stress/
+    from pipegen.tools.stress.command import add_parser as add_stress  # `pipegen stress`: pipegen/tools/stress/
     add_stress(sub, size_arg, OUTPUT_NOTE)
     return parser
 

@@ -25,7 +25,7 @@ def load_scene_arg(args, size: bool = True):
                                hint="the technique is the first argument; --scene takes a "
                                     "scene .toml, e.g. examples/scenes/small.toml")
         import warnings
-        from pipegen.scene.load import SceneLoadWarning
+        from pipegen.scene.model import SceneLoadWarning
         with warnings.catch_warnings():        # printed below as notes, once, not as warnings
             warnings.simplefilter("ignore", SceneLoadWarning)
             scene = load_scene(args.scene)

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipegen.scene.load import Scene
+from pipegen.scene.model import Scene
 from pipegen.reference.lighting import light_contribution
 from pipegen.reference.raster import GBuffer, rasterize
 from pipegen.reference.rounding import as_float32

@@ -24,7 +24,7 @@ import numpy as np
 
 from pipegen.core import formats
 from pipegen.scene.meshes import light_volume
-from pipegen.scene.load import Light, Scene
+from pipegen.scene.model import Light, Scene
 from pipegen.reference.raster import GBuffer, rasterize
 from pipegen.reference.rounding import as_float32
 

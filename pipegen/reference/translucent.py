@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Optional
 
 import numpy as np
 
-from pipegen.scene.load import STIPPLE_LAYERS, Scene, SceneObject, stipple_map
+from pipegen.scene.model import STIPPLE_LAYERS, Scene, SceneObject, stipple_map
 from pipegen.reference.lighting import shade
 from pipegen.reference.raster import GBuffer, edge_mask, rasterize, rasterize_each
 
@@ -135,7 +135,7 @@ def stippled_gbuffer(scene: Scene, cull: str = "back") -> tuple[GBuffer, np.ndar
     """(GBuffer, layer int64 (H, W)), top row first: what an inferred-lighting geometry pass
     with stippled translucency stores at the scene's size (pass ``scene.with_size(...)`` for a
     low-resolution G-buffer).  The opaque objects are drawn first; then at each pixel owned by
-    stipple layer L >= 1 (:func:`pipegen.scene.load.stipple_owner`, GL window rows) the nearest
+    stipple layer L >= 1 (:func:`pipegen.scene.model.stipple_owner`, GL window rows) the nearest
     translucent surface of layer L in front of the opaque depth replaces the opaque data (depth
     test ``less``).  ``layer`` is L where a translucent surface was stored, else 0.  The
     ``triangle`` field is -1 at translucent pixels (their triangles index per-object lists);

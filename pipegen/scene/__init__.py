@@ -1,12 +1,34 @@
 """Scenes: the model (``model``), the TOML loader (``load``), glTF and OBJ importers
-(``gltf``, ``obj``), meshes (``meshes``) and the shadow-map table (``shadows``).
+(``gltf``, ``obj``), meshes (``meshes``), the shadow-map table (``shadows``) and what a scene
+calls for (``features``).
 
-``pipegen.scene`` is where users find the scene API; its names are re-exported here.
+``pipegen.scene`` is where users find the scene API: the names below are read from ``load``
+and ``model`` on first use, so importing one of the folder's modules (``scene.meshes`` for a
+runtime, ``scene.features`` for the compiler) does not load the TOML loader and its imports.
 """
 
-from pipegen.scene.load import (  # noqa: F401 (the public scene API)
-    DEFAULT_SCENE_TOML, default_scene, load_scene, mtl_material, parse_scene)
-from pipegen.scene.model import (  # noqa: F401 (the public scene API)
-    LIGHT_FIELDS, LIGHT_TYPES, STIPPLE_LAYERS, Camera, Geometry, Light, Material, Scene,
-    SceneLoadWarning, SceneObject, assign_layers, light_field, make_object, report_notes,
-    rotation_matrix, stipple_map, stipple_owner, transform_matrix)
+from __future__ import annotations
+
+_FROM_LOAD = ("DEFAULT_SCENE_TOML", "default_scene", "load_scene", "mtl_material", "parse_scene")
+_FROM_MODEL = ("LIGHT_FIELDS", "LIGHT_TYPES", "STIPPLE_LAYERS", "Camera", "Geometry", "Light",
+               "Material", "Scene", "SceneLoadWarning", "SceneObject", "assign_layers",
+               "light_field", "make_object", "report_notes", "rotation_matrix", "stipple_map",
+               "stipple_owner", "transform_matrix")
+
+__all__ = sorted(_FROM_LOAD + _FROM_MODEL)
+
+
+def __getattr__(name: str):
+    if name in _FROM_LOAD:
+        from pipegen.scene import load as module
+    elif name in _FROM_MODEL:
+        from pipegen.scene import model as module
+    else:
+        raise AttributeError(f"module 'pipegen.scene' has no attribute {name!r}")
+    value = getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -82,11 +82,10 @@ import numpy as np
 
 from pipegen.scene import meshes
 from pipegen.core.diagnostics import PipegenError, Span
-# the model, re-exported: ``pipegen.scene.load`` is where users (and the other modules) find it
 from pipegen.scene.model import (
-    LIGHT_FIELDS, LIGHT_TYPES, STIPPLE_LAYERS, Camera, Geometry, Light, Material, Scene,
-    SceneLoadWarning, SceneObject, assign_layers, light_field, make_object, report_notes,
-    rotation_matrix, stipple_map, stipple_owner, transform_matrix)
+    LIGHT_TYPES, STIPPLE_LAYERS, Camera, Light, Material, Scene, SceneObject, assign_layers,
+    make_object, report_notes, transform_matrix)
+
 
 class _Locator:
     """Finds where a key path (``("objects", 3, "material", "albedo")``) sits in TOML text.

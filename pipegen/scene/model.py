@@ -1,7 +1,7 @@
 """The scene model: objects, lights, a camera and the output size (``Scene``), with the helpers
 every loader shares (transforms, ``make_object``, stipple layers, load notes).  The loaders sit
 above it: ``scene`` (TOML scene files; it re-exports this module's names, the public
-``pipegen.scene.load``), ``gltf`` (glTF 2.0) and ``objfile`` (OBJ + MTL)."""
+``scene/load.py``), ``gltf`` (glTF 2.0) and ``obj`` (OBJ + MTL)."""
 
 from __future__ import annotations
 

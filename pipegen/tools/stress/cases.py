@@ -25,7 +25,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from pipegen.scene import meshes
-from pipegen.scene.load import (
+from pipegen.scene.model import (
     Camera, Light, Material, Scene, SceneObject, make_object, transform_matrix)
 
 F32 = np.float32
