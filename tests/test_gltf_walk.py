@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +14,8 @@ import pytest
 
 from pipegen.scene import meshes
 from pipegen.scene.gltf import GltfError, load_gltf, pbr_material
+
+CORNELL = Path(__file__).resolve().parents[1] / "examples/models/cornell_box/cornell_box.gltf"
 
 QUAD = np.float32([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
 
@@ -104,3 +107,22 @@ def test_orthographic_camera_is_ignored_with_a_note(tmp_path):
     imp = load_gltf(path)
     assert imp.camera is None
     assert imp.notes[0] == "o.gltf: orthographic camera ignored (only perspective cameras)"
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["meshes"][0]["primitives"][0].update(material=99),
+     "mesh 0 primitive 0 refers to material 99, which does not exist (the file has 4)"),
+    (lambda d: d["meshes"][0]["primitives"][0].update(material=-1),
+     "mesh 0 primitive 0 refers to material -1, which does not exist"),
+    (lambda d: d["nodes"][0].update(mesh=99), "node 0 refers to mesh 99, which does not exist"),
+    (lambda d: d.update(scene=5), "the file's `scene` refers to scene 5, which does not exist"),
+])
+def test_an_index_the_file_does_not_hold_is_the_files_error(tmp_path, edit, message):
+    # an index out of range (or negative, which Python would count from the end) is a clear
+    # error naming who refers to what, never an IndexError traceback
+    doc = json.loads(CORNELL.read_text())
+    edit(doc)
+    path = tmp_path / "bad.gltf"
+    path.write_text(json.dumps(doc))          # the buffer is a data URI: the file stands alone
+    with pytest.raises(GltfError, match=re.escape(message)):
+        load_gltf(path)

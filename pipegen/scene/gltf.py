@@ -315,11 +315,20 @@ def _punctual_lights(g) -> list:
     return ((g.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
 
 
+def _item(items, index, what: str, owner: str):
+    """``items[index]`` for an index read from the file: one out of range (or negative, which
+    Python would count from the end) is the file's error, not an IndexError."""
+    if not isinstance(index, int) or not 0 <= index < len(items or ()):
+        raise GltfError(f"{owner} refers to {what} {index}, which does not exist "
+                        f"(the file has {len(items or ())})")
+    return items[index]
+
+
 def _root_nodes(g) -> list[int]:
     """The default scene's root nodes; without scenes, every node that is nobody's child."""
     if g.scenes:
         scene_index = g.scene if g.scene is not None else 0
-        return list(g.scenes[scene_index].nodes or [])
+        return list(_item(g.scenes, scene_index, "scene", "the file's `scene`").nodes or [])
     children = {c for n in g.nodes for c in (n.children or [])}
     return [i for i in range(len(g.nodes)) if i not in children]
 
@@ -345,7 +354,7 @@ class _Materials:
         return pbr_material()
 
     def _convert(self, i: int) -> Material:
-        m = self._g.materials[i]
+        m = self._g.materials[i]       # in range: _add_primitive checked it
         pbr = m.pbrMetallicRoughness
         base = (pbr.baseColorFactor if pbr and pbr.baseColorFactor is not None
                 else [1.0, 1.0, 1.0, 1.0])
@@ -411,7 +420,7 @@ class _NodeWalk:
         if node.skin is not None:
             self.ignored_attrs.add("skins")
         if node.mesh is not None:
-            mesh = self.g.meshes[node.mesh]
+            mesh = _item(self.g.meshes, node.mesh, "mesh", f"node {ni}")
             base_name = node.name or mesh.name or f"node{ni}"
             prims = mesh.primitives or []
             for pi, prim in enumerate(prims):
@@ -448,6 +457,8 @@ class _NodeWalk:
         obj_id = self.first_id + len(self.objects)
         if obj_id > 255:
             raise GltfError("more than 255 mesh primitives: object ids are 8-bit (1..255)")
+        if prim.material is not None:
+            _item(self.g.materials, prim.material, "material", f"mesh {mesh_index} primitive {pi}")
         self.objects.append(make_object(name, obj_id, f"{self.file_name}#mesh{mesh_index}/{pi}",
                                         local, self.materials(prim.material), world))
 
@@ -504,7 +515,7 @@ def _file_camera(g, ci: int, world: np.ndarray, objects: list[SceneObject],
                  file_name: str) -> tuple[Optional[Camera], Optional[str]]:
     """The camera of the first camera node and a note: None and why for a camera that is not
     perspective; the far plane chosen for one without ``zfar``."""
-    cam = g.cameras[ci]
+    cam = _item(g.cameras, ci, "camera", "a node")
     if cam.type != "perspective" or cam.perspective is None:
         return None, f"{file_name}: {cam.type} camera ignored (only perspective cameras)"
     p = cam.perspective
