@@ -12,6 +12,12 @@ from typing import Callable, Optional
 from pipegen.core.diagnostics import PipegenError, Span
 from pipegen.core.formats import Format
 
+# The scheme names the language accepts (``pack NAME = SCHEME(…)``): here, beside the base
+# class, so that lowering a technique without packings reads them without importing every
+# scheme (``schemes.py`` maps each to its class).
+SCHEMES = ("bitplanes", "max_pairs", "channel_slots", "split16", "bitfield",
+           "kircher", "spheremap", "octahedral")
+
 
 class Scheme:
     """One configured scheme: built from ``(options, target format, span)``, it generates the

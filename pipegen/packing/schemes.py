@@ -36,7 +36,7 @@ from pipegen.core.diagnostics import PipegenError, Span
 from pipegen.core.formats import Format
 from pipegen.core.records import record
 from pipegen.ir import nodes as ir
-from pipegen.packing.base import Scheme
+from pipegen.packing.base import SCHEMES, Scheme
 from pipegen.packing.light_index import BitPlanes, ChannelSlots, MaxPairs
 from pipegen.packing.normals import Kircher, Octahedral, Spheremap
 from pipegen.packing.values import Bitfield, Split16
@@ -44,14 +44,12 @@ from pipegen.packing.values import Bitfield, Split16
 # numpy is imported inside the mirrors and the measurements that use it: ``build`` (what
 # compiling a technique calls) never needs it (tests/test_compile_imports.py).
 
-SCHEMES = ("bitplanes", "max_pairs", "channel_slots", "split16", "bitfield",
-           "kircher", "spheremap", "octahedral")
-
 _SCHEME_CLASSES: dict[str, type[Scheme]] = {
     "bitplanes": BitPlanes, "max_pairs": MaxPairs, "channel_slots": ChannelSlots,
     "split16": Split16, "bitfield": Bitfield, "kircher": Kircher,
     "spheremap": Spheremap, "octahedral": Octahedral,
 }
+assert tuple(_SCHEME_CLASSES) == SCHEMES
 
 
 @record(frozen=True)

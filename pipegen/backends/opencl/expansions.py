@@ -6,6 +6,7 @@ the two paths cannot drift apart in their operation order."""
 
 from __future__ import annotations
 
+import functools
 from typing import Callable, NamedTuple, Optional
 
 from pipegen.ir import expand
@@ -66,6 +67,7 @@ def _dot_of_products(n: int) -> str:
     return c_text(over_p(tree), tight=True)
 
 
+@functools.cache            # the same for every program: built once a process
 def prelude_forms() -> dict:
     """The prelude's expressions in ``expand``'s orders (the template's ``order``): ``dot[n]``
     (n = 1: the product ``a * b``; else the sum over ``p = a * b``), ``length``, ``distance``,

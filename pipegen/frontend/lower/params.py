@@ -8,7 +8,7 @@ from typing import Iterable
 from pipegen.frontend import ast
 from pipegen.ir import nodes as ir
 from pipegen.core.formats import FORMATS
-from pipegen.packing.schemes import SCHEMES
+from pipegen.packing.base import SCHEMES
 from pipegen.frontend.lower.names import PARAM_TYPES, a_or_an, error
 
 class ParamBuilder:
