@@ -36,7 +36,8 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
     when known; if it names one of ``COMMANDS``, the subcommands implemented elsewhere
     (``sweep``, ``stress``: their modules import numpy and the scene code, tens of
     milliseconds) are left out, which changes nothing for that command's parse, help or errors.
-    Without it (``--help``, an unknown word, ``sweep`` itself) every subcommand is added."""
+    ``--version`` leaves them out too (it prints and exits while parsing).  Without it
+    (``--help``, an unknown word, ``sweep`` itself) every subcommand is added."""
     everything = "".join(EXAMPLES[c] for c in COMMANDS)
     parser = argparse.ArgumentParser(
         prog="pipegen",
@@ -48,11 +49,11 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
     for add in (add_compile, add_run, add_check, add_specialise, add_graph, add_info):
         add(sub)
 
-    if command_word in COMMANDS:
+    if command_word in COMMANDS or command_word == "--version":
         return parser
     from pipegen.tools.sweep.command import add_parser as add_sweep  # `pipegen sweep`: tools/sweep/
     add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
-    from pipegen.tools.stress.command import add_parser as add_stress  # `pipegen stress`: pipegen/tools/stress/
+    from pipegen.tools.stress.command import add_parser as add_stress  # `pipegen stress`: tools/stress/
     add_stress(sub, size_arg, OUTPUT_NOTE)
     return parser
 
