@@ -194,7 +194,7 @@ class WideStatements:
         if isinstance(s, ir.If):
             c = self.expr(s.cond)
             if not c.varying:
-                head = self._flush(depth, [f"{pad}if ({c.comps[0]}) {{"])
+                head = self._flush(depth, [f"{pad}if ({_condition(c.comps[0])}) {{"])
                 then = self._block(s.then, depth + 1)
                 out = head + then
                 if s.other:
@@ -445,3 +445,17 @@ def _truncate(table: dict, n: int) -> None:
     """Drop the entries added after the first ``n`` (dicts keep insertion order)."""
     for key in list(table)[n:]:
         del table[key]
+
+
+def _condition(text: str) -> str:
+    """``text`` without parentheses that wrap it whole: the values here are parenthesised
+    operations, and ``if ((a == b))`` is clang's -Wparentheses-equality warning (the double
+    parentheses that would silence an assignment meant as a comparison)."""
+    if not text.startswith("("):
+        return text
+    depth = 0
+    for k, ch in enumerate(text):
+        depth += (ch == "(") - (ch == ")")
+        if depth == 0:
+            return text[1:-1] if k == len(text) - 1 else text
+    return text

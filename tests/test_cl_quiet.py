@@ -1,0 +1,58 @@
+"""The generated OpenCL builds without a word (issue 24, "quiet by default"): every program a
+shipped technique's CL pipeline builds to render a scene, in float32 and in the float64
+evaluation, has an empty build log, so no run prints clang's "N warnings generated" or
+pyopencl's ``CompilerWarning``.
+
+Each technique renders in a subprocess with PoCL's kernel cache off: a cached kernel is not
+compiled again and says nothing, which would make the test pass without building anything."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.cl
+
+ROOT = Path(__file__).resolve().parents[1]
+TECHNIQUES = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
+
+RENDER = """
+import sys, warnings
+import pyopencl as cl
+from pipegen.compiler.driver import compile_file
+from pipegen.scene import default_scene
+
+build = cl.Program.build
+logs = []
+def logged(self, *args, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")      # the log is read below, whole
+        program = build(self, *args, **kwargs)
+    for device in program.get_info(cl.program_info.DEVICES):
+        log = program.get_build_info(device, cl.program_build_info.LOG).strip()
+        if log:
+            logs.append(log)
+    return program
+cl.Program.build = logged
+
+compiled = compile_file(sys.argv[1])
+scene = default_scene().with_size(24, 16)
+for precision in ("f32", "f64"):
+    compiled.pipeline("cl", (24, 16), precision=precision).render(scene)
+print("\\n---\\n".join(logs))
+"""
+
+
+@pytest.mark.parametrize("name", TECHNIQUES)
+def test_every_program_of_a_shipped_technique_builds_with_an_empty_log(name, tmp_path):
+    env = dict(os.environ, POCL_CACHE_DIR=str(tmp_path / "pocl"), POCL_KERNEL_CACHE="0",
+               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.run([sys.executable, "-c", RENDER, str(ROOT / "pipelines" / f"{name}.pipe")],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.strip() == "", f"build logs of {name}:\n{proc.stdout[:3000]}"
+    assert "warning" not in proc.stderr.lower(), proc.stderr[-3000:]
