@@ -108,6 +108,10 @@ def test_info_lists_parameters_targets_passes_and_packings(capsys):
     assert "0.5, 0.625, 0.75, 1" in out                       # allowed values
     assert next(l.split() for l in lines if l.strip().startswith("dsf "))[:3] == \
         ["dsf", "bool", "true"]
+    # word parameters under the language's type word (docs/language.md), not the IR's void
+    assert next(l.split() for l in lines if l.strip().startswith("normal_format"))[:3] == \
+        ["normal_format", "format", "rg16f"]
+    assert " void " not in out
     assert "targets at output size 1280x720" in out
     color = next(l.split() for l in lines if l.strip().startswith("color *"))
     assert color[2:4] == ["rgba8", "1280x720"] and "3686400" in color      # 1280*720*4

@@ -7,6 +7,7 @@ from __future__ import annotations
 from typing import Optional
 
 from pipegen.core.units import format_bytes
+from pipegen.frontend.lower.names import param_type_name
 from pipegen.ir import nodes as ir
 from pipegen.ir.memory import target_bytes, technique_bytes
 
@@ -27,9 +28,10 @@ def describe(compiled, output_size: tuple[int, int],
         rows = [head]
         for p in tech.params:
             default = defaults.get(p.name, p.default) if overridden else p.default
+            kind = param_type_name(p)       # the language's word: a word parameter is `format`
             allowed = ", ".join(value_text(v) for v in p.allowed) if p.allowed else \
-                ("true, false" if p.type == ir.BOOL else f"any {p.type}")
-            rows.append((p.name, str(p.type), value_text(default))
+                ("true, false" if p.type == ir.BOOL else f"any {kind}")
+            rows.append((p.name, kind, value_text(default))
                         + ((value_text(p.default),) if overridden else ()) + (allowed,))
         lines += table(rows)
     else:
