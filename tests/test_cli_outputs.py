@@ -44,6 +44,10 @@ def test_run_refuses_a_foreign_folder_without_force_and_keeps_user_files_with_it
     assert main(["run", FORWARD, "-o", str(out), *SMALL, "--force"]) == 0
     assert_user_files(out)
     assert (out / "color.png").exists() and (out / "color.npy").exists()
+    # every picture it wrote is listed, the contact sheet too
+    listed = capsys.readouterr().out
+    assert str(out / "color.png") in listed and str(out / "contact_sheet.png") in listed
+    assert (out / "contact_sheet.png").exists()
     assert (out / MANIFEST).exists()
     # the folder is pipegen's now: a re-run needs no --force and still keeps the user's files
     first = (out / "color.npy").stat().st_mtime_ns

@@ -121,6 +121,8 @@ def test_info_lists_parameters_targets_passes_and_packings(capsys):
               "5. material", "6. translucent"):
         assert p in out
     assert "nrm = kircher(target: gnormal)" in out
+    # the error bound with its unit, as the compile report gives it
+    assert "error bound 0.2231 degrees (max angular error, measured)" in out
     assert "id = bitfield(fields: {object: 8, group: 8}, target: gdsf)" in out
 
 

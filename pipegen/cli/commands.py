@@ -48,8 +48,10 @@ def cmd_run(args) -> int:
         from pipegen.proof.precision import quantize_targets
         targets = quantize_targets(compiled.technique, targets)
     write_render(compiled, scene, targets, out)
+    from pipegen.views.visualize import contact_sheet_name
     for name in sorted(targets):
         print(f"  {out.path / file_name(name, '.png')}")
+    print(f"  {out.path / contact_sheet_name(targets)}   (every target on one sheet)")
     return 0
 
 

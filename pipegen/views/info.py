@@ -10,6 +10,7 @@ from pipegen.core.units import format_bytes
 from pipegen.frontend.lower.names import param_type_name
 from pipegen.ir import nodes as ir
 from pipegen.ir.memory import target_bytes, technique_bytes
+from pipegen.views.report import error_bound_text
 
 
 def describe(compiled, output_size: tuple[int, int],
@@ -73,7 +74,7 @@ def describe(compiled, output_size: tuple[int, int],
             if p.capacity is not None:
                 facts.append(f"capacity {p.capacity} lights per pixel")
             if p.error is not None:
-                facts.append(f"error bound {p.error:.3g}")
+                facts.append(f"error bound {error_bound_text(p)}")
             fns = [f.name for f in p.functions]
             if fns:
                 facts.append("functions " + ", ".join(fns))

@@ -28,7 +28,7 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
             if p.capacity is not None:
                 lines.append(f"    capacity      {p.capacity} lights per pixel")
             if p.error is not None:
-                lines.append(f"    error bound   {_error_bound(p)}")
+                lines.append(f"    error bound   {error_bound_text(p)}")
             lines += [f"    {n}" for n in p.notes]
     spec = getattr(compiled, "specialisation", None)
     if spec is not None:
@@ -39,7 +39,7 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _error_bound(p: ir.Packing) -> str:
+def error_bound_text(p: ir.Packing) -> str:
     """The packing's static error as measured (pipegen/packing/error_tables.py, docs/encodings.md)."""
     if p.scheme in ("kircher", "spheremap", "octahedral"):
         return f"{p.error:.4g} degrees (max angular error, measured)"

@@ -711,6 +711,12 @@ def target_label(name: str, tech: ir.Technique, codes: np.ndarray) -> str:
     return f"{name}  {fmt.name}{' ' + aspect if aspect else ''}  {w}x{h}"
 
 
+def contact_sheet_name(targets) -> str:
+    """The contact sheet's file name: ``contact_sheet.png``, or ``_contact_sheet.png`` when a
+    target is called ``contact_sheet`` (its own picture has the plain name)."""
+    return "_contact_sheet.png" if "contact_sheet" in targets else "contact_sheet.png"
+
+
 def write_pictures(folder, compiled, scene, targets: dict[str, np.ndarray],
                    file_name=None) -> Path:
     """Write ``TARGET.png`` for every target of a render (decoded as the technique declares,
@@ -731,7 +737,7 @@ def write_pictures(folder, compiled, scene, targets: dict[str, np.ndarray],
     w, h = scene.width, scene.height
     box = (256, max(12, round(256 * h / w))) if w >= h else (max(12, round(144 * w / h)), 144)
     title = f"{tech.name} on {scene.name}, {w}x{h}"
-    path = folder / ("_contact_sheet.png" if "contact_sheet" in targets else "contact_sheet.png")
+    path = folder / contact_sheet_name(targets)
     contact_sheet(pictures, title, box).save(path)
     return path
 
