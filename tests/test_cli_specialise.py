@@ -254,6 +254,9 @@ def test_graph_writes_dot_text_with_culled_passes_greyed(capsys, tmp_path):
     assert '"pass:lighting" -> "target:lbuf"' in text           # a write
     assert '"target:lbuf" -> "pass:material"' in text           # a read
     assert "specialised for: point; at most 4 lights; nothing translucent" in text
+    # with --scene the targets are sized as run renders that scene (small.toml: 96x64; the
+    # L-buffer at 0.625 of it), not at the default 1280x720
+    assert "60x40" in text and "800x450" not in text and "1280x720" not in text
 
 
 def test_graph_of_the_general_technique(tmp_path):

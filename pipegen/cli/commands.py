@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from pipegen.backends import registry
+from pipegen.core.defaults import DEFAULT_SIZE
 from pipegen.cli.scene_args import load_scene_arg, mismatch_error, report_mismatches, scene_label
 from pipegen.cli.technique_args import compile_from_args, dump_watch, specialise_from_args
 
@@ -129,9 +130,12 @@ def _verify(args, compiled, special, scene) -> int:
 def cmd_graph(args) -> int:
     from pipegen.views.graph import build_dot, write_graph
     compiled = compile_from_args(args)
+    size = args.size or DEFAULT_SIZE
     if args.scene:
-        compiled = specialise_from_args(args, compiled, load_scene_arg(args, size=False))
-    path, rendered = write_graph(build_dot(compiled, args.size), args.out)
+        scene = load_scene_arg(args, size=False)
+        compiled = specialise_from_args(args, compiled, scene)
+        size = args.size or (scene.width, scene.height)     # the size run renders it at
+    path, rendered = write_graph(build_dot(compiled, size), args.out)
     if rendered or Path(args.out).suffix.lower() == path.suffix.lower():
         print(f"wrote {path}")
     else:

@@ -141,7 +141,10 @@ def add_graph(sub) -> None:
     g.add_argument("--scene", metavar="FILE",
                    help="specialise for this scene and grey out what is culled, with the "
                         "reason (default: the general technique)")
-    add_fixed_size(g, "the target sizes and memory assume")
+    g.add_argument("--size", type=size_arg, metavar="WxH",
+                   help=f"output size the target sizes and memory assume (default: the "
+                        f"scene's width x height with --scene, as run uses, else "
+                        f"{DEFAULT_SIZE_TEXT}; each side 1..{MAX_SIZE})")
 
 
 def add_info(sub) -> None:
