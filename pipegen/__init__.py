@@ -14,39 +14,51 @@ pyopencl; only ``Compiled.pipeline`` does.
 
 from __future__ import annotations
 
-import importlib
+from pipegen.core.defaults import DEFAULT_SIZE  # noqa: F401 (re-exported)
+from pipegen.core.lazy import lazy_names
 
-from pipegen.core.defaults import DEFAULT_SIZE, version as _version  # noqa: F401 (re-exported)
 
-_LAZY = {
-    "compile_file": "pipegen.compiler.driver",
-    "compile_source": "pipegen.compiler.driver",
-    "Compiled": "pipegen.compiler.driver",
-    "load_scene": "pipegen.scene",
-    "parse_scene": "pipegen.scene",
-    "default_scene": "pipegen.scene",
-    "Scene": "pipegen.scene",
-    "save_pngs": "pipegen.views.outputs",
-    "write_render": "pipegen.views.outputs",
-    "OutputDir": "pipegen.core.outdir",
-    "PipegenError": "pipegen.core.diagnostics",
+def _compiler():
+    from pipegen.compiler import driver
+    return driver
+
+
+def _scene():
+    import pipegen.scene
+    return pipegen.scene
+
+
+def _outputs():
+    from pipegen.views import outputs
+    return outputs
+
+
+def _outdir():
+    from pipegen.core import outdir
+    return outdir
+
+
+def _diagnostics():
+    from pipegen.core import diagnostics
+    return diagnostics
+
+
+def _version():
+    # looked up only when asked for: it reads the installed distribution's metadata
+    from types import SimpleNamespace
+    from pipegen.core.defaults import version
+    return SimpleNamespace(__version__=version())
+
+
+_LOADERS = {
+    **dict.fromkeys(("compile_file", "compile_source", "Compiled"), _compiler),
+    **dict.fromkeys(("load_scene", "parse_scene", "default_scene", "Scene"), _scene),
+    **dict.fromkeys(("save_pngs", "write_render"), _outputs),
+    "OutputDir": _outdir,
+    "PipegenError": _diagnostics,
+    "__version__": _version,
 }
 
-__all__ = sorted([*_LAZY, "DEFAULT_SIZE", "__version__"])
+__all__ = sorted([*_LOADERS, "DEFAULT_SIZE"])
 
-
-def __getattr__(name: str):
-    if name == "__version__":
-        version = _version()
-        globals()["__version__"] = version
-        return version
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module 'pipegen' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_names(globals(), _LOADERS)

@@ -11,7 +11,8 @@ layer (``frontend``, ``passes``, ``scene``) never import each other.  No name st
 ``_`` crosses modules, neither imported nor read as ``module._name``.  No module imports the
 package facade (``pipegen/__init__.py``), which sits above everything with ``__main__`` and this
 file.  The only imports by string are the backend registry's (emitters and runtimes named as
-data, so that compiling never imports moderngl or pyopencl) and the facade's lazy names.  And no
+data, so that compiling never imports moderngl or pyopencl); the facades that give names on
+first use import them with plain statements (``core/lazy.py``).  And no
 two modules import each other, through any chain: the import graph has no strongly connected
 component.  Two more walls: the runtimes and the float64 reference never import each other
 (though ``reference`` is below ``runtime``: a bug in one must not hide in the other), and
@@ -50,7 +51,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 ABOVE_ALL = {PACKAGE, f"{PACKAGE}.__main__", f"{PACKAGE}.layers"}
 
 # the modules allowed to import by string (importlib.import_module, __import__)
-STRING_IMPORTERS = {f"{PACKAGE}.backends.registry", PACKAGE}
+STRING_IMPORTERS = {f"{PACKAGE}.backends.registry"}
 
 # folders that never import each other, whatever their layers
 APART = {("runtime", "reference"), ("reference", "runtime")}

@@ -8,19 +8,15 @@ IR), ``mismatches`` (where a technique and a scene disagree), ``emit_files`` (wh
 
 from __future__ import annotations
 
-__all__ = ["Compiled", "compile_file", "compile_source"]
+from pipegen.core.lazy import lazy_names
 
 
-def __getattr__(name: str):
-    # read from the driver on first use, so that importing one of the folder's modules
-    # (``compiler.inputs`` for the command line's argument types) does not load the compiler
-    if name not in __all__:
-        raise AttributeError(f"module 'pipegen.compiler' has no attribute {name!r}")
+def _driver():
     from pipegen.compiler import driver
-    value = getattr(driver, name)
-    globals()[name] = value
-    return value
+    return driver
 
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+# read from the driver on first use, so that importing one of the folder's modules
+# (``compiler.inputs`` for the command line's argument types) does not load the compiler
+__all__ = ["Compiled", "compile_file", "compile_source"]
+__getattr__, __dir__ = lazy_names(globals(), dict.fromkeys(__all__, _driver))

@@ -9,6 +9,8 @@ runtime, ``scene.features`` for the compiler) does not load the TOML loader and 
 
 from __future__ import annotations
 
+from pipegen.core.lazy import lazy_names
+
 _FROM_LOAD = ("DEFAULT_SCENE_TOML", "default_scene", "load_scene", "mtl_material", "parse_scene")
 _FROM_MODEL = ("LIGHT_FIELDS", "LIGHT_TYPES", "STIPPLE_LAYERS", "Camera", "Geometry", "Light",
                "Material", "Scene", "SceneLoadWarning", "SceneObject", "assign_layers",
@@ -18,17 +20,15 @@ _FROM_MODEL = ("LIGHT_FIELDS", "LIGHT_TYPES", "STIPPLE_LAYERS", "Camera", "Geome
 __all__ = sorted(_FROM_LOAD + _FROM_MODEL)
 
 
-def __getattr__(name: str):
-    if name in _FROM_LOAD:
-        from pipegen.scene import load as module
-    elif name in _FROM_MODEL:
-        from pipegen.scene import model as module
-    else:
-        raise AttributeError(f"module 'pipegen.scene' has no attribute {name!r}")
-    value = getattr(module, name)
-    globals()[name] = value
-    return value
+def _load():
+    from pipegen.scene import load
+    return load
 
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+def _model():
+    from pipegen.scene import model
+    return model
+
+
+__getattr__, __dir__ = lazy_names(globals(), {**dict.fromkeys(_FROM_LOAD, _load),
+                                              **dict.fromkeys(_FROM_MODEL, _model)})
