@@ -3,11 +3,11 @@
 Every folder under ``pipegen/`` is a stage, and the stages stand in layers, bottom to top::
 
     core -> ir -> packing -> frontend | passes | scene -> reference -> views -> backends
-         -> runtime -> compiler -> proof -> tools -> cli
+         -> runtime -> compiler -> proof -> tools | testing -> cli
 
 **The rule.**  A module imports (at module level, inside a function or under
 ``TYPE_CHECKING``: all count) only from its own folder or from an earlier layer.  Folders on one
-layer (``frontend``, ``passes``, ``scene``) never import each other.  No name starting with
+layer (``frontend``, ``passes``, ``scene``; ``tools``, ``testing``) never import each other.  No name starting with
 ``_`` crosses modules, neither imported nor read as ``module._name``.  No module imports the
 package facade (``pipegen/__init__.py``), which sits above everything with ``__main__`` and this
 file.  The only imports by string are the backend registry's (emitters and runtimes named as
@@ -43,7 +43,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("runtime",),
     ("compiler",),
     ("proof",),
-    ("tools",),
+    ("tools", "testing"),
     ("cli",),
 )
 
