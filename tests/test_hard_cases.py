@@ -31,9 +31,10 @@ pytestmark = [pytest.mark.gl, pytest.mark.cl]
 from pipegen.core import formats as F  # noqa: E402
 from pipegen.compiler.driver import compile_file, compile_source  # noqa: E402
 from pipegen.scene import Light, default_scene  # noqa: E402
-from pipegen.tools.stress import bounds as B  # noqa: E402
+from pipegen.proof import tolerance as B  # noqa: E402
 from pipegen.tools.stress import cases as C  # noqa: E402
-from pipegen.tools.stress.run import Stress, compare_values  # noqa: E402
+from pipegen.tools.stress.run import Stress  # noqa: E402
+from pipegen.proof.f64_compare import compare_values  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZE = (32, 24)
@@ -189,7 +190,7 @@ def test_lights_accumulated_in_rgba8_rgba16f_rgba32f(base, n):
     scene = dataclasses.replace(base.with_size(4, 2), lights=lights)
     f64 = compiled.pipeline("cl", precision="f64").render(scene)
     got = _render(compiled, scene)
-    from pipegen.tools.stress.bounds import plan_targets
+    from pipegen.proof.tolerance import plan_targets
     info = plan_targets(compiled)
     for key in ("a8", "h", "f"):
         t = info[key]

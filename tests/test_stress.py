@@ -22,7 +22,7 @@ import pytest
 
 from pipegen.core import formats as F
 from pipegen.scene import default_scene, load_scene
-from pipegen.tools.stress import bounds as B
+from pipegen.proof import tolerance as B
 from pipegen.tools.stress import cases as C
 
 ROOT = Path(__file__).resolve().parents[1]

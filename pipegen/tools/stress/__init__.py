@@ -3,7 +3,8 @@ float64 evaluation; every target of both float32 backends held to a bound compos
 pipeline (docs/stress.md).
 
 - ``cases.py``: the scenes (``CASES``, ``GROUPS``, ``build``), a TOML writer for any scene;
-- ``bounds.py``: the per-target bound model (store, blend, arithmetic, positions, reads);
+- the bound comes from the tolerance model (``pipegen.proof``: ``tolerance.py``, ``f64_bound.py``,
+  ``f64_compare.py``; docs/tolerances.md);
 - ``run.py``: ``Stress(compiled).run_case(case) -> CaseResult``;
 - ``search.py``: ``--random N``: hypothesis-drawn scenes, the first failure shrunk;
 - ``report.py``: the table and worst-pixel PNGs; ``command.py``: the subcommand.

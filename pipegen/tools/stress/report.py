@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from pipegen.core import formats as F
-from pipegen.tools.stress.run import CaseResult, TargetResult
+from pipegen.proof.f64_compare import TargetResult
+from pipegen.tools.stress.run import CaseResult
 
 HEADER = ("case", "status", "worst target", "err/bound", "error", "bound", "over/edges",
           "NaN,inf gl|cl|f64", "GL=CL", "lights dropped", "s")
