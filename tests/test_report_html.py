@@ -1,0 +1,182 @@
+"""The HTML report of comparisons (pipegen/testing/report_html.py), opened in headless Chromium
+and checked as drawn: the pictures load at their sizes, the failing target comes first, the page
+says nothing on its console, and its screenshot shows the failing card's red badge.  Where no
+Chromium is installed (.ci/run installs Debian's where it can) those tests skip with the reason;
+the rest check the page's text and how its folder is written."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from browser import find_chromium, render_page
+from pipegen.core.diagnostics import PipegenError
+from pipegen.testing.records import Comparison
+from pipegen.testing.report_html import write_report
+
+FAIL_RED = np.array([198, 40, 40])      # --fail in the page's CSS: the FAILED badge
+
+
+def chromium() -> str:
+    exe = find_chromium()
+    if exe is None:
+        pytest.skip("no chromium: the HTML report is not checked in a browser "
+                    "(install Debian's chromium, as .ci/run does where it can, or set CHROMIUM)")
+    return exe
+
+
+def gradient(w: int, h: int) -> np.ndarray:
+    x, y = np.meshgrid(np.linspace(0, 255, w), np.linspace(0, 255, h))
+    return np.stack([x, y, np.full_like(x, 96)], axis=-1).astype(np.uint8)
+
+
+def comparisons(tmp_path: Path) -> list[Comparison]:
+    """A passing golden comparison made first, a failing one after it (64x48, with an error
+    image already written to disk, as the testing API does), and a passing one at 32x16."""
+    golden, actual = gradient(64, 48), gradient(64, 48)
+    actual[8:16, 40:52] = (255, 0, 255)
+    error = np.zeros_like(actual)
+    error[8:16, 40:52] = (255, 0, 0)
+    error_png = tmp_path / "color-error.png"
+    Image.fromarray(error).save(error_png)
+    return [
+        Comparison("golden", "toon", "normal", True, "max error 0 codes (bound 1 code)",
+                   {"max error": "0 codes", "bound": "1 code"},
+                   {"expected": gradient(64, 48), "actual": gradient(64, 48)},
+                   command="pytest tests/test_toon.py::test_normal", test="t.py::test_normal"),
+        Comparison("golden", "toon", "color", False, "96 pixels over the bound",
+                   {"max error": "255 codes", "bound": "2 codes", "pixels over": "96"},
+                   {"expected": golden, "actual": actual},
+                   command="pytest tests/test_toon.py::test_color",
+                   message="color: 96 pixels differ by more than 2 codes; worst at (40, 8): "
+                           "(255, 0, 255) vs (163, 43, 96) <script>alert(1)</script>",
+                   test="t.py::test_color", artifacts={"difference": str(error_png),
+                                                       "values": "/tmp/x/color.npy"}),
+        Comparison("backends", "toon", "ids", True, "identical", {"max error": "0"},
+                   {"expected": gradient(32, 16), "actual": gradient(32, 16),
+                    "difference": np.zeros((16, 32, 3), np.uint8)}, test="t.py::test_ids"),
+    ]
+
+
+def test_report_as_drawn_in_chromium(tmp_path):
+    exe = chromium()
+    index = write_report(tmp_path / "report", comparisons(tmp_path))
+    start = time.monotonic()
+    page = render_page(index, width=1000, height=700, chromium=exe,
+                       screenshot=tmp_path / "report.png", evaluate={
+        "cards": "[...document.querySelectorAll('details.card')].map(d => "
+                 "[d.dataset.target, d.dataset.status, d.open, "
+                 "d.querySelector('summary').getBoundingClientRect().top])",
+        "index": "[...document.querySelectorAll('table.index a')].map(a => a.textContent)"})
+    assert time.monotonic() - start < 20, f"chromium took {page.seconds:.1f} s"
+    assert page.console == []
+
+    # every picture loaded, at its size; an open card draws it at an integer scale
+    sizes = {"color": (64, 48), "normal": (64, 48), "ids": (32, 16)}
+    drawn = {i["src"]: i for i in page.images}
+    assert len(page.images) == 8 and len(drawn) == 8
+    for src, image in drawn.items():
+        target = src.split("-")[2]
+        assert image["complete"] and (image["naturalWidth"], image["naturalHeight"]) == \
+            sizes[target], image
+    shown = [i for i in page.images if "-color-" in i["src"]]
+    assert [i["src"].rsplit("-", 1)[1] for i in shown] == \
+        ["expected.png", "actual.png", "difference.png"]
+    assert all((i["width"], i["height"]) == (192, 144) for i in shown), shown
+
+    # the failing target first, open; the passing ones after it in the order they were made,
+    # folded (something failed)
+    cards = page.values["cards"]
+    assert [c[:3] for c in cards] == [["color", "failed", True], ["normal", "passed", False],
+                                      ["ids", "passed", False]]
+    assert page.values["index"] == ["color", "normal", "ids"]
+    assert "<script>alert(1)" not in page.dom and "&lt;script&gt;alert(1)" in page.dom
+
+    # the screenshot: not blank, the red FAILED badges (index row and card header) drawn
+    # above the first passing card
+    shot = np.asarray(Image.open(page.screenshot).convert("RGB")).astype(int)
+    assert shot.shape[1] == 1000 and shot.std() > 30
+    red = np.abs(shot - FAIL_RED).max(axis=2) <= 12
+    rows = np.nonzero(red.sum(axis=1) > 40)[0]
+    assert len(rows) > 20, "no red FAILED badge in the screenshot"
+    assert rows.min() < cards[1][3], (rows.min(), cards)
+
+
+def test_browser_sees_a_broken_page(tmp_path):
+    """What the report test relies on: a picture that does not load and a script error are
+    seen (a test that could not fail would prove nothing)."""
+    exe = chromium()
+    page_html = tmp_path / "broken.html"
+    page_html.write_text('<!doctype html><link rel="icon" href="data:,">'
+                         '<img src="missing.png" width="10" height="10">'
+                         '<script>console.warn("careful"); undefinedThing();</script>')
+    page = render_page(page_html, width=300, height=200, chromium=exe,
+                       screenshot=tmp_path / "broken.png")
+    assert page.images[0]["complete"] and page.images[0]["naturalWidth"] == 0
+    said = sorted(m.split("\n")[0] for m in page.console)    # the load fails while scripts run
+    assert said == ["error: Failed to load resource: net::ERR_FILE_NOT_FOUND "
+                    + (tmp_path / "missing.png").as_uri(),
+                    "exception: ReferenceError: undefinedThing is not defined",
+                    "warning: careful"], page.console
+
+
+def test_report_of_nothing_in_chromium(tmp_path):
+    exe = chromium()
+    page = render_page(write_report(tmp_path / "r", []), width=600, height=300, chromium=exe,
+                       screenshot=tmp_path / "empty.png")
+    assert page.console == [] and page.images == []
+    assert "No comparisons were made." in page.dom and "0 passed" in page.dom
+
+
+def test_page_text_and_pictures(tmp_path):
+    index = write_report(tmp_path / "report", comparisons(tmp_path), title="toon <tests>")
+    text = index.read_text()
+    assert "<title>toon &lt;tests&gt;</title>" in text
+    assert '<span class="count fail">1 failed</span><span class="count pass">2 passed</span>' \
+        in text and "3 comparisons in 3 tests" in text
+    # self-contained: no URL leaves the folder
+    links = re.findall(r'(?:src|href)="([^"]*)"', text)
+    assert links and all(re.fullmatch(r"img/[\w.-]+\.png|#c\d+|data:,", u) for u in links), links
+    assert "@import" not in text and "url(" not in text
+    # pictures as the arrays were given (top row first), and the error image copied
+    color = np.asarray(Image.open(index.parent / "img/001-toon-color-actual.png"))
+    assert color.shape == (48, 64, 3) and tuple(color[8, 40]) == (255, 0, 255)
+    assert (index.parent / "img/001-toon-color-difference.png").read_bytes() == \
+        (tmp_path / "color-error.png").read_bytes()
+    assert '<img src="img/001-toon-color-actual.png" alt="actual" width="192" height="144"' \
+        in text
+    assert "<code>values: /tmp/x/color.npy</code>" in text        # a file not drawn is named
+    assert "pytest tests/test_toon.py::test_color</code>" in text
+
+
+def test_report_folder_is_written_as_pipegen_outputs_are(tmp_path):
+    out = tmp_path / "report"
+    write_report(out, comparisons(tmp_path))
+    first = sorted(p.name for p in (out / "img").iterdir())
+    assert len(first) == 8
+    # a later report replaces the pictures of the earlier one, and nothing else is left
+    write_report(out, comparisons(tmp_path)[2:])
+    assert sorted(p.name for p in (out / "img").iterdir()) == \
+        ["001-toon-ids-actual.png", "001-toon-ids-difference.png", "001-toon-ids-expected.png"]
+    # a folder holding files pipegen did not write is refused, and left as it was
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    with pytest.raises(PipegenError, match="holds files pipegen did not write"):
+        write_report(foreign, comparisons(tmp_path))
+    assert [p.name for p in foreign.iterdir()] == ["notes.txt"]
+
+
+def test_import_is_cheap():
+    code = ("import sys, pipegen.testing.report_html; "
+            "print(sorted(m for m in ('numpy', 'PIL') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
