@@ -47,8 +47,8 @@ def backend_problem(backend: str) -> Optional[str]:
     test-suite guard (pipegen's own tests refuse a backend to a test not marked for it): it
     propagates, and nothing is remembered."""
     if backend not in BACKENDS:
-        raise pytest.UsageError(f"unknown pipegen backend {backend!r}: use one of "
-                                f"{', '.join(BACKENDS)}")
+        pytest.fail(f"unknown pipegen backend {backend!r}: use one of {', '.join(BACKENDS)}",
+                    pytrace=False)
     if backend not in _problems:
         try:
             if backend == "gl":
@@ -169,9 +169,8 @@ def pytest_runtest_setup(item):
             _skip_unless_available(backend)
 
 
-@pytest.hookimpl(hookwrapper=True)
+@pytest.hookimpl(trylast=True)        # after the fixtures' teardown, which may compare too
 def pytest_runtest_teardown(item, nextitem):
-    yield
     taken = records.take()
     state = item.config.stash.get(_STATE, None)
     for c in taken:
