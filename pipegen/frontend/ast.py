@@ -417,8 +417,28 @@ class RepeatBlock(Node):
     light_types: list[Word] = field(default_factory=list)   # `repeat per light spot … { … }`
 
 
+@record
+class Expect(Node):
+    """``expect SUBJECT CHECK [on "scene"] [at W x H]`` (frontend/expect_syntax.py reads it).
+
+    ``check`` is "agrees" (``against``: the backends, ``agrees gl cl``), "vs" (``against``:
+    ``f64``) or "count" (``SUBJECT OP VALUE``, the subject a count such as ``lights_dropped``).
+    ``statistic``/``op``/``value``: the bound (``p99 <= 2``); a count has ``op`` and ``value``
+    only; None where the derived tolerance decides.  ``text``: the words as written."""
+
+    subject: Name
+    check: str
+    against: list[Name]
+    statistic: Optional[Name]
+    op: Optional[Word]
+    value: Optional[Number]
+    scene: Optional[Word]          # the path as written (``value``), spanning the string
+    size: Optional[SizeAbs]
+    text: str
+
+
 Item = Union[TechniqueDecl, Include, ParamDecl, LightsDecl, TargetDecl, OutputDecl, PackDecl,
-             FunctionDef, PassDecl, RepeatBlock]
+             FunctionDef, PassDecl, RepeatBlock, Expect]
 
 
 @record

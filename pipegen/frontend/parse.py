@@ -74,9 +74,9 @@ def _ast_cache_file(text: str, filename: str) -> Optional[str]:
 @functools.cache
 def _front_end_key() -> Optional[bytes]:
     """Digest of what turns text into ``ast`` nodes: the grammar, this module,
-    ``syntax_tree.py`` (the parser and the transformer), ``ast.py``, ``diagnostics.py`` and
-    ``records.py`` (the node and span classes) as they are on disk, lark's ``__init__.py`` (its
-    version) and Python's version.
+    ``syntax_tree.py`` (the parser and the transformer), ``expect_syntax.py`` (an expectation's
+    words), ``ast.py``, ``diagnostics.py`` and ``records.py`` (the node and span classes) as
+    they are on disk, lark's ``__init__.py`` (its version) and Python's version.
     Any edit to them starts a fresh set of cache files.  None when a source cannot be read
     (then nothing is cached).  Neither lark nor the transformer is imported for it."""
     import hashlib
@@ -87,6 +87,7 @@ def _front_end_key() -> Optional[bytes]:
     try:
         sources = [importlib.util.find_spec(name).origin
                    for name in ("lark", "pipegen.frontend.syntax_tree", "pipegen.frontend.parse", "pipegen.frontend.ast",
+                                "pipegen.frontend.expect_syntax",
                                 "pipegen.core.diagnostics", "pipegen.core.records")]
         for path in sources:
             with open(path, "rb") as f:

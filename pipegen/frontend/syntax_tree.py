@@ -18,6 +18,7 @@ from lark.exceptions import (UnexpectedCharacters, UnexpectedEOF, UnexpectedInpu
                              UnexpectedToken, VisitError)
 
 from pipegen.frontend import ast
+from pipegen.frontend.expect_syntax import parse_expect
 from pipegen.core.diagnostics import PipegenError, Span
 from pipegen.core.package_files import cache_dir, grammar_text, load_cached, save_cached
 
@@ -246,6 +247,12 @@ class _ToAst(Transformer):
 
     def output(self, meta, ch):
         return ast.OutputDecl(self._name(ch[0]), span=self._span(meta))
+
+    def expect(self, meta, ch):
+        tok = ch[0]
+        keyword = Span(self.filename, meta.line, meta.column, meta.line, meta.column + 6,
+                       self.text)
+        return parse_expect(str(tok), tok.line, tok.column, self.text, self.filename, keyword)
 
     def pack(self, meta, ch):
         ch = _present(ch)
@@ -565,7 +572,8 @@ def _join(a: Span, b: Span) -> Span:
 
 # Terminals that stand for a class of tokens rather than one spelling.
 _TOKEN_CLASSES = {"NAME": "a name", "NUMBER": "a number", "STRING": "a string in double quotes",
-                  "$END": "the end of the file"}
+                  "$END": "the end of the file",
+                  "EXPECT_TEXT": "an expectation on the same line (e.g. `color agrees gl cl`)"}
 _OPERATORS = {"OROR", "ANDAND", "PIPE", "CARET", "AMP", "EQ_OP", "REL_OP", "SHIFT_OP", "PLUS",
               "MINUS", "MUL_OP", "QMARK"}
 _SHADER_STATEMENTS = {"if", "for", "return", "break", "continue", "discard"}

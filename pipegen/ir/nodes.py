@@ -647,6 +647,43 @@ class Cut:
 
 
 @record(frozen=True)
+class Expectation:
+    """An ``expect`` statement (docs/language.md, Expectations): what ``pipegen test`` and the
+    pytest plugin check of the technique (``testing/expectations.py``).  Never emitted.
+
+    ``check``: "agrees" (``subject``, a target, rendered on each backend of ``against``
+    agrees within the derived tolerance), "vs" (each float32 backend against the float64
+    evaluation, ``against == ("f64",)``) or "count" (``subject`` one of ``COUNTS``).
+    ``statistic``/``op``/``value``: the bound (``p99 <= 2``; a count: ``op`` and ``value``);
+    ``statistic`` None: the derived tolerance, no discontinuity.  ``scene``: a path (relative
+    paths resolved against the .pipe file's folder), None for the built-in scene; ``size``:
+    None for the scene's own (``DEFAULT_SIZE`` for the built-in scene)."""
+
+    BACKENDS = ("gl", "cl")
+    REFERENCES = ("f64",)
+    #: |a - b| in the target's units (codes for fixed point, values for float): the largest,
+    #: percentiles, the root mean square; pixels beyond the derived bound that are (not)
+    #: discontinuities
+    STATISTICS = ("max", "p50", "p90", "p95", "p99", "p99.9", "rmse", "discontinuities", "over")
+    #: lights no light set of a packing takes (whole lights, unlit); what the technique will
+    #: not render of the scene (``Compiled.mismatches``)
+    COUNTS = ("lights_dropped", "mismatches")
+    OPS = ("<=", "<", "==", "!=", ">=", ">")
+    DEFAULT_SIZE = (64, 36)
+
+    subject: str
+    check: str
+    against: tuple[str, ...] = ()
+    statistic: Optional[str] = None
+    op: Optional[str] = None
+    value: Optional[float] = None
+    scene: Optional[str] = None
+    size: Optional[tuple[int, int]] = None
+    text: str = ""                      # as written after `expect`
+    span: Optional[Span] = field(default=None, compare=False)
+
+
+@record(frozen=True)
 class Technique:
     name: str
     title: str
@@ -660,6 +697,7 @@ class Technique:
     source: str = ""                    # path of the .pipe file
     scene: Optional[SceneFacts] = None  # scene specialisation: what every scene must satisfy
     cuts: tuple[Cut, ...] = ()          # what scene specialisation removed, with reasons
+    expectations: tuple[Expectation, ...] = ()   # `expect` statements (never emitted)
 
     def target(self, name: str) -> Target:
         for t in self.targets:

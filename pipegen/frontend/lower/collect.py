@@ -29,6 +29,7 @@ class Decls:
     packs: list[ast.PackDecl] = field(default_factory=list)
     functions: list[ast.FunctionDef] = field(default_factory=list)
     passes: list[PassItem] = field(default_factory=list)
+    expects: list[ast.Expect] = field(default_factory=list)
     named: list[tuple[ast.Name, str]] = field(default_factory=list)   # in source order
 
 
@@ -78,7 +79,8 @@ class Collector:
         else:
             bucket = {ast.ParamDecl: d.params, ast.LightsDecl: d.lights,
                       ast.TargetDecl: d.targets, ast.OutputDecl: d.outputs,
-                      ast.PackDecl: d.packs, ast.FunctionDef: d.functions}[type(item)]
+                      ast.PackDecl: d.packs, ast.FunctionDef: d.functions,
+                      ast.Expect: d.expects}[type(item)]
             bucket.append(item)
             kind = _NAMED_KINDS.get(type(item))
             if kind is not None:
@@ -134,4 +136,5 @@ _NAMED_KINDS = {ast.ParamDecl: "parameter", ast.TargetDecl: "target", ast.PackDe
 def _item_kind(item: ast.Item) -> str:
     return {ast.TechniqueDecl: "technique", ast.LightsDecl: "light table",
             ast.TargetDecl: "target", ast.OutputDecl: "output", ast.PassDecl: "pass",
-            ast.RepeatBlock: "repeat block"}.get(type(item), type(item).__name__)
+            ast.RepeatBlock: "repeat block", ast.Expect: "test expectation"}.get(
+                type(item), type(item).__name__)

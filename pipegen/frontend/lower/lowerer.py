@@ -16,8 +16,10 @@ Phases, in order (each may rely on the ones before):
                 then recursion and what each function needs transitively (bodies:
                 ``lowering/expressions.py`` and ``lowering/statements.py``)
 6. passes   -- draw, attachments, fixed-function state, fragment body (``lowering/passes.py``)
+7. expectations -- ``expect`` statements: names and scene files checked
+                (``lowering/expectations.py``)
 
-This module holds the entry point and the declarations (phases 2-5 and the order of all six);
+This module holds the entry point and the declarations (phases 2-5 and the order of all seven);
 ``lowering/names.py`` what the parts share (errors, signatures, contexts, reserved names).
 
 The IR keeps technique parameters as ``Var(kind="param")`` in shader code (the specialise pass
@@ -37,6 +39,7 @@ from pipegen.ir.builtins import LIGHT_FIELDS
 from pipegen.core.diagnostics import Span
 from pipegen.core.formats import FORMATS, Format
 from pipegen.frontend.lower.collect import Collector, Decls, PassItem
+from pipegen.frontend.lower.expectations import lower_expectations
 from pipegen.frontend.lower.names import (
     SAMPLE_COUNTS, Loader, a_or_an, Context, did_you_mean, error, generated_by, Global, listing,
     param_type_name, reserved_meaning, shader_type, show_number, Signature, Uses)
@@ -94,7 +97,8 @@ class _Lowerer:
             name=tech.name.name, title=tech.title, params=params, targets=targets,
             lights=self.lights, packings=self._ir_packings(),
             functions=self._ir_functions(user=True), passes=passes, output=output,
-            source=self.filename)
+            source=self.filename,
+            expectations=lower_expectations(d.expects, (t.name for t in targets)))
 
     def _declare(self, name: ast.Name, kind: str) -> None:
         """Enter a top-level name; parameters, targets, packings and functions share one

@@ -1,0 +1,165 @@
+"""Expectations inside a .pipe (issue 24 item 4): `expect` lines parsed and lowered with their
+errors at file:line:col (caret and hint), `pipegen test` (one line per expectation, exit 0 / 1 /
+2), and the pytest plugin collecting a .pipe file's expectations as items."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.core.diagnostics import PipegenError
+from pipegen.ir import nodes as ir
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A tiny technique of our own: normals into an rgba8 target, a hard threshold into another
+# (a discontinuity where float32 and float64 fall on different sides of it).
+TINY = textwrap.dedent("""\
+    technique tiny "normals and a threshold"
+    target color : rgba8 clear (0, 0, 0, 1)
+    target band  : rgba8 clear (0, 0, 0, 1)
+    target ds    : d24s8 clear depth 1.0
+    output color
+
+    pass shade {
+      draw scene.opaque
+      writes color, band
+      depth ds less write
+      fragment {
+        vec3 n = normalize(normal);
+        color = vec4(n * 0.5 + 0.5, 1.0);
+        band = vec4(step(0.3, n.y * 0.5 + 0.5), 0.0, 0.0, 1.0);
+      }
+    }
+    """)
+
+
+def tiny(tmp_path: Path, *expects: str, name: str = "tiny.pipe") -> Path:
+    path = tmp_path / name
+    path.write_text(TINY + "\n".join(expects) + "\n")
+    return path
+
+
+# -- the syntax and its lowering ---------------------------------------------------------------
+
+def test_every_form_lowers_to_an_expectation(tmp_path):
+    (tmp_path / "scenes").mkdir()
+    scene = tmp_path / "scenes" / "hard.toml"
+    scene.write_text("")
+    path = tiny(tmp_path,
+                "expect color agrees gl cl",
+                "expect color vs f64",
+                "expect color vs f64 p99.9 <= 2.5   // a comment after it",
+                "expect band vs f64 discontinuities <= 40; expect mismatches == 0",
+                'expect lights_dropped < 1 on "scenes/hard.toml" at 96x64',
+                "expect color agrees cl gl rmse < 0.5 at 32 x 18")
+    got = compile_file(path).technique.expectations
+    E = ir.Expectation
+    assert got == (
+        E("color", "agrees", ("gl", "cl"), text="color agrees gl cl"),
+        E("color", "vs", ("f64",), text="color vs f64"),
+        E("color", "vs", ("f64",), "p99.9", "<=", 2.5, text="color vs f64 p99.9 <= 2.5"),
+        E("band", "vs", ("f64",), "discontinuities", "<=", 40,
+          text="band vs f64 discontinuities <= 40"),
+        E("mismatches", "count", (), None, "==", 0, text="mismatches == 0"),
+        E("lights_dropped", "count", (), None, "<", 1, str(scene), (96, 64),
+          text='lights_dropped < 1 on "scenes/hard.toml" at 96x64'),
+        E("color", "agrees", ("cl", "gl"), "rmse", "<", 0.5, None, (32, 18),
+          text="color agrees cl gl rmse < 0.5 at 32x18"),
+    )
+    assert [e.span.line for e in got] == [17, 18, 19, 20, 20, 21, 22]
+
+
+def test_expectations_are_not_emitted(tmp_path):
+    """The same technique with and without expectations emits the same code."""
+    plain = compile_source(TINY, str(tmp_path / "a.pipe"))
+    expecting = compile_source(TINY + "expect color agrees gl cl\nexpect color vs f64\n",
+                               str(tmp_path / "a.pipe"))
+    assert expecting.technique.expectations and not plain.technique.expectations
+    for backend in ("gl", "cl"):
+        a, b = plain.plan(backend), expecting.plan(backend)
+        assert [p.code for p in a.passes] == [p.code for p in b.passes]
+
+
+def test_expect_is_a_keyword_only_at_the_top_level(tmp_path):
+    """`expect` stays a name in shader code and as a function's name."""
+    text = TINY.replace("vec3 n = normalize(normal);",
+                        "float expect = 1.0; vec3 n = normalize(normal) * expect;")
+    text += "float expect2(float expect) { return expect; }\nexpect color vs f64\n"
+    assert len(compile_source(text, str(tmp_path / "a.pipe")).technique.expectations) == 1
+
+
+def error_of(tmp_path: Path, line: str) -> PipegenError:
+    with pytest.raises(PipegenError) as e:
+        compile_file(tiny(tmp_path, line))
+    return e.value
+
+
+@pytest.mark.parametrize("line, at, message, hint", [
+    ("expect colr agrees gl cl", "colr", "unknown target 'colr'", "did you mean 'color'?"),
+    ("expect color agrees gl gles", "gles", "unknown backend 'gles'", "did you mean 'gl'?"),
+    ("expect color agrees gl f64", "f64", "unknown backend 'f64'", "expect color vs f64"),
+    ("expect color agrees gl gl", "gl", "backend 'gl' is named twice", "agrees gl cl"),
+    ("expect color agrees gl", "gl", "name two", "agrees gl cl"),
+    ("expect color vs f64 p98 <= 2", "p98", "unknown statistic 'p98'", "did you mean 'p99'?"),
+    ("expect color vs f64 median <= 2", "median", "unknown statistic 'median'",
+     "statistics: max, p50, p90, p95, p99, p99.9, rmse, discontinuities, over"),
+    ("expect color vs gl", "gl", "unknown reference 'gl'", "agrees gl cl"),
+    ("expect lights == 0", "lights", "unknown count 'lights'",
+     "did you mean 'lights_dropped'?"),
+    ("expect color == 0", "color", "'color' is a target", "expect color agrees gl cl"),
+    ("expect mismatches agrees gl cl", "mismatches", "'mismatches' is a count",
+     "expect mismatches == 0"),
+    ("expect band vs f64 over <= 1.5", "1.5", "'over' counts", "write e.g. 1"),
+    ('expect color agrees gl cl on "missing.toml"', '"missing.toml"',
+     "scene file 'missing.toml' not found", "relative to the .pipe file's folder"),
+    ("expect color vs f64 at 0x36", "0x36", "at least 1x1, not 0x36", "at 96x64"),
+    ("expect color vs f64 p99 2", "2", "unexpected number '2'; expected a comparison",
+     "p99 <= 2"),
+    ("expect color", None, "the expectation ends here; expected 'agrees', 'vs' or a "
+     "comparison", "expect color agrees gl cl"),
+    ("expect color vs f64 at 96x64 on", None, "the expectation ends here; expected the scene "
+     "file", 'on "scenes/hard.toml"'),
+    ("expect color vs f64 at 96x64 at 8x8", "at", "'at' is given twice", "one size"),
+    ("expect color vs f64 soon", "<end>", "the expectation ends here; expected a comparison",
+     "p99 <= 2"),
+    ("expect color vs f64 @", "@", "unexpected '@' in an expectation", "double quotes"),
+    ("expect color vs f64 on scene.toml", "scene.toml",
+     "unexpected word 'scene.toml'; expected the scene file, a string in double quotes",
+     'on "scenes/hard.toml"'),
+])
+def test_a_bad_expectation_is_an_error_at_its_word(tmp_path, line, at, message, hint):
+    e = error_of(tmp_path, line)
+    text = e.render()
+    assert message in e.message and hint in e.hint, text
+    assert e.span.file.endswith("tiny.pipe") and e.span.line == 17, text
+    source_line, caret = text.splitlines()[1:3]
+    assert source_line.endswith(line)
+    start = e.span.column - 1
+    if at == "<end>":
+        assert e.span.column == len(line) + 1, text
+    elif at is not None:
+        assert line[start:start + len(at)] == at, text
+        assert caret.count("^") == len(at), text
+    assert "Traceback" not in text
+
+
+def test_expect_alone_on_its_line_is_a_syntax_error(tmp_path):
+    e = error_of(tmp_path, "expect\ntarget more : rgba8")
+    assert (e.span.line, e.span.column) == (18, 1)
+    assert "expected an expectation on the same line" in e.message
+
+
+def test_an_included_file_holds_no_expectations(tmp_path):
+    (tmp_path / "lib.pipe").write_text("expect color vs f64\n")
+    path = tmp_path / "a.pipe"
+    path.write_text(TINY.replace('output color', 'output color\ninclude "lib.pipe"'))
+    with pytest.raises(PipegenError) as e:
+        compile_file(path)
+    assert "not a test expectation" in e.value.message
+    assert e.value.span.file.endswith("lib.pipe")
