@@ -274,6 +274,7 @@ class Binary:
     left: "Expr"
     right: "Expr"
     type: Type
+    span: Optional[Span] = field(default=None, compare=False, repr=False)
 
 
 @record(frozen=True)
@@ -292,6 +293,7 @@ class Call:
     args: tuple["Expr", ...]
     type: Type
     builtin: bool = True
+    span: Optional[Span] = field(default=None, compare=False, repr=False)
 
 
 @record(frozen=True)
@@ -300,6 +302,7 @@ class Construct:
 
     type: Type
     args: tuple["Expr", ...]
+    span: Optional[Span] = field(default=None, compare=False, repr=False)
 
 
 @record(frozen=True)

@@ -9,7 +9,7 @@ on a primitive edge, if it sits next to a discontinuity: admitted, counted, and 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Optional, Union
 
 import numpy as np
@@ -33,10 +33,29 @@ class TargetComparison:
     edge_bound: int
     error_map: np.ndarray     # (H, W) float: per-pixel error in units (for the error PNG)
     limit_map: Optional[np.ndarray] = None   # (H, W) per-pixel limit (per-pixel P), else None
+    over_mask: Optional[np.ndarray] = None   # (H, W) the pixels counted in ``over``
+    discontinuities: list = field(default_factory=list)   # discontinuity.Discontinuity
+    discontinuity_mask: Optional[np.ndarray] = None       # (H, W) their pixels
 
     @property
     def passed(self) -> bool:
+        """Within tolerance away from coverage edges; discontinuities are counted apart
+        (``discontinuity_count``), their tolerance is the caller's."""
         return self.over == 0 and self.edge_admitted <= self.edge_bound
+
+    @property
+    def discontinuity_count(self) -> int:
+        return sum(d.count for d in self.discontinuities)
+
+    def worst_pixel(self) -> tuple[int, int]:
+        """(x, y), y from the top: the pixel counted in ``over`` (else anywhere) with the
+        largest error over its limit."""
+        limit = self.tolerance.limit if self.limit_map is None else self.limit_map
+        score = self.error_map - limit
+        if self.over_mask is not None and self.over_mask.any():
+            score = np.where(self.over_mask, score, -np.inf)
+        y, x = np.unravel_index(int(np.argmax(score)), score.shape)
+        return int(x), int(score.shape[0] - 1 - y)
 
     def row(self) -> tuple[str, ...]:
         units = {"code": "codes", "ulp": "ulp", "exact": "exact"}[self.tolerance.units]
@@ -46,14 +65,15 @@ class TargetComparison:
             limit = f"≤{lo}..{hi}" if lo != hi else f"≤{hi}"
         return (self.name, self.format.name, f"{_num(self.max_error)} {units}",
                 f"{self.rmse:.3g}", limit, str(self.over),
-                f"{self.edge_admitted}/{self.edge_bound}", "ok" if self.passed else "FAIL")
+                f"{self.edge_admitted}/{self.edge_bound}", str(self.discontinuity_count),
+                "ok" if self.passed else "FAIL")
 
 
 def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
                    blended_passes: Union[int, np.ndarray] = 0,
                    tolerance: Tolerance | None = None,
-                   stencil: bool = False, exact_channels: tuple[bool, ...] = ()
-                   ) -> TargetComparison:
+                   stencil: bool = False, exact_channels: tuple[bool, ...] = (),
+                   exclude: Optional[np.ndarray] = None) -> TargetComparison:
     """Compare codes ``a`` and ``b`` (same shape) of target ``name`` in format ``fmt``.
 
     ``blended_passes``: P of DESIGN.md §7, one number for the whole target or an (H, W)
@@ -61,6 +81,7 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
     is then held to ``fmt.tolerance(P[y, x])`` (the reported tolerance is the largest).
     ``exact_channels`` flags channels that must match exactly (packed integers sharing a
     target with ordinary values): any difference there counts as over tolerance.
+    ``exclude``: (H, W) pixels not counted (the discontinuities found among those over).
     """
     assert a.shape == b.shape, (name, a.shape, b.shape)
     p = np.asarray(blended_passes)
@@ -82,6 +103,8 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
         err[..., exact] = np.where(err[..., exact] > 0, np.maximum(err[..., exact], over), 0.0)
     per_pixel = err.max(axis=-1) if err.ndim == 3 else err
     bad = per_pixel > limit
+    if exclude is not None:
+        bad &= ~exclude
     admitted = np.zeros_like(bad)
     if bad.any():          # the neighbourhood tests decide only for pixels over tolerance
         on_edge = _discontinuity(a, tol, limit) | _discontinuity(b, tol, limit)
@@ -90,9 +113,10 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
     finite = per_pixel[np.isfinite(per_pixel)]
     rmse = float(np.sqrt(np.mean(finite.astype(np.float64) ** 2))) if finite.size else 0.0
     bound = max(EDGE_MIN, int(EDGE_FRACTION * per_pixel.size))
-    return TargetComparison(name, fmt, tol, float(per_pixel.max()) if per_pixel.size else 0.0,
+    counted = per_pixel if exclude is None else np.where(exclude, 0.0, per_pixel)
+    return TargetComparison(name, fmt, tol, float(counted.max()) if counted.size else 0.0,
                             rmse, int((bad & ~admitted).sum()), int(admitted.sum()), bound,
-                            per_pixel.astype(np.float64), limit_map)
+                            per_pixel.astype(np.float64), limit_map, bad & ~admitted)
 
 
 def channel_error(a: np.ndarray, b: np.ndarray, tol: Tolerance) -> np.ndarray:

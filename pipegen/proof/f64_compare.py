@@ -35,10 +35,22 @@ class TargetResult:
     ratio_map: np.ndarray = field(repr=False, default=None)   # (H, W) error / bound
     output: bool = False          # the technique's output (or its depth/stencil): pass/fail;
     #                               other targets are reported (warn), not failed
+    over_mask: np.ndarray = field(repr=False, default=None)   # (H, W) the pixels of ``over``
+    worst_xy: tuple[int, int] = (0, 0)        # the worst pixel, (x, y) with y from the top
+    worst_values: tuple = ((), ())            # (float32, float64) channels there
+    discontinuities: list = field(default_factory=list)       # discontinuity.Discontinuity
+    discontinuity_mask: np.ndarray = field(repr=False, default=None)   # (H, W) their pixels
+    bound_map: np.ndarray = field(repr=False, default=None)   # the bound, value units
 
     @property
     def passed(self) -> bool:
+        """Within the bound away from coverage edges; discontinuities are counted apart
+        (``discontinuity_count``), their tolerance is the caller's."""
         return self.over == 0 and self.edges <= self.edge_bound and self.nonfinite_mismatch == 0
+
+    @property
+    def discontinuity_count(self) -> int:
+        return sum(d.count for d in self.discontinuities)
 
     def units(self, value: float) -> str:
         fmt = F.get(self.format)
@@ -79,18 +91,41 @@ def error(got: np.ndarray, want: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(e), np.inf, e)
 
 
-def compare_values(key: str, fmt: F.Format, backend: str, got_codes: np.ndarray,
-                   f64: np.ndarray, bound: np.ndarray, exact: bool) -> TargetResult:
+def comparable(key: str, fmt: F.Format, got_codes: np.ndarray, f64: np.ndarray,
+               exact: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A float32 render's target and the float64 evaluation's, in the units they compare in:
+    values (the float a shader reads; float formats with denormals flushed, as the float32
+    runs do), or codes for exact targets (integers, packed indices, stencil)."""
     if exact:
         want = np.asarray(fmt.quantize(f64) if not key.endswith(".stencil") and
                           not fmt.is_integer else f64).astype(np.float64)
-        got = np.asarray(got_codes).astype(np.float64)
+        return np.asarray(got_codes).astype(np.float64), want
+    got = F.flush_denormals(np.asarray(got_codes)) if fmt.kind is F.Kind.FLOAT \
+        else np.asarray(got_codes)
+    return fmt.dequantize(got), np.asarray(f64, np.float64)
+
+
+def comparison_units(info: dict):
+    """``convert(key, float64 values)`` for ``discontinuity.Explainer``: the units
+    ``comparable`` gives a target in (``info``: ``tolerance.plan_targets``)."""
+    def convert(key: str, v: np.ndarray) -> np.ndarray:
+        base, _, aspect = key.partition(".")
+        t = info[base]
+        if t.exact or aspect:
+            return comparable(key, t.format, v, v, True)[1]
+        return np.asarray(v, np.float64)
+    return convert
+
+
+def compare_values(key: str, fmt: F.Format, backend: str, got_codes: np.ndarray,
+                   f64: np.ndarray, bound: np.ndarray, exact: bool,
+                   exclude: np.ndarray | None = None) -> TargetResult:
+    """Target ``key`` of a float32 render (codes) against the float64 evaluation (values)
+    within ``bound`` (value units, per pixel and channel).  ``exclude``: (H, W) pixels not to
+    count (the discontinuities found among the pixels over the bound)."""
+    got, want = comparable(key, fmt, got_codes, f64, exact)
+    if exact:
         bound = np.zeros(got.shape)
-    else:
-        got = F.flush_denormals(np.asarray(got_codes)) if fmt.kind is F.Kind.FLOAT \
-            else np.asarray(got_codes)
-        got = fmt.dequantize(got)
-        want = np.asarray(f64, np.float64)
     err = error(got, want)
     nonfinite = int((np.isinf(err) & ~(np.isinf(got) & np.isinf(want))).sum())
     tiny = 1e-12 * np.maximum(np.abs(np.where(np.isfinite(want), want, 0.0)), 1e-30)
@@ -98,6 +133,8 @@ def compare_values(key: str, fmt: F.Format, backend: str, got_codes: np.ndarray,
     ratio = np.where(err == 0, 0.0, ratio)
     px_ratio = ratio.max(axis=-1) if ratio.ndim == 3 else ratio
     bad = px_ratio > 1.0
+    if exclude is not None:
+        bad &= ~exclude
     admitted = np.zeros_like(bad)
     if bad.any():
         # a coverage difference: next to a jump of the float64 image much larger than the
@@ -105,6 +142,7 @@ def compare_values(key: str, fmt: F.Format, backend: str, got_codes: np.ndarray,
         nb_want = neighbour_stack(want)
         nb_got = neighbour_stack(got)
         lim = bound if not exact else np.zeros_like(err)
+
         def within(e):
             e = np.where(np.isnan(e), np.inf, e)
             ok = e <= lim[None] * (1 + 1e-9)
@@ -119,7 +157,8 @@ def compare_values(key: str, fmt: F.Format, backend: str, got_codes: np.ndarray,
             m1 = within(np.abs(nb_want - got[None])).any(axis=0)
             m2 = within(np.abs(nb_got - want[None])).any(axis=0)
         admitted = bad & edge & m1 & m2
-    rest = np.where(admitted, 0.0, px_ratio)
+    rest = np.where(admitted | (exclude if exclude is not None else False), 0.0, px_ratio)
+    worst, e_px, b_px, xy, values = 0.0, 0.0, 0.0, (0, 0), ((), ())
     if rest.size:
         k = np.unravel_index(int(np.argmax(rest)), rest.shape)
         e_px = err.max(axis=-1)[k] if err.ndim == 3 else err[k]
@@ -128,11 +167,13 @@ def compare_values(key: str, fmt: F.Format, backend: str, got_codes: np.ndarray,
             c = int(np.argmax(ratio[k]))
             e_px, b_px = err[k][c], bound[k][c]
         worst = float(rest[k])
-    else:
-        worst, e_px, b_px = 0.0, 0.0, 0.0
+        xy = (int(k[1]), int(rest.shape[0] - 1 - k[0]))
+        values = (tuple(np.atleast_1d(got[k]).tolist()), tuple(np.atleast_1d(want[k]).tolist()))
     edge_bound = max(EDGE_MIN, int(EDGE_FRACTION * bad.size))
+    over = bad & ~admitted
     return TargetResult(key, fmt.name, backend, exact, worst, float(e_px), float(b_px),
-                        int((bad & ~admitted).sum()), int(admitted.sum()), edge_bound,
-                        nonfinite, px_ratio)
+                        int(over.sum()), int(admitted.sum()), edge_bound,
+                        nonfinite, px_ratio, over_mask=over, worst_xy=xy, worst_values=values,
+                        bound_map=np.asarray(bound, np.float64))
 
 

@@ -29,7 +29,10 @@ import numpy as np
 
 from pipegen.core import formats
 from pipegen.backends import registry
-from pipegen.proof.compare import TargetComparison, compare_target
+from pipegen.proof.discontinuity import Explainer, distance
+from pipegen.proof.f64_bound import F64Bound
+from pipegen.proof.f64_compare import (TargetResult, comparable, compare_values,
+                                       comparison_units)
 
 # the float32 backends ``precision_check`` compares with the float64 evaluation
 F32_BACKENDS = ("gl", "cl")
@@ -52,80 +55,137 @@ def quantize_targets(technique, values: dict[str, np.ndarray]) -> dict[str, np.n
     return out
 
 
-def precision_tolerance(fmt: formats.Format, aspect: str = "") -> formats.Tolerance:
-    """What a float32 store may differ from the quantised exact value by and still be the exact
-    value rounded: 1 code (fixed point, d24 depth), 1 ulp plus the format's floor (float),
-    exact for integers and stencil."""
-    if aspect == "stencil" or fmt.is_integer:
-        return formats.Tolerance("exact", 0)
-    base = fmt.tolerance(0)
-    if base.units == "code":
-        return formats.Tolerance("code", 1)
-    return formats.Tolerance("ulp", 1, base.abs_floor)
+def compare_with_f64(compiled, scene, renders: dict, f64: dict, bound: dict,
+                     blends: Optional[dict] = None,
+                     explain: bool = True) -> dict[str, list[TargetResult]]:
+    """Every target of each float32 render (``renders``: backend -> targets) against the
+    float64 evaluation ``f64`` within ``bound`` (``F64Bound.bounds``).  With ``explain``, the
+    pixels where the float32 render fell on the other side of a step of the technique's code
+    (``discontinuity.py``) are found among those that differ by more than the target's local
+    error (``tolerance.local_bound``: store, blends, arithmetic), listed on the row as its
+    discontinuities and not counted against the bound."""
+    from pipegen.proof.tolerance import local_bound, plan_targets
+    info = plan_targets(compiled)
+    output = compiled.technique.output
+    blends = blends or {}
+    rows: dict[str, list[TargetResult]] = {}
+    explainer = Explainer(compiled, scene, f64, comparison_units(info)) if explain else None
+    for b, got in renders.items():
+        rows[b] = []
+        for key in sorted(got):
+            base, _, aspect = key.partition(".")
+            t = info[base]
+            exact = t.exact or aspect == "stencil"
+            row = compare_values(key, t.format, b, got[key], f64[key], bound[key], exact)
+            if explainer is not None and explainer.sites and not aspect:
+                g, want = comparable(key, t.format, got[key], f64[key], exact)
+                smooth = np.zeros(g.shape) if exact else local_bound(t, want, blends.get(base))
+                candidates = distance(g, want) > (smooth.max(axis=-1) if smooth.ndim == 3
+                                                   else smooth)
+                found, left = explainer.explain(key, candidates, [g], smooth)
+                if found:
+                    explained = candidates & ~left
+                    row = compare_values(key, t.format, b, got[key], f64[key], bound[key],
+                                         exact, exclude=explained)
+                    row.discontinuities, row.discontinuity_mask = found, explained
+            row.output = base == output
+            rows[b].append(row)
+    return rows
 
 
 @dataclass
 class PrecisionResult:
     technique: str
-    rows: dict[str, list[TargetComparison]]      # per float32 backend, one row per target
+    rows: dict[str, list[TargetResult]]      # per float32 backend, one row per target
+    parts: dict = field(default_factory=dict)  # per target: the bound's terms (largest)
     notes: list[str] = field(default_factory=list)
 
+    def discontinuities(self) -> int:
+        return max((sum(r.discontinuity_count for r in rows) for rows in self.rows.values()),
+                   default=0)
+
     def table(self, backend: str) -> str:
-        header = ("target", "format", "max error", "rmse", "limit", "over", "edges/bound", "")
-        # the last column says whether the target is the exact value rounded (within the
-        # limit away from edges), not pass/fail: precision error is what it is
-        rows = [header] + [r.row()[:-1] + ("rounding" if r.passed else "more than rounding",)
-                           for r in self.rows[backend]]
+        header = ("target", "format", "max error", "bound there", "over", "edges/bound",
+                  "discontinuities", "")
+        rows = [header]
+        for r in self.rows[backend]:
+            rows.append((r.key, r.format, r.units(r.worst_error),
+                         r.units(r.bound_at_worst) if not r.exact else "exact", str(r.over),
+                         f"{r.edges}/{r.edge_bound}", str(r.discontinuity_count),
+                         "ok" if r.passed else "OVER THE BOUND"))
         widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
         return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip()
                          for r in rows)
 
 
 def precision_check(compiled, scene, backends: tuple[str, ...] = F32_BACKENDS,
-                    progress: Callable[[str], None] = lambda msg: None) -> PrecisionResult:
-    """Every target of each float32 backend against the quantised float64 evaluation (CL)."""
-    progress("rendering the float64 evaluation (CL)")
-    exact = quantize_targets(compiled.technique,
-                             compiled.pipeline("cl", precision="f64").render(scene))
-    rows: dict[str, list[TargetComparison]] = {}
-    for b in backends:
+                    progress: Callable[[str], None] = lambda msg: None,
+                    explain: bool = True) -> PrecisionResult:
+    """Every target of each float32 backend against the float64 evaluation, within the bound of
+    the tolerance model (the one ``pipegen stress`` holds every case to), discontinuities
+    counted apart."""
+    renders = {}
+    pipes = {}
+    for b in dict.fromkeys(backends + ("cl",)):    # CL counts the blends into each pixel
         progress(f"rendering on {registry.get(b).title}")
-        got = compiled.pipeline(b).render(scene)
-        rows[b] = []
-        for key in sorted(got):
-            base, _, aspect = key.partition(".")
-            fmt = compiled.technique.target(base).format
-            rows[b].append(compare_target(key, fmt, got[key], exact[key],
-                                          tolerance=precision_tolerance(fmt, aspect)))
-    return PrecisionResult(compiled.name, rows)
+        pipes[b] = compiled.pipeline(b)
+        renders[b] = pipes[b].render(scene)
+    blends = getattr(pipes["cl"], "last_blend_counts", None) or {}
+    progress("rendering the float64 evaluation (CL) and measuring the bound")
+    model = F64Bound(compiled)
+    f64 = model.f64.render(scene)
+    bound, parts = model.bounds(scene, f64, blends)
+    progress("comparing")
+    rows = compare_with_f64(compiled, scene, {b: renders[b] for b in backends}, f64, bound,
+                            blends, explain)
+    return PrecisionResult(compiled.name, rows, parts)
 
 
 def main_precision_check(compiled, scene, out_dir: Optional[Path] = None) -> int:
-    """``pipegen check --precision f64``: print the precision error of every target on each
-    float32 backend (error images ``error_<backend>_<target>.png`` in ``out_dir``).  A
-    measurement, not a test: the exit status is 0 (a technique may well store values less
-    precisely than a code; ``pipegen check`` without ``--precision`` is the pass/fail
-    cross-check)."""
+    """``pipegen check --precision f64``: the precision error of every target on each float32
+    backend, against the bound of the tolerance model (docs/tolerances.md), with the
+    discontinuities found (error images ``error_<backend>_<target>.png`` in ``out_dir``).  A
+    measurement: the exit status is 0 (``pipegen check`` without ``--precision`` is the
+    pass/fail cross-check; ``pipegen.testing.assert_close_to_f64`` the assertion)."""
     def say(msg: str) -> None:
         print(f"  … {msg}", file=sys.stderr)
 
     result = precision_check(compiled, scene, progress=say)
     print(f"{compiled.name} on {scene.width}x{scene.height}, {len(scene.lights)} lights: "
-          f"precision error against the float64 evaluation (quantised to each target's "
-          f"format; over = pixels beyond the limit away from primitive edges)")
+          f"every target against the float64 evaluation, within the bound of the tolerance "
+          f"model (docs/tolerances.md; over = pixels beyond it away from primitive edges and "
+          f"discontinuities)")
     for b, rows in result.rows.items():
         print(f"\n{registry.get(b).title}")
         print(result.table(b))
+        for r in rows:
+            for d in r.discontinuities:
+                print(f"  {r.key}: discontinuity: {d.describe()}")
     if out_dir is not None:
-        from pipegen.proof.check import error_image
         from pipegen.core.outdir import as_output_dir, safe_name
         from pipegen.views.visualize import save_png
         with as_output_dir(out_dir, "check").staging() as tmp:
             for b, rows in result.rows.items():
                 for r in rows:
-                    save_png(tmp / safe_name(f"error_{b}_{r.name}", ".png"), error_image(r))
+                    save_png(tmp / safe_name(f"error_{b}_{r.key}", ".png"), ratio_image(r))
         print(f"\nerror images: {out_dir}/error_<backend>_<target>.png")
     return 0
+
+
+def ratio_image(row: TargetResult) -> np.ndarray:
+    """Black: equal; grey ramp: within the bound (error / bound); red: over it; yellow: over,
+    admitted as a coverage edge; blue: a discontinuity.  Row 0 at the bottom, as the target
+    (``save_png`` turns it)."""
+    r = np.nan_to_num(np.asarray(row.ratio_map, np.float64), nan=np.inf)
+    img = np.zeros(r.shape + (3,), np.uint8)
+    within = (r > 0) & (r <= 1)
+    img[within] = (60 + 120 * r[within])[:, None].astype(np.uint8)
+    img[r > 1] = (230, 200, 40)            # over, admitted as a coverage edge
+    if row.discontinuity_mask is not None:
+        img[row.discontinuity_mask] = (60, 120, 255)
+    if row.over_mask is not None:
+        img[row.over_mask] = (255, 40, 40)
+    return img
 
 
 def error_split(f32_codes: np.ndarray, f64_values: np.ndarray,

@@ -4,6 +4,7 @@ constructors) into IR expressions.  ``statements._BodyChecker`` adds the stateme
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Optional
 
 from pipegen.frontend import ast
@@ -15,6 +16,11 @@ from pipegen.core.diagnostics import Span
 from pipegen.frontend.lower.names import (
     A_or_An, Lowering, Context, Local, Uses, a_or_an, did_you_mean, error, listing,
     reserved_meaning, shader_type)
+
+
+# the expressions that keep where the user wrote them (``span``, not compared, not printed):
+# the ones a discontinuity can sit in (comparisons, step/floor/..., float-to-int conversions)
+SPANNED = (ir.Binary, ir.Call, ir.Construct)
 
 
 class ExprChecker:
@@ -54,6 +60,9 @@ class ExprChecker:
         result = method(e)
         if result.type.is_void and not allow_void:
             raise error(e.span, "this call returns no value", "use it as a statement")
+        if type(result) in SPANNED and result.span is None:
+            # where the user wrote it: a discontinuity (proof/discontinuity.py) is reported there
+            result = dataclasses.replace(result, span=e.span)
         return result
 
     def _condition(self, e: ast.Expr, what: str) -> ir.Expr:

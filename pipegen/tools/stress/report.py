@@ -11,7 +11,16 @@ from pipegen.proof.f64_compare import TargetResult
 from pipegen.tools.stress.run import CaseResult
 
 HEADER = ("case", "status", "worst target", "err/bound", "error", "bound", "over/edges",
-          "NaN,inf gl|cl|f64", "GL=CL", "lights dropped", "s")
+          "discont.", "NaN,inf gl|cl|f64", "GL=CL", "lights dropped", "s")
+
+
+def _discontinuities(res: CaseResult) -> str:
+    """Pixels where a float32 backend fell on the other side of a step of the technique's
+    code (the larger of the two backends' counts, all targets)."""
+    by_backend: dict[str, int] = {}
+    for t in res.targets:
+        by_backend[t.backend] = by_backend.get(t.backend, 0) + t.discontinuity_count
+    return str(max(by_backend.values(), default=0))
 
 
 def _nf(res: CaseResult) -> str:
@@ -32,12 +41,12 @@ def _worst(res: CaseResult):
 def row(res: CaseResult) -> tuple[str, ...]:
     w = _worst(res)
     if w is None:
-        return (res.case, res.status, "-", "-", "-", "-", "-", _nf(res),
+        return (res.case, res.status, "-", "-", "-", "-", "-", "-", _nf(res),
                 "-" if res.agree is None else ("yes" if res.agree else "NO"), res.dropped,
                 f"{res.seconds:.2f}")
     ratio = "inf" if not np.isfinite(w.worst_ratio) else f"{w.worst_ratio:.3g}"
     return (res.case, res.status, f"{w.key} ({w.backend})", ratio, w.units(w.worst_error),
-            w.units(w.bound_at_worst), f"{w.over}/{w.edges}", _nf(res),
+            w.units(w.bound_at_worst), f"{w.over}/{w.edges}", _discontinuities(res), _nf(res),
             "-" if res.agree is None else ("yes" if res.agree else "NO"),
             res.dropped, f"{res.seconds:.2f}")
 
@@ -53,6 +62,14 @@ def notes(results: list[CaseResult]) -> list[str]:
     for r in results:
         for m in r.mismatches:
             out.append(f"{r.case}: {m}")
+        found: dict = {}            # once per target and site, with the backends it was on
+        for t in r.targets:
+            for d in t.discontinuities:
+                key = (t.key, d.site.index if d.site else None)
+                text, backends = found.get(key, (f"{r.case}: {t.key}: discontinuity: "
+                                                 f"{d.describe()}", []))
+                found[key] = (text, backends + [t.backend])
+        out += [f"{text} ({', '.join(backends)})" for text, backends in found.values()]
         if r.disagree:
             out.append(f"{r.case}: GL and CL disagree beyond pipegen check's tolerance on "
                        f"{', '.join(r.disagree)}")

@@ -20,7 +20,8 @@ import numpy as np
 
 from pipegen.core.diagnostics import PipegenError
 from pipegen.proof.f64_bound import F64Bound
-from pipegen.proof.f64_compare import TargetResult, compare_values, finite_counts
+from pipegen.proof.f64_compare import TargetResult, finite_counts
+from pipegen.proof.precision import compare_with_f64
 from pipegen.tools.stress.cases import Case
 
 BACKENDS = ("gl", "cl")
@@ -119,22 +120,18 @@ class Stress:
         blends = getattr(self.pipes["cl"], "last_blend_counts", {}) or {}
         res.nonfinite = {b: finite_counts(renders[b], False) for b in BACKENDS}
         res.nonfinite["f64"] = finite_counts(f64, True)
-        from pipegen.proof.check import compare_targets
+        from pipegen.proof.check import compare_targets, explain_disagreements
         rows = compare_targets(self.compiled, renders["gl"], renders["cl"], len(scene.lights),
                                counts=blends)
+        if not all(r.passed for r in rows):
+            rows = explain_disagreements(self.compiled, scene, renders["gl"], renders["cl"],
+                                         rows, blends, f64)
         res.agree = all(r.passed for r in rows)
         res.disagree = [r.name for r in rows if not r.passed]
         res.dropped = self.dropped(scene)
         bound, parts = self.bounds(scene, f64, blends)
-        for b in BACKENDS:
-            for key in sorted(renders[b]):
-                base, _, aspect = key.partition(".")
-                t = self.info[base]
-                exact = t.exact or aspect == "stencil"
-                row = compare_values(key, t.format, b, renders[b][key], f64[key],
-                                     bound[key], exact)
-                row.output = base == self.compiled.technique.output
-                res.targets.append(row)
+        rows = compare_with_f64(self.compiled, scene, renders, f64, bound, blends)
+        res.targets = [row for b in BACKENDS for row in rows[b]]
         if keep_images:
             res.images = {"gl": renders["gl"], "f64": f64, "bound": bound, "parts": parts}
         if res.mismatches:

@@ -1,0 +1,257 @@
+"""Discontinuities: pixels where two evaluations of a technique fall on different sides of a
+step in its own code, told apart from precision errors (docs/tolerances.md, "Discontinuities").
+
+A technique whose code has a step (a comparison ``x < t`` in a branch or a ``?:``, ``step``,
+``floor``/``ceil``/``round``/``fract``/``mod``/``sign``, a float-to-integer conversion, a
+packing's quantisation) renders a different value wherever its input lands on the other side of
+the step, however small the input's error.  At such a pixel float32 and float64 (or GL and CL)
+may differ by a whole toon band or a whole packed code: not an error of precision, and no bound
+on precision can hold it.
+
+How a pixel is recognised: the float64 evaluation is rendered again with the step *nudged*,
+its input moved by ``delta * (|operands| + 1)`` up and down (``delta`` in ``LEVELS``, smallest
+first).  A pixel over its bound is a discontinuity of a site when, with that one site nudged
+(and nothing else changed), the float64 evaluation gives each side's value within the bound:
+the difference was the choice the step made, and that site made it.  All sites are nudged at
+once first (two renders per level); one site at a time (two more each) only when that explains
+something, to name the site.  Every nudged variant is the technique recompiled for the float64
+evaluation, so nothing is paid unless a comparison has pixels over its bound.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from pipegen.core.diagnostics import Span
+from pipegen.ir import nodes as ir
+from pipegen.ir import printer, walk
+
+# the nudges tried, relative to the operands' magnitude (and absolute below 1): 2^-12 is
+# arithmetic error, 2^-6 an input read from an 8-bit target (half a code is 2^-9 of 1, and a
+# shading input is a few such values combined)
+LEVELS = (2.0 ** -12, 2.0 ** -6)
+COMPARISONS = {"<", "<=", ">", ">="}
+STEP_CALLS = {"floor", "ceil", "round", "fract", "mod", "sign", "step"}
+MAX_LOCATIONS = 20            # pixel locations kept per site (the count is exact)
+
+
+@dataclass(frozen=True)
+class Site:
+    """One step in the technique's code."""
+    index: int                 # its place in the walk (``nudged(..., only=index)``)
+    text: str                  # the expression, as the IR printer spells it
+    span: Optional[Span]       # where the user wrote it (None: generated code)
+    where: str                 # "function toon", "pass shade", "packing ids"
+
+    def describe(self) -> str:
+        at = f"{self.span.file}:{self.span.line}:{self.span.column}" if self.span else \
+            "generated code"
+        return f"`{self.text}` ({at}, {self.where})"
+
+
+@dataclass
+class Discontinuity:
+    """The pixels of one target where a site (None: several sites together) made the choice."""
+    site: Optional[Site]
+    count: int
+    locations: list[tuple[int, int]] = field(default_factory=list)   # (x, y), y from the top
+
+    def describe(self) -> str:
+        what = self.site.describe() if self.site else "several steps at once"
+        at = ", ".join(f"({x}, {y})" for x, y in self.locations[:5])
+        more = ", …" if self.count > 5 else ""
+        return f"{self.count} px at {what}: {at}{more}"
+
+
+def _float(t: ir.Type) -> bool:
+    return t.scalar is ir.Scalar.FLOAT and not t.mat
+
+
+def _nudge(x: ir.Expr, scale: ir.Expr, delta: float) -> ir.Expr:
+    """``x + delta * (scale + 1)``."""
+    t = x.type
+    grow = ir.Binary("+", scale, ir.Const(ir.FLOAT, 1.0), scale.type)
+    return ir.Binary("+", x, ir.Binary("*", ir.Const(ir.FLOAT, delta), grow, grow.type), t)
+
+
+def _abs(x: ir.Expr) -> ir.Expr:
+    return ir.Call("abs", (x,), x.type)
+
+
+def _step_input(e: ir.Expr) -> Optional[int]:
+    """The argument of a step site that its nudge moves, or None if ``e`` is not a site."""
+    if isinstance(e, ir.Binary) and e.op in COMPARISONS and _float(e.left.type) \
+            and _float(e.right.type):
+        return 0
+    if isinstance(e, ir.Call) and e.builtin and e.name in STEP_CALLS and e.args \
+            and _float(e.args[0].type):
+        return 1 if e.name == "step" else 0
+    if isinstance(e, ir.Construct) and e.type.scalar in (ir.Scalar.INT, ir.Scalar.UINT) \
+            and len(e.args) == 1 and _float(e.args[0].type):
+        return 0
+    return None
+
+
+def _nudged_site(e: ir.Expr, delta: float) -> ir.Expr:
+    if isinstance(e, ir.Binary):            # a < b  ->  a + delta * (|a| + |b| + 1) < b
+        a, b = e.left, e.right
+        scale = ir.Binary("+", _abs(a), _abs(b), a.type if a.type.size >= b.type.size
+                          else b.type)
+        return dataclasses.replace(e, left=_nudge(a, scale, delta))
+    k = _step_input(e)
+    args = list(e.args)
+    x = args[k]
+    scale = _abs(x)
+    if isinstance(e, ir.Call) and e.name == "step":      # step(edge, x): x against edge
+        scale = ir.Binary("+", _abs(args[0]), _abs(x), x.type if x.type.size >= args[0].type.size
+                          else args[0].type)
+    args[k] = _nudge(x, scale, delta)
+    return dataclasses.replace(e, args=tuple(args))
+
+
+def _bodies(tech: ir.Technique):
+    """(where, statements) in the order ``walk.map_technique_code`` rewrites them."""
+    for p in tech.packings:
+        for f in p.functions:
+            yield f"packing {p.name}", f.body
+    for f in tech.functions:
+        yield f"function {f.name}", f.body
+    for p in tech.passes:
+        yield f"pass {p.name}", p.body
+
+
+def sites(tech: ir.Technique) -> list[Site]:
+    """Every step of the technique's code, in walk order."""
+    out: list[Site] = []
+    for where, body in _bodies(tech):
+        def visit(e, where=where):
+            if _step_input(e) is not None:
+                out.append(Site(len(out), _source(e), getattr(e, "span", None), where))
+            return e
+        walk.rewrite_stmts(body, visit)
+    return out
+
+
+def _source(e: ir.Expr) -> str:
+    """The expression as the user wrote it (its span's text on one line), else as the IR
+    printer spells it (generated code, or parameters already substituted)."""
+    span = getattr(e, "span", None)
+    if span is not None and span.text and span.end_line == span.line and span.end_column:
+        lines = span.text.splitlines()
+        if 0 < span.line <= len(lines):
+            return lines[span.line - 1][span.column - 1:span.end_column - 1]
+    return printer.expr(e)
+
+
+def nudged(tech: ir.Technique, delta: float, only: Optional[int] = None) -> ir.Technique:
+    """The technique with every step (``only``: the one of that index) nudged by ``delta``."""
+    count = [0]
+
+    def fn(e):
+        if _step_input(e) is None:
+            return e
+        k = count[0]
+        count[0] += 1
+        return _nudged_site(e, delta) if only is None or k == only else e
+    return walk.map_technique_code(tech, fn)
+
+
+Convert = Callable[[str, np.ndarray], np.ndarray]
+
+
+class Explainer:
+    """Explains pixels over a bound as discontinuities of one technique on one scene.
+
+    ``base``: the float64 evaluation's render of ``scene``; ``convert(key, values)``: a float64
+    render's target in the units the sides are given in (the identity for value units; the
+    format's codes for exact targets).  Nudged renders are made once and shared by every
+    target and backend explained."""
+
+    def __init__(self, compiled, scene, base: dict, convert: Optional[Convert] = None):
+        self.compiled, self.scene, self.base = compiled, scene, base
+        self.convert = convert or (lambda key, v: np.asarray(v, np.float64))
+        self.sites = sites(compiled.technique)
+        self._renders: dict = {}
+        self.renders_made = 0
+
+    def _render(self, delta: float, only: Optional[int]) -> dict:
+        key = (delta, only)
+        if key not in self._renders:
+            from pipegen.compiler.driver import Compiled
+            variant = Compiled(nudged(self.compiled.technique, delta, only),
+                               self.compiled.params)
+            self._renders[key] = variant.pipeline("cl", precision="f64").render(self.scene)
+            self.renders_made += 1
+        return self._renders[key]
+
+    def explain(self, key: str, candidates: np.ndarray, sides: Sequence[np.ndarray],
+                smooth: np.ndarray) -> tuple[list[Discontinuity], np.ndarray]:
+        """``candidates``: (H, W) pixels where the two evaluations differ by more than
+        ``smooth`` allows (the error a continuous computation could make there); ``sides``:
+        their values of target ``key`` (a float32 render, or two), in ``convert``'s units.
+        A candidate is a discontinuity when a nudge of the technique's steps makes the float64
+        evaluation jump there (by more than 4x ``smooth``: a choice flipped, not a value
+        moved) and a side is closer to the jumped value than to the unnudged one: it fell on
+        the other side.  Returns the discontinuities (per site, largest first) and the
+        candidates left unexplained."""
+        remaining = np.asarray(candidates, bool).copy()
+        found: dict[Optional[int], np.ndarray] = {}
+        if not self.sites or not remaining.any():
+            return [], remaining
+        base = self.convert(key, self.base[key])
+        smooth = np.asarray(smooth, np.float64)
+        for level in LEVELS:
+            if not remaining.any():
+                break
+            both = [self.convert(key, self._render(s * level, None)[key]) for s in (1, -1)]
+            todo = remaining & _flipped(sides, base, both, smooth)
+            for site in self.sites:
+                if not todo.any():
+                    break
+                one = [self.convert(key, self._render(s * level, site.index)[key])
+                       for s in (1, -1)]
+                mine = todo & _flipped(sides, base, one, smooth)
+                if mine.any():
+                    found[site.index] = found.get(site.index, False) | mine
+                    todo &= ~mine
+                    remaining &= ~mine
+            if todo.any():          # flipped only with several sites nudged together
+                found[None] = found.get(None, False) | todo
+                remaining &= ~todo
+        out = []
+        h = remaining.shape[0]
+        for index, mask in found.items():
+            ys, xs = np.nonzero(mask)
+            order = np.lexsort((xs, h - 1 - ys))          # reading order: top row first
+            locs = [(int(xs[i]), int(h - 1 - ys[i])) for i in order[:MAX_LOCATIONS]]
+            out.append(Discontinuity(self.sites[index] if index is not None else None,
+                                     int(mask.sum()), locs))
+        out.sort(key=lambda d: -d.count)
+        return out, remaining
+
+
+def distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(H, W): the largest channel difference (NaN against a number: infinite)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        d = np.abs(a - b)
+    d = np.where(np.isnan(a) & np.isnan(b), 0.0, d)
+    d = np.where(np.isinf(a) & np.isinf(b) & (np.sign(a) == np.sign(b)), 0.0, d)
+    d = np.where(np.isnan(d), np.inf, d)
+    return d.max(axis=-1) if d.ndim == 3 else d
+
+
+def _flipped(sides: Sequence[np.ndarray], base: np.ndarray, nudged: Sequence[np.ndarray],
+             smooth: np.ndarray) -> np.ndarray:
+    """Pixels where a nudged render jumps away from ``base`` and some side is closer to it."""
+    s = smooth.max(axis=-1) if smooth.ndim == 3 else smooth
+    out = np.zeros(np.shape(base)[:2], bool)
+    for n in nudged:
+        jump = distance(n, base) > 4 * s + 1e-12
+        for side in sides:
+            out |= jump & (distance(side, n) < distance(side, base))
+    return out
