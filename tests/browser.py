@@ -3,7 +3,8 @@
     from browser import find_chromium, render_page
     if find_chromium() is None: pytest.skip("no chromium: ...")
     page = render_page(path, width=1000, height=800)
-    page.images        # every <img>: src, complete, naturalWidth/Height, width/height as drawn
+    page.images        # every <img>: src, complete, naturalWidth/Height; width, height, left,
+                       # top as drawn (page pixels: the screenshot's)
     page.console       # console messages, uncaught exceptions, failed loads: "level: text"
     page.values        # {name: value} of the JavaScript expressions asked for (evaluate=)
     page.dom           # the document's HTML after its scripts ran
@@ -33,10 +34,12 @@ from typing import Any, Optional
 
 NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "chrome")
 
-# every <img> as drawn; rendered sizes are CSS pixels (the page is drawn at scale 1)
+# every <img> as drawn: its size and place on the page in CSS pixels, which are the
+# screenshot's pixels (the page is drawn at scale 1)
 IMAGES_JS = """[...document.images].map(i => ({src: i.getAttribute("src"), complete: i.complete,
   naturalWidth: i.naturalWidth, naturalHeight: i.naturalHeight,
   width: i.getBoundingClientRect().width, height: i.getBoundingClientRect().height,
+  left: i.getBoundingClientRect().left + window.scrollX,
   top: i.getBoundingClientRect().top + window.scrollY}))"""
 
 

@@ -22,6 +22,7 @@ from pipegen.testing.records import Comparison
 from pipegen.testing.report_html import write_report
 
 FAIL_RED = np.array([198, 40, 40])      # --fail in the page's CSS: the FAILED badge
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def chromium() -> str:
@@ -91,12 +92,12 @@ def test_report_as_drawn_in_chromium(tmp_path):
         ["expected.png", "actual.png", "difference.png"]
     assert all((i["width"], i["height"]) == (192, 144) for i in shown), shown
 
-    # the failing target first, open; the passing ones after it in the order they were made,
-    # folded (something failed)
+    # the failing target first, open, though made after a passing one; the passing ones after
+    # it by test id, folded (something failed)
     cards = page.values["cards"]
-    assert [c[:3] for c in cards] == [["color", "failed", True], ["normal", "passed", False],
-                                      ["ids", "passed", False]]
-    assert page.values["index"] == ["color", "normal", "ids"]
+    assert [c[:3] for c in cards] == [["color", "failed", True], ["ids", "passed", False],
+                                      ["normal", "passed", False]]
+    assert page.values["index"] == ["color", "ids", "normal"]
     assert "<script>alert(1)" not in page.dom and "&lt;script&gt;alert(1)" in page.dom
 
     # the screenshot: not blank, the red FAILED badges (index row and card header) drawn
@@ -107,6 +108,50 @@ def test_report_as_drawn_in_chromium(tmp_path):
     rows = np.nonzero(red.sum(axis=1) > 40)[0]
     assert len(rows) > 20, "no red FAILED badge in the screenshot"
     assert rows.min() < cards[1][3], (rows.min(), cards)
+
+
+@pytest.mark.gl
+def test_report_of_a_failing_golden_as_drawn(tmp_path, monkeypatch):
+    """A real run: ``deferred`` rendered with GL, its goldens written, one of them altered (a
+    magenta block painted into galbedo.png), compared again with a ꟻLIP threshold: galbedo
+    fails, color passes.  The report, in Chromium, draws the failing target first though it
+    was compared second, and every picture pixel for pixel as written (3x3 blocks)."""
+    exe = chromium()
+    from pipegen.testing import ComparisonFailure, assert_matches_golden, render, settings
+    monkeypatch.setattr(settings, "keep_images", True)       # as --pipegen-report sets it
+    monkeypatch.setattr(settings, "artifacts_dir", tmp_path / "artifacts")
+    targets = render(ROOT / "pipelines/deferred.pipe", backend="gl")        # 64x36
+    goldens, only = tmp_path / "goldens", {"color", "galbedo"}
+    assert_matches_golden(targets, goldens, only=only, update=True)
+    albedo = np.array(Image.open(goldens / "galbedo.png"))
+    albedo[10:18, 20:36] = (255, 0, 255, 255)
+    Image.fromarray(albedo).save(goldens / "galbedo.png")
+    with pytest.raises(ComparisonFailure, match="target 'galbedo' .*ꟻLIP over") as failure:
+        assert_matches_golden(targets, goldens, only=only, flip_percentile=(99, 0.1))
+    made = failure.value.comparisons
+    assert [(c.target, c.passed) for c in made] == [("color", True), ("galbedo", False)]
+
+    index = write_report(tmp_path / "report", made)
+    page = render_page(index, width=1000, height=700, chromium=exe,
+                       screenshot=tmp_path / "report.png", evaluate={
+                           "cards": "[...document.querySelectorAll('details.card')]"
+                                    ".map(d => [d.dataset.target, d.dataset.status, d.open])"})
+    assert page.console == []
+    assert page.values["cards"] == [["galbedo", "failed", True], ["color", "passed", False]]
+    names = [i["src"].rsplit("-", 1)[1] for i in page.images]
+    assert names == ["expected.png", "actual.png", "difference.png", "flip.png"] * 2
+    assert all(i["complete"] and (i["naturalWidth"], i["naturalHeight"]) == (64, 36)
+               for i in page.images), page.images
+    shot = np.asarray(Image.open(page.screenshot).convert("RGB"))
+    for image in page.images[:4]:            # the failing card's, drawn at 3x
+        left, top = round(image["left"]), round(image["top"])
+        assert (image["width"], image["height"]) == (192, 108)
+        drawn = shot[top:top + 108, left:left + 192]
+        written = np.asarray(Image.open(index.parent / image["src"]).convert("RGB"))
+        assert np.array_equal(drawn[1::3, 1::3], written), image["src"]
+        assert np.array_equal(drawn[0::3, 0::3], drawn[2::3, 2::3])     # square pixels
+    golden_drawn = shot[round(page.images[0]["top"]):, round(page.images[0]["left"]):]
+    assert tuple(golden_drawn[3 * 14, 3 * 28]) == (255, 0, 255)        # the painted block
 
 
 def test_browser_sees_a_broken_page(tmp_path):

@@ -1,10 +1,10 @@
 """The HTML report of a test run's comparisons (``pytest --pipegen-report=DIR``), in the spirit of
 pytest-mpl's summary page: one static page, ``DIR/index.html``, with its pictures beside it.
 
-Failing comparisons come first (in the order they were made, then the passing ones), one card per
-target: the pictures kept for it (golden or expected, actual, difference, ꟻLIP map: whichever
-exist), its numbers, its summary, the failure message, the command that reproduces it and the
-test that made it.  When anything failed, the passing cards are folded (a click opens them).
+Failing comparisons come first, then the passing ones (each group by test id, a test's in the
+order it made them), one card per target: the pictures kept for it (golden or expected, actual,
+difference, ꟻLIP map: whichever exist), its numbers, its summary, the failure message, the
+command that reproduces it and the test that made it.  When anything failed, the passing cards are folded (a click opens them).
 
 The page is self-contained (inline CSS, a few lines of script for the copy buttons, no external
 resources); pictures are PNG files in ``DIR/img``, drawn at an integer scale with
@@ -39,8 +39,9 @@ def write_report(out_dir, comparisons: Iterable[Any],
     ``out_dir`` holds files pipegen did not write."""
     comparisons = list(comparisons)
     out = as_output_dir(out_dir, "report")
-    # failing first; sorted() is stable, so each group keeps the order the tests made them in
-    ordered = sorted(comparisons, key=lambda c: bool(c.passed))
+    # failing first, then by test id (pytest-xdist's workers report in no fixed order); sorted()
+    # is stable, so a test's comparisons keep the order it made them in
+    ordered = sorted(comparisons, key=lambda c: (bool(c.passed), c.test or ""))
     any_failed = any(not c.passed for c in ordered)
     with out.staging() as stage:
         cards = [_card(i, c, stage, fold=any_failed and c.passed)
