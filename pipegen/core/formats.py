@@ -329,7 +329,7 @@ class Format:
         return (None if color is None else tuple(np.ravel(color).tolist()), depth, stencil)
 
     def tolerance(self, blended_passes: int = 0) -> Tolerance:
-        """Cross-backend tolerance for this format (DESIGN.md §7).
+        """The limit two float32 renderings of this format may differ by (docs/tolerances.md).
 
         ``blended_passes`` is the number of passes that blend into the target: each blend step
         may round differently on the two backends.

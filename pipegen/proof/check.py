@@ -1,6 +1,6 @@
 """``pipegen check``: render a technique on both backends and compare every target.
 
-Tolerances come from ``formats.py`` (DESIGN.md §7): unorm targets may differ by 1 + P codes
+Limits come from ``formats.py`` (docs/tolerances.md): unorm targets may differ by 1 + P codes
 where P counts the blend steps into the target, float targets by ulps, and packed light-index
 or ID targets and stencil must be exact.  P is per pixel where the CL backend counted the
 fragments it blended into each pixel (``CLPipeline.last_blend_counts``: a light-volume pass

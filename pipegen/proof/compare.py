@@ -76,7 +76,7 @@ def compare_target(name: str, fmt: Format, a: np.ndarray, b: np.ndarray,
                    exclude: Optional[np.ndarray] = None) -> TargetComparison:
     """Compare codes ``a`` and ``b`` (same shape) of target ``name`` in format ``fmt``.
 
-    ``blended_passes``: P of DESIGN.md §7, one number for the whole target or an (H, W)
+    ``blended_passes``: P of docs/tolerances.md, one number for the whole target or an (H, W)
     array of per-pixel counts (how many fragments were blended into each pixel); each pixel
     is then held to ``fmt.tolerance(P[y, x])`` (the reported tolerance is the largest).
     ``exact_channels`` flags channels that must match exactly (packed integers sharing a

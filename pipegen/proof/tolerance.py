@@ -1,6 +1,6 @@
 """Per-target error bounds of a float32 render against the technique's own float64 evaluation.
 
-The model (docs/stress.md, "The bound"), per target T, per pixel and channel, in value units
+The model (docs/tolerances.md, "The bound"), per target T, per pixel and channel, in value units
 (the float a shader reads back):
 
     bound(T) = store(T) + P(T) * blend(T) + arith(T) + position(T) + reads(T)
@@ -9,7 +9,7 @@ The model (docs/stress.md, "The bound"), per target T, per pixel and channel, in
   resolve, which stores the average of the samples again): half a code (fixed point rounded to nearest), one code
   (the narrow channels of 16-bit-path formats: Mesa's ``scale_bits`` truncates), one float16
   ulp (llvmpipe stores half toward zero), half a float32 ulp, and 2 codes / 4 ulps of depth
-  (the float32 plane equation of window depth, DESIGN.md §7's cross-check allowance);
+  (the float32 plane equation of window depth, the float32-vs-float32 limit's allowance);
 - ``blend``: each of the P fragments blended into the pixel (counted by the CL run,
   ``last_blend_counts``) re-stores the sum (one ``store``) and, for 8-bit unorm, llvmpipe's
   8-bit multiply is not round-to-nearest (one more code);
