@@ -4,10 +4,11 @@ pytest-mpl's summary page: one static page, ``DIR/index.html``, with its picture
 Failing comparisons come first, then the passing ones (each group by test id, a test's in the
 order it made them), one card per target: the pictures kept for it (golden or expected, actual,
 difference, ꟻLIP map: whichever exist), its numbers, its summary, the failure message, the
-command that reproduces it and the test that made it.  When anything failed, the passing cards are folded (a click opens them).
+command that reproduces it and the test that made it.  The header counts them and links to the
+failing cards; when anything failed, the passing cards are folded (a click opens them).
 
-The page is self-contained (inline CSS, a few lines of script for the copy buttons, no external
-resources); pictures are PNG files in ``DIR/img``, drawn at an integer scale with
+The page is self-contained (inline CSS, a few lines of script for the copy buttons and to expand
+or fold every card, no external resources); pictures are PNG files in ``DIR/img``, drawn at an integer scale with
 ``image-rendering: pixelated`` so that a 64x48 render shows its pixels.  The folder is written
 through ``core.outdir`` like every pipegen output: atomically, never over files pipegen did not
 write.
@@ -47,7 +48,7 @@ def write_report(out_dir, comparisons: Iterable[Any],
         cards = [_card(i, c, stage, fold=any_failed and c.passed)
                  for i, c in enumerate(ordered, 1)]
         page = _PAGE.format(title=_e(title), css=_CSS, script=_SCRIPT,
-                            header=_header(title, ordered), index=_index(ordered),
+                            header=_header(title, ordered),
                             cards="\n".join(cards))
         (stage / "index.html").write_text(page, encoding="utf-8")
     return Path(out.path) / "index.html"
@@ -122,25 +123,16 @@ def _header(title: str, ordered: list) -> str:
     tests = len({c.test for c in ordered if c.test})
     what = f"{len(ordered)} comparison{'s' * (len(ordered) != 1)}" + \
         (f" in {tests} test{'s' * (tests != 1)}" if tests else "")
+    # the failing targets named at the top, each a link to its card (the cards' order)
+    links = "".join(f'<a href="#c{i}">{_e(c.target)}</a>'
+                    for i, c in enumerate(ordered, 1) if not c.passed)
     return (f'<header><h1>{_e(title)}</h1><p class="counts">{badges}'
             f'<span class="what">{what}</span>'
             '<button type="button" data-fold="open">expand all</button>'
-            '<button type="button" data-fold="close">collapse all</button></p></header>')
-
-
-def _index(ordered: list) -> str:
-    if not ordered:
-        return '<p class="empty">No comparisons were made.</p>'
-    rows = []
-    for i, c in enumerate(ordered, 1):
-        status = "pass" if c.passed else "fail"
-        rows.append(f'<tr class="{status}"><td><span class="badge {status}">'
-                    f'{"passed" if c.passed else "FAILED"}</span></td>'
-                    f'<td><a href="#c{i}">{_e(c.target)}</a></td><td>{_e(c.technique)}</td>'
-                    f'<td>{_e(_kind_label(c))}</td><td class="sum">{_e(c.summary)}</td></tr>')
-    return ('<table class="index"><thead><tr><th></th><th>target</th><th>technique</th>'
-            '<th>comparison</th><th>summary</th></tr></thead><tbody>'
-            + "".join(rows) + "</tbody></table>")
+            '<button type="button" data-fold="close">collapse all</button></p>'
+            + (f'<p class="failed">failed: {links}</p>' if links else "")
+            + ("" if ordered else '<p class="failed">No comparisons were made.</p>')
+            + "</header>")
 
 
 def _card(number: int, c, stage: Path, fold: bool) -> str:
@@ -150,7 +142,8 @@ def _card(number: int, c, stage: Path, fold: bool) -> str:
              f'<summary><span class="badge {status}">{"passed" if c.passed else "FAILED"}'
              f'</span><span class="target">{_e(c.target)}</span>'
              f'<span class="tech">{_e(c.technique)} · {_e(_kind_label(c))}</span>'
-             f'<span class="sum">{_e(c.summary)}</span></summary>', '<div class="body">']
+             f'<span class="sum">{_e(c.summary)}</span>'
+             f'<span class="test">{_e(c.test)}</span></summary>', '<div class="body">']
     figures = []
     for name, rel, width, height in _pictures(c, number, stage):
         k = _scale(width)
@@ -177,9 +170,6 @@ def _card(number: int, c, stage: Path, fold: bool) -> str:
         parts.append(f'<div class="line"><span class="label">reproduce</span>'
                      f'<code class="cmd">{_e(c.command)}</code>'
                      '<button type="button" class="copy">copy</button></div>')
-    if c.test:
-        parts.append(f'<div class="line"><span class="label">test</span>'
-                     f'<code>{_e(c.test)}</code></div>')
     files = _other_files(c)
     if files:
         parts.append('<div class="line"><span class="label">files</span>' + " ".join(
@@ -206,7 +196,6 @@ _PAGE = """<!doctype html>
 <body>
 {header}
 <main>
-{index}
 {cards}
 </main>
 <script>{script}</script>
@@ -228,14 +217,10 @@ h1 { margin: 0 0 6px; font-size: 20px; font-weight: 600; }
 .what { color: #c5cad3; }
 header button { margin-left: 4px; background: transparent; color: #c5cad3;
   border: 1px solid #4a5263; border-radius: 4px; padding: 1px 8px; cursor: pointer; }
+header .failed { margin: 8px 0 0; color: #c5cad3; }
+header .failed a { color: #ffb4ab; font-weight: 600; margin-right: 12px;
+  font-family: ui-monospace, "DejaVu Sans Mono", monospace; }
 main { padding: 16px 24px 40px; max-width: 1400px; }
-.empty { color: var(--muted); }
-table.index { border-collapse: collapse; margin-bottom: 18px; background: #fff;
-  border: 1px solid var(--line); }
-.index th, .index td { padding: 4px 10px; text-align: left; border-bottom: 1px solid var(--line); }
-.index th { font-weight: 600; color: var(--muted); font-size: 12px; }
-.index a { color: inherit; font-weight: 600; }
-.index td.sum { color: var(--muted); }
 .badge { display: inline-block; min-width: 58px; text-align: center; padding: 1px 8px;
   border-radius: 4px; color: #fff; font-size: 12px; font-weight: 700; letter-spacing: .03em; }
 .badge.fail { background: var(--fail); } .badge.pass { background: var(--pass); }
@@ -250,6 +235,8 @@ table.index { border-collapse: collapse; margin-bottom: 18px; background: #fff;
   font-family: ui-monospace, "DejaVu Sans Mono", monospace; }
 .tech { color: var(--muted); }
 .card .sum { flex: 1 1 300px; }
+.card summary .test { color: var(--muted); font-size: 12px; margin-left: auto;
+  font-family: ui-monospace, "DejaVu Sans Mono", monospace; }
 .body { padding: 12px 14px 14px; }
 .pictures { display: flex; gap: 14px; flex-wrap: wrap; margin-bottom: 10px; }
 figure { margin: 0; }
