@@ -202,6 +202,12 @@ def test_page_text_and_pictures(tmp_path):
         in text
     assert "<code>values: /tmp/x/color.npy</code>" in text        # a file not drawn is named
     assert "pytest tests/test_toon.py::test_color</code>" in text
+    # a wide picture is shown 320 wide (smoothly), a click opens it at full size
+    wide = Comparison("golden", "t", "atlas", True, "ok", images={"actual": gradient(800, 100)})
+    text = write_report(tmp_path / "wide", [wide]).read_text()
+    assert '<a href="img/001-t-atlas-actual.png"><img src="img/001-t-atlas-actual.png" ' \
+        'alt="actual" width="320" height="40" data-name="actual" ' \
+        'title="actual: 800×100, shown at 40%"></a>' in text
 
 
 def test_report_folder_is_written_as_pipegen_outputs_are(tmp_path):

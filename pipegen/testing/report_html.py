@@ -31,6 +31,7 @@ CAPTIONS = {"expected": "expected", "actual": "actual", "difference": "differenc
             "flip": "ꟻLIP map"}
 SHOWN_WIDTH = 220    # small renders are scaled up by an integer factor to at most this width
 MAX_SCALE = 8
+MAX_SHOWN = 320      # wider pictures are shown this wide (a click opens them at full size)
 
 
 def write_report(out_dir, comparisons: Iterable[Any],
@@ -99,8 +100,14 @@ def _png_size(path: Path) -> tuple[int, int]:
         return im.size
 
 
-def _scale(width: int) -> int:
-    return max(1, min(MAX_SCALE, SHOWN_WIDTH // max(1, width)))
+def _shown(width: int, height: int) -> tuple[int, int, str]:
+    """The size a picture is drawn at and its caption's note: small ones scaled up by an
+    integer factor (each pixel a square of pixels), wide ones scaled down to ``MAX_SHOWN``."""
+    if width > MAX_SHOWN:
+        return MAX_SHOWN, max(1, round(height * MAX_SHOWN / width)), \
+            f", shown at {MAX_SHOWN / width:.0%}"
+    k = max(1, min(MAX_SCALE, SHOWN_WIDTH // max(1, width)))
+    return width * k, height * k, (f", shown ×{k}" if k > 1 else "")
 
 
 # -- the page ---------------------------------------------------------------------------------
@@ -146,13 +153,13 @@ def _card(number: int, c, stage: Path, fold: bool) -> str:
              f'<span class="test">{_e(c.test)}</span></summary>', '<div class="body">']
     figures = []
     for name, rel, width, height in _pictures(c, number, stage):
-        k = _scale(width)
+        shown_w, shown_h, note = _shown(width, height)
         caption = "golden" if (name == "expected" and c.kind == "golden") else \
             CAPTIONS.get(name, name)
-        size = f"{width}×{height}" + (f", shown ×{k}" if k > 1 else "")
-        pixelated = ' class="px"' if k > 1 else ""
+        size = f"{width}×{height}{note}"
+        pixelated = ' class="px"' if shown_w > width else ""
         figures.append(f'<figure><a href="{_e(rel)}"><img src="{_e(rel)}" alt="{_e(caption)}"'
-                       f' width="{width * k}" height="{height * k}" data-name="{_e(name)}"'
+                       f' width="{shown_w}" height="{shown_h}" data-name="{_e(name)}"'
                        f' title="{_e(caption)}: {size}"{pixelated}></a>'
                        f'<figcaption>{_e(caption)} <small>{size}</small></figcaption></figure>')
     if figures:
