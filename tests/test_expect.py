@@ -163,3 +163,147 @@ def test_an_included_file_holds_no_expectations(tmp_path):
         compile_file(path)
     assert "not a test expectation" in e.value.message
     assert e.value.span.file.endswith("lib.pipe")
+
+
+# -- pipegen test ------------------------------------------------------------------------------
+
+def pipegen_test(cwd: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pipegen.cli", "test", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_pipegen_test_counts_without_rendering(tmp_path):
+    """Counts need no backend: the default scene's 8 point lights are ignored by a technique
+    without a light table (one mismatch), and no light set drops a light."""
+    tiny(tmp_path, "expect lights_dropped == 0", "expect mismatches == 1",
+         "expect mismatches < 1 at 96x64")
+    proc = pipegen_test(tmp_path, "tiny.pipe")
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stdout.splitlines() == [
+        "tiny.pipe:17: expect lights_dropped == 0 ... ok (lights_dropped = 0)",
+        "tiny.pipe:18: expect mismatches == 1 ... ok (mismatches = 1 (8 point lights are "
+        "ignored (the technique has no light table)))",
+        "tiny.pipe:19: expect mismatches < 1 at 96x64 ... FAILED: mismatches = 1 (8 point "
+        "lights are ignored (the technique has no light table)), expected < 1"]
+    assert proc.stderr == "error: 1 of 3 expectations failed (tiny.pipe:19)\n"
+
+
+def test_lights_dropped_counts_what_no_light_set_takes(tmp_path):
+    """lidr_cpu_sort sorts lights into 4 sets of non-overlapping ones; stress_overlap's 20
+    lights overlap: 16 fit no set (the count `run` warns about, as a mismatch)."""
+    text = (ROOT / "pipelines/lidr_cpu_sort.pipe").read_text()
+    scene = ROOT / "examples/scenes/stress_overlap.toml"
+    path = tmp_path / "sorted.pipe"
+    path.write_text(text + f'\nexpect lights_dropped == 16 on "{scene}"\n'
+                           f'expect lights_dropped == 0\n')
+    from pipegen.testing.expectations import check_file
+    outcomes = list(check_file(path))
+    assert [o.passed for o in outcomes] == [True, True], [o.line() for o in outcomes]
+    assert "slots: lights 4, 5, 6, 7," in outcomes[0].detail
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_pipegen_test_passes_and_fails_with_the_numbers(tmp_path):
+    """On the 64x36 default scene: GL and CL agree on `color`; both are within half a code of
+    the float64 evaluation (unorm8 rounding: |code - 255 v| <= 0.5), so `max < 0.4` fails on
+    both with the numbers; `band` thresholds fract(x * 3000), where float32 and float64 fall
+    on different sides at a few pixels: discontinuities, reported at the expression."""
+    tiny(tmp_path, "expect color agrees gl cl", "expect color vs f64 p99 <= 0.5")
+    proc = pipegen_test(tmp_path, "tiny.pipe")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("tiny.pipe:17: expect color agrees gl cl ... ok (gl-cl: max ")
+    assert lines[1].startswith("tiny.pipe:18: expect color vs f64 p99 <= 0.5 ... ok (p99: gl ")
+    assert lines[-1] == "2 expectations hold"
+
+    text = TINY.replace("step(0.3, n.y * 0.5 + 0.5)", "step(0.5, fract(world_pos.x * 3000.0))")
+    (tmp_path / "band.pipe").write_text(
+        text + "expect color vs f64 max < 0.4\nexpect band vs f64\n"
+               "expect band vs f64 discontinuities <= 60\n")
+    proc = pipegen_test(tmp_path, "band.pipe", "tiny.pipe")
+    assert proc.returncode == 1
+    out = proc.stdout.splitlines()
+    assert out[0] == ("band.pipe:17: expect color vs f64 max < 0.4 ... FAILED: max: gl 0.5, "
+                      "cl 0.5 codes; expected < 0.4 (fails on gl, cl)")
+    assert out[1].startswith("band.pipe:18: expect band vs f64 ... FAILED: discontinuities (gl ")
+    assert "none allowed without `discontinuities <= N`" in out[1]
+    assert "at `fract(world_pos.x * 3000.0)` (" in out[1] and "band.pipe:14:" in out[1]
+    import re
+    counts = [int(n) for n in re.findall(r"(?:gl|cl) (\d+) px", out[1])]
+    assert len(counts) == 2 and all(1 <= n <= 60 for n in counts), out[1]
+    assert out[2].startswith("band.pipe:19: expect band vs f64 discontinuities <= 60 ... ok")
+    assert [line.split(" ... ")[1][:2] for line in out[3:5]] == ["ok", "ok"]
+    assert proc.stderr == "error: 2 of 5 expectations failed (band.pipe:17, band.pipe:18)\n"
+
+
+def test_pipegen_test_files_without_expectations_and_with_errors(tmp_path):
+    (tmp_path / "plain.pipe").write_text(TINY)
+    tiny(tmp_path, "expect mismatches == 1")
+    proc = pipegen_test(tmp_path, "plain.pipe", "tiny.pipe")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[0].startswith("plain.pipe: no expectations (write e.g.")
+    assert proc.stdout.splitlines()[-1] == "1 expectation holds"
+
+    proc = pipegen_test(tmp_path, "plain.pipe")          # nothing tested at all: an error
+    assert proc.returncode == 1
+    assert "error: no expectations in plain.pipe: nothing was tested" in proc.stderr
+
+    tiny(tmp_path, "expect colr agrees gl cl", name="bad.pipe")
+    proc = pipegen_test(tmp_path, "bad.pipe", "tiny.pipe")
+    assert proc.returncode == 1
+    assert proc.stderr.splitlines() == [
+        "bad.pipe:17:8: error: unknown target 'colr'",
+        "   17 | expect colr agrees gl cl",
+        "      |        ^^^^",
+        "hint: did you mean 'color'?",
+        "error: 1 file with errors (bad.pipe)"]
+    assert proc.stdout.startswith("tiny.pipe:17: expect mismatches == 1 ... ok")
+
+    proc = pipegen_test(tmp_path)                          # misuse: no file
+    assert proc.returncode == 2 and "the following arguments are required: FILE" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+# -- pytest collects a .pipe file's expectations -------------------------------------------------
+
+def run_pytest(cwd: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pytest", "-n0", "-p", "no:cacheprovider",
+                           "-p", "no:randomly", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=600)
+
+
+def test_pytest_collects_expectations_as_items(tmp_path):
+    tiny(tmp_path, "expect mismatches == 1", "expect lights_dropped > 0",
+         "expect color agrees gl cl")
+    (tmp_path / "plain.pipe").write_text(TINY)                   # not collected
+    (tmp_path / "conftest.py").write_text(
+        "def pytest_collection_modifyitems(items):\n"
+        "    for i in items:\n"
+        "        print('MARKS', i.name, sorted((m.name, m.args) for m in i.iter_markers()))\n")
+    proc = run_pytest(tmp_path, "--collect-only", "-q", "-s")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "MARKS line 17: expect mismatches == 1 []" in proc.stdout
+    assert ("MARKS line 19: expect color agrees gl cl [('pipegen_requires', ('gl', 'cl'))]"
+            in proc.stdout)
+    ids = [line for line in proc.stdout.splitlines() if "::" in line]
+    assert ids == ["tiny.pipe::line 17: expect mismatches == 1",
+                   "tiny.pipe::line 18: expect lights_dropped > 0",
+                   "tiny.pipe::line 19: expect color agrees gl cl"]
+
+    proc = run_pytest(tmp_path, "tiny.pipe", "-k", "not agrees")
+    assert proc.returncode == 1, proc.stdout
+    assert "1 failed, 1 passed, 1 deselected" in proc.stdout
+    failure = proc.stdout.split("= FAILURES =")[1].split("short test summary")[0]
+    assert ("tiny.pipe:18: expect lights_dropped > 0 ... FAILED: lights_dropped = 0, "
+            "expected > 0") in failure
+    assert "Traceback" not in failure and "raise " not in failure and ".py:" not in failure
+
+
+def test_a_pipe_file_that_does_not_compile_is_a_collection_error(tmp_path):
+    tiny(tmp_path, "expect color vs f64 p98 <= 2")
+    proc = run_pytest(tmp_path, "tiny.pipe")
+    assert proc.returncode == 2, proc.stdout
+    assert "ERROR collecting tiny.pipe" in proc.stdout
+    assert "tiny.pipe:17:21: error: unknown statistic 'p98'" in proc.stdout
+    assert "hint: did you mean 'p99'?" in proc.stdout and "Traceback" not in proc.stdout

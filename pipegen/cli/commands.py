@@ -1,7 +1,8 @@
 """The ``pipegen`` subcommands built in (``compile``, ``run``, ``check``, ``specialise``,
-``graph``, ``info``): each takes the parsed arguments and returns the exit status.  The work
-itself is in ``compiler/``, ``proof/`` and ``views/``, imported inside the commands so that a
-compile loads none of the render and check code (tests/test_compile_imports.py)."""
+``graph``, ``info``, ``test``): each takes the parsed arguments and returns the exit status.
+The work itself is in ``compiler/``, ``proof/``, ``views/`` and ``testing/``, imported inside
+the commands so that a compile loads none of the render and check code
+(tests/test_compile_imports.py)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from pathlib import Path
 
 from pipegen.backends import registry
 from pipegen.core.defaults import DEFAULT_SIZE
+from pipegen.core.diagnostics import PipegenError
 from pipegen.cli.scene_args import load_scene_arg, mismatch_error, report_mismatches, scene_label
 from pipegen.cli.technique_args import compile_from_args, dump_watch, specialise_from_args
 
@@ -154,4 +156,46 @@ def cmd_info(args) -> int:
         from pipegen.compiler.driver import compile_file
         defaults = {p.name: p.default for p in compile_file(args.file).technique.params}
     print(describe(compiled, args.size, defaults), end="")
+    return 0
+
+
+
+def cmd_test(args) -> int:
+    """``pipegen test FILE…``: every expectation of each file, one line each as it is checked;
+    exit 1 naming the failed ones (file:line), or when a file has an error or none of the
+    files has an expectation (``help_text.TEST_NOTE``)."""
+    from pipegen.compiler.inputs import parse_params
+    from pipegen.testing.expectations import check_file
+    params = parse_params(args.param)
+    failed, broken, checked = [], [], 0
+    for path in args.files:
+        before = checked
+        try:
+            for outcome in check_file(path, params):
+                checked += 1
+                print(outcome.line(), flush=True)
+                if not outcome.passed:
+                    failed.append(outcome.where)
+        except PipegenError as e:
+            print(e.render(), file=sys.stderr, flush=True)
+            broken.append(path)
+            continue
+        if checked == before:
+            print(f"{path}: no expectations (write e.g. `expect color agrees gl cl`; "
+                  f"docs/language.md, Expectations)", flush=True)
+    if failed or broken:
+        what = [f"{len(failed)} of {checked} expectations failed ({', '.join(failed)})"] \
+            if failed else []
+        what += [f"{len(broken)} file{'s' if len(broken) > 1 else ''} with errors "
+                 f"({', '.join(broken)})"] if broken else []
+        print(f"error: {'; '.join(what)}", file=sys.stderr)
+        return 1
+    if not checked:
+        print(f"error: no expectations in {', '.join(args.files)}: nothing was tested",
+              file=sys.stderr)
+        print("hint: an expectation is a line like `expect color agrees gl cl` in the "
+              ".pipe file (docs/language.md, Expectations)", file=sys.stderr)
+        return 1
+    print(f"{checked} expectation{'s' if checked > 1 else ''} hold"
+          f"{'s' if checked == 1 else ''}")
     return 0

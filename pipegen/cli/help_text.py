@@ -1,6 +1,6 @@
 """The help text of the ``pipegen`` command: the examples of each built-in subcommand (all of
 them, in order, close ``pipegen --help``) and the notes on output folders and on what a technique
-will not render of a scene."""
+will not render of a scene, and on ``pipegen test``'s exit status."""
 
 EXAMPLES = {
     "compile": """\
@@ -50,6 +50,12 @@ EXAMPLES = {
   pipegen graph pipelines/inferred.pipe --scene examples/scenes/small.toml -o inferred.svg
       culled passes and targets greyed, each with its reason
 """,
+    "test": """\
+  pipegen test stripes.pipe
+      one line per `expect` of the file: ok, or FAILED with the numbers
+  pipegen test techniques/*.pipe -p steps=4
+      every file's expectations, with a parameter overridden in each
+""",
 }
 
 OUTPUT_NOTE = """\
@@ -64,3 +70,9 @@ it never draws, more lights per pixel than its packing holds) is printed as a wa
 rendering; --strict makes it an error (exit 1).
 """
 
+
+TEST_NOTE = """\
+exit status: 0 when every expectation holds; 1 when one fails (each named with its file:line),
+when a file has an error, or when no FILE has an expectation (a file without any is listed as
+such and does not fail the run by itself); 2 for misuse of the command line.
+"""

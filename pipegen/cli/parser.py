@@ -10,10 +10,10 @@ from pipegen.backends import registry
 from pipegen.cli import commands
 from pipegen.cli.arguments import (DEFAULT_SIZE_TEXT, MAX_SIZE, dump_after_arg, graph_path_arg,
                                    param_arg, size_arg)
-from pipegen.cli.help_text import EXAMPLES, MISMATCH_NOTE, OUTPUT_NOTE
+from pipegen.cli.help_text import EXAMPLES, MISMATCH_NOTE, OUTPUT_NOTE, TEST_NOTE
 from pipegen.core.defaults import DEFAULT_SIZE
 
-COMMANDS = ("compile", "run", "check", "specialise", "graph", "info")
+COMMANDS = ("compile", "run", "check", "specialise", "graph", "info", "test")
 
 FORMATTER = argparse.RawDescriptionHelpFormatter
 
@@ -46,7 +46,7 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
         epilog="examples:\n" + everything + "\n" + OUTPUT_NOTE, formatter_class=FORMATTER)
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for add in (add_compile, add_run, add_check, add_specialise, add_graph, add_info):
+    for add in (add_compile, add_run, add_check, add_specialise, add_graph, add_info, add_test):
         add(sub)
 
     if command_word in COMMANDS or command_word == "--version":
@@ -151,6 +151,21 @@ def add_info(sub) -> None:
     i = add_command(sub, "info", "list parameters, targets, passes and packing schemes",
                     commands.cmd_info, output_note=False)
     add_fixed_size(i, "the target sizes and bytes assume")
+
+
+def add_test(sub) -> None:
+    summary = "check the expectations written in .pipe files (expect …)"
+    t = sub.add_parser("test", help=summary, description=summary[0].upper() + summary[1:] + ".",
+                       epilog="examples:\n" + EXAMPLES["test"] + "\n" + TEST_NOTE,
+                       formatter_class=FORMATTER)
+    t.add_argument("files", nargs="+", metavar="FILE",
+                   help="techniques (.pipe files); each one's expectations are checked in the "
+                        "order written")
+    t.add_argument("-p", "--param", action="append", default=[], metavar="NAME=VALUE",
+                   type=param_arg,
+                   help="override a parameter of every FILE, checked against its allowed "
+                        "values (repeatable; default: the values each file declares)")
+    t.set_defaults(func=commands.cmd_test, parser=t)
 
 
 # -- what several subcommands share ------------------------------------------------------------
