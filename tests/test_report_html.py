@@ -202,6 +202,12 @@ def test_page_text_and_pictures(tmp_path):
         in text
     assert "<code>values: /tmp/x/color.npy</code>" in text        # a file not drawn is named
     assert "pytest tests/test_toon.py::test_color</code>" in text
+    # a target failing in two tests: the header's links say which
+    twice = [Comparison("golden", "t", "color", False, "bad", test=f"t.py::test_a[{b}]")
+             for b in ("gl", "cl")]
+    text = write_report(tmp_path / "twice", twice).read_text()
+    assert '<a href="#c1" title="t.py::test_a[cl]">color <small>test_a[cl]</small></a>' \
+        '<a href="#c2" title="t.py::test_a[gl]">color <small>test_a[gl]</small></a>' in text
     # a wide picture is shown 320 wide (smoothly), a click opens it at full size
     wide = Comparison("golden", "t", "atlas", True, "ok", images={"actual": gradient(800, 100)})
     text = write_report(tmp_path / "wide", [wide]).read_text()

@@ -8,10 +8,10 @@ command that reproduces it and the test that made it.  The header counts them an
 failing cards; when anything failed, the passing cards are folded (a click opens them).
 
 The page is self-contained (inline CSS, a few lines of script for the copy buttons and to expand
-or fold every card, no external resources); pictures are PNG files in ``DIR/img``, drawn at an integer scale with
-``image-rendering: pixelated`` so that a 64x48 render shows its pixels.  The folder is written
-through ``core.outdir`` like every pipegen output: atomically, never over files pipegen did not
-write.
+or fold every card, no external resources).  Pictures are PNG files in ``DIR/img``: small ones
+drawn at an integer scale with ``image-rendering: pixelated`` (a 64x48 render shows its pixels),
+wide ones 320 pixels wide (a click opens them).  The folder is written through ``core.outdir``
+like every pipegen output: atomically, never over files pipegen did not write.
 
 Importing this module imports neither numpy nor pillow (it is imported by the pytest plugin).
 """
@@ -130,9 +130,14 @@ def _header(title: str, ordered: list) -> str:
     tests = len({c.test for c in ordered if c.test})
     what = f"{len(ordered)} comparison{'s' * (len(ordered) != 1)}" + \
         (f" in {tests} test{'s' * (tests != 1)}" if tests else "")
-    # the failing targets named at the top, each a link to its card (the cards' order)
-    links = "".join(f'<a href="#c{i}">{_e(c.target)}</a>'
-                    for i, c in enumerate(ordered, 1) if not c.passed)
+    # the failing targets named at the top, each a link to its card (the cards' order); a name
+    # that fails in several tests (a test run per backend) says which test
+    failing = [(i, c) for i, c in enumerate(ordered, 1) if not c.passed]
+    repeated = {c.target for _, c in failing if sum(d.target == c.target for _, d in failing) > 1}
+    links = "".join(
+        f'<a href="#c{i}" title="{_e(c.test)}">{_e(c.target)}'
+        + (f' <small>{_e(c.test.rpartition("::")[2])}</small>' if c.target in repeated and c.test
+           else "") + "</a>" for i, c in failing)
     return (f'<header><h1>{_e(title)}</h1><p class="counts">{badges}'
             f'<span class="what">{what}</span>'
             '<button type="button" data-fold="open">expand all</button>'
@@ -225,8 +230,9 @@ h1 { margin: 0 0 6px; font-size: 20px; font-weight: 600; }
 header button { margin-left: 4px; background: transparent; color: #c5cad3;
   border: 1px solid #4a5263; border-radius: 4px; padding: 1px 8px; cursor: pointer; }
 header .failed { margin: 8px 0 0; color: #c5cad3; }
-header .failed a { color: #ffb4ab; font-weight: 600; margin-right: 12px;
+header .failed a { color: #ffb4ab; font-weight: 600; margin-right: 14px;
   font-family: ui-monospace, "DejaVu Sans Mono", monospace; }
+header .failed small { font-weight: 400; color: #e6a49b; }
 main { padding: 16px 24px 40px; max-width: 1400px; }
 .badge { display: inline-block; min-width: 58px; text-align: center; padding: 1px 8px;
   border-radius: 4px; color: #fff; font-size: 12px; font-weight: 700; letter-spacing: .03em; }
