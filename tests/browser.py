@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import base64
 import fcntl
+import functools
 import json
 import os
 import select
@@ -55,16 +56,24 @@ class Page:
     log: list[dict] = field(default_factory=list, repr=False)   # every protocol event
 
 
+@functools.lru_cache(maxsize=None)
 def find_chromium() -> Optional[str]:
-    """The path of a Chromium (or Chrome) executable; ``$CHROMIUM`` wins; None if none."""
+    """The path of a Chromium (or Chrome) executable that runs (``--version`` answers: Ubuntu's
+    ``chromium-browser`` may be a stub asking for a snap); ``$CHROMIUM`` wins; None if none."""
     named = os.environ.get("CHROMIUM")
-    if named:
-        return shutil.which(named)
-    for name in NAMES:
+    for name in [named] if named else NAMES:
         found = shutil.which(name)
-        if found:
+        if found and _runs(found):
             return found
     return None
+
+
+def _runs(exe: str) -> bool:
+    try:
+        return subprocess.run([exe, "--version"], capture_output=True, timeout=20,
+                              stdin=subprocess.DEVNULL).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
 
 
 def render_page(html_path, width: int = 1000, height: int = 800,

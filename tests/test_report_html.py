@@ -28,8 +28,9 @@ ROOT = Path(__file__).resolve().parent.parent
 def chromium() -> str:
     exe = find_chromium()
     if exe is None:
-        pytest.skip("no chromium: the HTML report is not checked in a browser "
-                    "(install Debian's chromium, as .ci/run does where it can, or set CHROMIUM)")
+        pytest.skip("no chromium: none that runs was found, so the HTML report is not checked "
+                    "in a browser (install Debian's chromium, as .ci/run does where it can, or "
+                    "set CHROMIUM to one)")
     return exe
 
 
