@@ -139,9 +139,16 @@ def test_report_of_a_failing_golden_as_drawn(tmp_path, monkeypatch):
     page = render_page(index, width=1000, height=700, chromium=exe,
                        screenshot=tmp_path / "report.png", evaluate={
                            "cards": "[...document.querySelectorAll('details.card')]"
-                                    ".map(d => [d.dataset.target, d.dataset.status, d.open])"})
+                                    ".map(d => [d.dataset.target, d.dataset.status, d.open])",
+                           # the page's few lines of script, clicked (after the above)
+                           "copy": "document.querySelector('button.copy').click(), "
+                                   "getSelection().toString()",
+                           "expand": "document.querySelector('[data-fold=open]').click(), "
+                                     "[...document.querySelectorAll('details.card')]"
+                                     ".map(d => d.open)"})
     assert page.console == []
     assert page.values["cards"] == [["galbedo", "failed", True], ["color", "passed", False]]
+    assert page.values["copy"] == made[1].command and page.values["expand"] == [True, True]
     names = [i["src"].rsplit("-", 1)[1] for i in page.images]
     assert names == ["expected.png", "actual.png", "difference.png", "flip.png"] * 2
     assert all(i["complete"] and (i["naturalWidth"], i["naturalHeight"]) == (64, 36)
