@@ -88,9 +88,9 @@ def check(compiled, e: ir.Expectation) -> Outcome:
         scene = load_test_scene(e.scene, e.size or (None if e.scene else E.DEFAULT_SIZE))
         if e.check == "count":
             outcome = _count(compiled, e, scene)
-        elif e.check != "count" and not _rendered(compiled, e.subject):
-            outcome = Outcome(e, False, f"target '{e.subject}' is not rendered: the compiled "
-                                        f"technique has no such target (nothing reads it?)")
+        elif not _rendered(compiled, e.subject):
+            outcome = Outcome(e, False, f"target '{e.subject}' is not rendered: compiling "
+                                        f"removed it (does a pass write it?)")
         elif e.statistic is None:
             outcome = _verdict(compiled, e, scene)
         else:
@@ -259,23 +259,23 @@ def _errors(compiled, e: ir.Expectation, scene) -> Iterator[tuple[str, object]]:
 
 
 def _in_units(fmt, key: str, values, f64: bool = False):
-    """A target's values in its units: codes for fixed point, integers and stencil (the
-    float64 evaluation's values scaled, unrounded), values for float formats."""
+    """A target's values in its units: codes for fixed point (the float64 evaluation's values
+    times the largest code, unrounded), integers and stencil; values for float formats."""
     import numpy as np
     from pipegen.core.formats import Kind
     v = np.asarray(values, np.float64)
-    if not f64 or key.endswith(".stencil") or fmt.is_integer:
+    if not f64 or key.endswith(".stencil"):
         return v
-    if fmt.kind is Kind.DEPTH_STENCIL:
-        return v * fmt.max_codes[0]
-    if fmt.is_normalized:
-        return v * np.asarray(fmt.max_codes[:fmt.channels], np.float64).reshape(
-            (1,) * (v.ndim - 1) + (-1,)) if v.ndim == 3 else v * fmt.max_codes[0]
+    if fmt.is_integer:
+        return np.asarray(fmt.quantize(v), np.float64)
+    if fmt.is_normalized or fmt.kind is Kind.DEPTH_STENCIL:
+        top = np.asarray(fmt.max_codes, np.float64)
+        return v * (top if v.ndim == 3 else top[0])
     return v
 
 
 def _pixel_error(a, b):
-    import numpy as np
+    """|a - b| per pixel, its largest channel (NaN matches only NaN, inf only itself)."""
     from pipegen.proof.f64_compare import error
     err = error(a, b)
     return err.max(axis=-1) if err.ndim == 3 else err
