@@ -261,6 +261,9 @@ def test_pipegen_test_files_without_expectations_and_with_errors(tmp_path):
         "error: 1 file with errors (bad.pipe)"]
     assert proc.stdout.startswith("tiny.pipe:17: expect mismatches == 1 ... ok")
 
+    proc = pipegen_test(tmp_path, "tiny.pipe", "-p", "steps=4")   # -p applies to every file
+    assert proc.returncode == 1 and "error: unknown parameter 'steps'" in proc.stderr
+
     proc = pipegen_test(tmp_path)                          # misuse: no file
     assert proc.returncode == 2 and "the following arguments are required: FILE" in proc.stderr
     assert "Traceback" not in proc.stderr
