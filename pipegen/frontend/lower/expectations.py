@@ -15,7 +15,8 @@ E = ir.Expectation
 _INTEGER_STATISTICS = ("discontinuities", "over")
 
 
-def lower_expectations(decls: list[ast.Expect], targets: Iterable[str]) -> tuple[ir.Expectation, ...]:
+def lower_expectations(decls: list[ast.Expect],
+                       targets: Iterable[str]) -> tuple[ir.Expectation, ...]:
     names = set(targets)
     return tuple(_lower(d, names) for d in decls)
 
