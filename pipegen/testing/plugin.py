@@ -22,6 +22,7 @@ bytes), which writes the one report.
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 from pathlib import Path
@@ -32,7 +33,6 @@ import pytest
 from pipegen.testing import records, settings
 
 BACKENDS = ("gl", "cl")
-DEFAULT_SCENE_SIZE = (64, 36)
 _OUTPUT_KEY = "pipegen_comparisons"          # in an xdist worker's workeroutput
 
 # backend -> None (available) or the reason it is not; probed once per process
@@ -143,16 +143,14 @@ def pipegen_gl_context():
 
 @pytest.fixture
 def pipegen_scene(request):
-    """A scene to render: the built-in default scene at 64x36, or (parametrised indirectly)
-    the scene file named, relative to the test file, at the size it gives."""
-    import pipegen.scene
+    """A scene to render: the built-in default scene at 64x36 (``pipegen.testing.TEST_SIZE``),
+    or (parametrised indirectly) the scene file named, relative to the test file, at the size
+    it gives."""
+    from pipegen.testing.api import load_test_scene
     path = getattr(request, "param", None)
-    if path is None:
-        return pipegen.scene.default_scene().with_size(*DEFAULT_SCENE_SIZE)
-    path = Path(path)
-    if not path.is_absolute():
+    if path is not None and not Path(path).is_absolute():
         path = Path(request.path).parent / path
-    return pipegen.scene.load_scene(path)
+    return load_test_scene(path)
 
 
 # -- per test --------------------------------------------------------------------------------
@@ -183,6 +181,45 @@ def pytest_runtest_teardown(item, nextitem):
             state.comparisons.extend(taken)
     settings.current_test = ""
     settings.artifacts_dir = None
+
+
+_PACKAGE = str(Path(__file__).resolve().parents[1]) + os.sep
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A failure pipegen raises on purpose (a ``ComparisonFailure``, a ``PipegenError`` for a
+    bad technique or scene) is shown from the test's own lines down to its message, without
+    pipegen's frames: what failed is in the message, not in pipegen's code.  Any other
+    exception keeps its whole traceback, and so does ``--tb=native/line/no`` or
+    ``--fulltrace``."""
+    outcome = yield
+    report = outcome.get_result()
+    excinfo = call.excinfo
+    config = item.config
+    if not report.failed or excinfo is None or not _deliberate(excinfo.value) or \
+            config.getoption("tbstyle", "auto") not in ("auto", "long", "short") or \
+            config.getoption("fulltrace", False):
+        return
+    entries = list(excinfo.traceback)
+    first = next((i for i, e in enumerate(entries) if Path(str(e.path)) == Path(item.path)),
+                 None)
+    ours = [e for e in entries[first or 0:] if not str(e.path).startswith(_PACKAGE)]
+    if first is None or not ours:          # raised outside the test's code (in a fixture)
+        report.longrepr = f"{type(excinfo.value).__name__}: {excinfo.value}"
+        return
+    style = config.getoption("tbstyle", "auto")
+    report.longrepr = excinfo.getrepr(
+        funcargs=True, showlocals=config.getoption("showlocals", False),
+        style="long" if style == "auto" else style, truncate_locals=True,
+        tbfilter=lambda ei: type(ei.traceback)(ours))
+
+
+def _deliberate(exc: BaseException) -> bool:
+    """An exception pipegen raises for its user: a comparison that failed, a bad input."""
+    kind = type(exc)
+    return kind.__module__.startswith("pipegen.") and (
+        isinstance(exc, AssertionError) or kind.__name__ == "PipegenError")
 
 
 def _artifacts_root(config) -> Path:
