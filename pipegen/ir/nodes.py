@@ -660,7 +660,7 @@ class Expectation:
     ``statistic``/``op``/``value``: the bound (``p99 <= 2``; a count: ``op`` and ``value``);
     ``statistic`` None: the derived tolerance, no discontinuity.  ``scene``: a path (relative
     paths resolved against the .pipe file's folder), None for the built-in scene; ``size``:
-    None for the scene's own (``DEFAULT_SIZE`` for the built-in scene)."""
+    None for the scene's own (the built-in scene: ``pipegen.testing``'s ``TEST_SIZE``)."""
 
     BACKENDS = ("gl", "cl")
     REFERENCES = ("f64",)
@@ -671,8 +671,6 @@ class Expectation:
     #: lights no light set of a packing takes (whole lights, unlit); what the technique will
     #: not render of the scene (``Compiled.mismatches``)
     COUNTS = ("lights_dropped", "mismatches")
-    OPS = ("<=", "<", "==", "!=", ">=", ">")
-    DEFAULT_SIZE = (64, 36)
 
     subject: str
     check: str

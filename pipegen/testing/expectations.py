@@ -15,7 +15,7 @@ tolerance model as a test written in Python (docs/tolerances.md):
 
 Each check records a ``records.Comparison(kind="expect")`` (beside the ones the functions
 record) for the plugin's report.  The scene is the built-in default scene at 64x36
-(``Expectation.DEFAULT_SIZE``) unless the line says ``on "scene"`` and/or ``at WxH``.
+(``api.TEST_SIZE``) unless the line says ``on "scene"`` and/or ``at WxH``.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.ir import nodes as ir
 from pipegen.testing import records
 
-E = ir.Expectation
 _OPS: dict[str, Callable[[float, float], bool]] = {
     "<=": operator.le, "<": operator.lt, "==": operator.eq, "!=": operator.ne,
     ">=": operator.ge, ">": operator.gt}
@@ -85,7 +84,7 @@ def check(compiled, e: ir.Expectation) -> Outcome:
     expectation with pipegen's message (the others are still checked)."""
     from pipegen.testing.api import load_test_scene
     try:
-        scene = load_test_scene(e.scene, e.size or (None if e.scene else E.DEFAULT_SIZE))
+        scene = load_test_scene(e.scene, e.size)     # None: the built-in scene at TEST_SIZE
         if e.check == "count":
             outcome = _count(compiled, e, scene)
         elif not _rendered(compiled, e.subject):
