@@ -156,6 +156,35 @@ def test_fixtures_and_a_backend_that_cannot_run(tmp_path):
     assert "3 passed, 2 skipped" in proc.output
 
 
+USER_ERRORS = '''
+import pytest
+from pipegen.testing import render
+
+
+@pytest.mark.parametrize("pipegen_scene", ["broken.toml"], indirect=True)
+def test_bad_scene(pipegen_scene):
+    pass
+
+
+def test_bad_technique():
+    render("broken.pipe")
+'''
+
+
+def test_a_bad_technique_or_scene_shows_pipegen_message_not_its_frames(tmp_path):
+    (tmp_path / "test_errors.py").write_text(USER_ERRORS)
+    (tmp_path / "broken.toml").write_text("width = 64\nheight = \n")
+    (tmp_path / "broken.pipe").write_text('technique t "t"\ntarget color : rgba9\n')
+    proc = run_pytest(tmp_path, "-n0")
+    assert proc.returncode == 1 and "1 failed, 1 error" in proc.output, proc.output
+    # the fixture's error: pipegen's message alone, at the scene file's line
+    assert re.search(r"PipegenError: \S*broken.toml:2:\d+: error: ", proc.output), proc.output
+    # the test's error: its own line, then pipegen's message with the caret
+    assert '>       render("broken.pipe")' in proc.output
+    assert re.search(r"broken.pipe:2:\d+: error: .*rgba9", proc.output), proc.output
+    assert "pipegen/" not in proc.output.replace(str(tmp_path), "")     # no frame of ours
+
+
 @pytest.mark.slow
 @pytest.mark.gl
 @pytest.mark.cl
