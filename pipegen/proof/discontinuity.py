@@ -46,6 +46,7 @@ class Site:
     text: str                  # the expression, as the IR printer spells it
     span: Optional[Span]       # where the user wrote it (None: generated code)
     where: str                 # "function toon", "pass shade", "packing ids"
+    passes: frozenset = frozenset()   # the passes whose code runs it (directly or by a call)
 
     def describe(self) -> str:
         at = f"{self.span.file}:{self.span.line}:{self.span.column}" if self.span else \
@@ -124,13 +125,37 @@ def _bodies(tech: ir.Technique):
         yield f"pass {p.name}", p.body
 
 
+def _callers(tech: ir.Technique) -> dict[str, frozenset]:
+    """Function name -> the passes that call it, directly or through other functions."""
+    calls: dict[str, set] = {}
+    for where, body in _bodies(tech):
+        calls[where] = {e.name for e in walk.walk_exprs(body)
+                        if isinstance(e, ir.Call) and not e.builtin}
+    out: dict[str, set] = {}
+    for p in tech.passes:
+        seen, todo = set(), list(calls.get(f"pass {p.name}", ()))
+        while todo:
+            f = todo.pop()
+            if f in seen:
+                continue
+            seen.add(f)
+            out.setdefault(f, set()).add(p.name)
+            todo += [g for where, called in calls.items() if where.endswith(f" {f}")
+                     and not where.startswith("pass ") for g in called]
+    return {f: frozenset(ps) for f, ps in out.items()}
+
+
 def sites(tech: ir.Technique) -> list[Site]:
     """Every step of the technique's code, in walk order."""
     out: list[Site] = []
+    callers = _callers(tech)
     for where, body in _bodies(tech):
-        def visit(e, where=where):
+        kind, _, name = where.partition(" ")
+        passes = frozenset({name}) if kind == "pass" else callers.get(name, frozenset())
+
+        def visit(e, where=where, passes=passes):
             if _step_input(e) is not None:
-                out.append(Site(len(out), _source(e), getattr(e, "span", None), where))
+                out.append(Site(len(out), _source(e), getattr(e, "span", None), where, passes))
             return e
         walk.rewrite_stmts(body, visit)
     return out
@@ -147,8 +172,10 @@ def _source(e: ir.Expr) -> str:
     return printer.expr(e)
 
 
-def nudged(tech: ir.Technique, delta: float, only: Optional[int] = None) -> ir.Technique:
-    """The technique with every step (``only``: the one of that index) nudged by ``delta``."""
+def nudged(tech: ir.Technique, delta: float, only=None) -> ir.Technique:
+    """The technique with every step (``only``: the one of that index, or those of a set of
+    indices) nudged by ``delta``."""
+    chosen = {only} if isinstance(only, int) else only
     count = [0]
 
     def fn(e):
@@ -156,7 +183,7 @@ def nudged(tech: ir.Technique, delta: float, only: Optional[int] = None) -> ir.T
             return e
         k = count[0]
         count[0] += 1
-        return _nudged_site(e, delta) if only is None or k == only else e
+        return _nudged_site(e, delta) if chosen is None or k in chosen else e
     return walk.map_technique_code(tech, fn)
 
 
@@ -178,7 +205,29 @@ class Explainer:
         self._renders: dict = {}
         self.renders_made = 0
 
-    def _render(self, delta: float, only: Optional[int]) -> dict:
+    def upstream(self, target: str) -> set:
+        """The passes whose output can reach ``target``: its writers, the writers of what
+        they read, and so on."""
+        from pipegen.proof.tolerance import plan_targets
+        if not hasattr(self, "_info"):
+            self._info = plan_targets(self.compiled)
+            # a pass's depth/stencil target decides which of its fragments land (a stencil
+            # marked by another pass's discard): upstream too
+            self._tested = {p.name: p.depth_target for p in self.compiled.plan("cl").passes
+                            if p.depth_target}
+        passes, seen, todo = set(), set(), [target]
+        while todo:
+            t = todo.pop()
+            if t in seen or t not in self._info:
+                continue
+            seen.add(t)
+            writers = set(self._info[t].writers)
+            passes |= writers
+            todo += list(self._info[t].reads) + [self._tested[w] for w in writers
+                                                 if w in self._tested]
+        return passes
+
+    def _render(self, delta: float, only) -> dict:
         key = (delta, only)
         if key not in self._renders:
             from pipegen.compiler.driver import Compiled
@@ -204,12 +253,19 @@ class Explainer:
             return [], remaining
         base = self.convert(key, self.base[key])
         smooth = np.asarray(smooth, np.float64)
+        # only the steps in passes that write the target or what it reads, transitively: a
+        # variant is a recompile of the float64 evaluation, not to be made for nothing
+        upstream = self.upstream(key.partition(".")[0])
+        candidates_sites = [s for s in self.sites if s.passes & upstream]
+        relevant = frozenset(s.index for s in candidates_sites)
+        if not relevant:
+            return [], remaining
         for level in LEVELS:
             if not remaining.any():
                 break
-            both = [self.convert(key, self._render(s * level, None)[key]) for s in (1, -1)]
+            both = [self.convert(key, self._render(s * level, relevant)[key]) for s in (1, -1)]
             todo = remaining & _flipped(sides, base, both, smooth)
-            for site in self.sites:
+            for site in candidates_sites:
                 if not todo.any():
                     break
                 one = [self.convert(key, self._render(s * level, site.index)[key])
