@@ -86,13 +86,21 @@ def pytest_configure(config):
     config.addinivalue_line(
         "markers", "pipegen_requires(*backends): skip (with the reason) unless every named "
         "pipegen backend (gl, cl) can run here")
-    if config.getoption("pipegen_update_goldens", False):
-        settings.update_goldens = True
     report = config.getoption("pipegen_report", None)
-    if report:
-        settings.keep_images = True
     config.stash[_STATE] = _State(Path(report) if report else None,
                                   worker=hasattr(config, "workerinput"))
+    if config.getoption("pipegen_update_goldens", False):
+        settings.update_goldens = True
+    if report:
+        settings.keep_images = True
+
+
+def pytest_unconfigure(config):
+    """``settings`` as they were before this session (pytest may run again in the process)."""
+    state = config.stash.get(_STATE, None)
+    if state is not None:
+        for name, value in state.settings.items():
+            setattr(settings, name, value)
 
 
 class _State:
@@ -104,6 +112,10 @@ class _State:
         self.comparisons: list[records.Comparison] = []
         self.written: Optional[Path] = None
         self.error: str = ""
+        # what the session found, restored after it; a folder set by the user (e.g. in a
+        # conftest.py) holds the per-test folders of error images instead of pytest's
+        self.settings = {name: getattr(settings, name) for name in
+                         ("update_goldens", "keep_images", "artifacts_dir", "current_test")}
 
 
 _STATE = pytest.StashKey[_State]()
@@ -160,8 +172,10 @@ def pytest_runtest_setup(item):
     state = item.config.stash.get(_STATE, None)
     # A folder per test for error images, only where pipegen.testing is in use (asking pytest
     # for its temporary folder creates it, which other projects' runs need not see).
-    if "pipegen.testing.api" in sys.modules or (state and state.report):
-        settings.artifacts_dir = _artifacts_root(item.config) / _slug(item.nodeid)
+    if state is not None and ("pipegen.testing.api" in sys.modules or state.report or any(
+            name.startswith("pipegen_") for name in getattr(item, "fixturenames", ()))):
+        root = state.settings["artifacts_dir"] or _pytest_temp(item.config)
+        settings.artifacts_dir = Path(root) / _slug(item.nodeid)
     for marker in item.iter_markers("pipegen_requires"):
         for backend in marker.args:
             _skip_unless_available(backend)
@@ -179,8 +193,9 @@ def pytest_runtest_teardown(item, nextitem):
             out.extend(_to_wire(c) for c in taken)
         else:
             state.comparisons.extend(taken)
-    settings.current_test = ""
-    settings.artifacts_dir = None
+    if state is not None:
+        settings.current_test = state.settings["current_test"]
+        settings.artifacts_dir = state.settings["artifacts_dir"]
 
 
 _PACKAGE = str(Path(__file__).resolve().parents[1]) + os.sep
@@ -222,8 +237,10 @@ def _deliberate(exc: BaseException) -> bool:
         isinstance(exc, AssertionError) or kind.__name__ == "PipegenError")
 
 
-def _artifacts_root(config) -> Path:
-    factory = getattr(config, "_tmp_path_factory", None)   # pytest's, as tmp_path uses
+def _pytest_temp(config) -> Path:
+    """``pipegen/`` in pytest's temporary folder of this session (the one ``tmp_path`` uses;
+    pytest keeps the last three sessions')."""
+    factory = getattr(config, "_tmp_path_factory", None)
     if factory is not None:
         return factory.getbasetemp() / "pipegen"
     return settings.artifacts()
