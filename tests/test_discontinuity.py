@@ -186,3 +186,29 @@ def test_lights_blended_into_rgba8_are_held_to_the_bound_not_one_code(tmp_path):
         color = {r.key: r for r in result.rows[backend]}["color"]
         assert color.passed and color.over == 0 and color.discontinuity_count == 0
         assert 1.0 < color.worst_error * 255 <= color.bound_at_worst * 255
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_the_cli_output_docs_tolerances_quotes(tmp_path, monkeypatch, capsys):
+    """docs/tolerances.md's example is what `pipegen check --precision f64` prints; and
+    `--max-discontinuities` takes a count, 0 or more."""
+    from pipegen.cli.main import main
+    monkeypatch.chdir(ROOT)
+    assert main(["check", "examples/techniques/toon_deferred.pipe", "--size", "96x64",
+                 "--precision", "f64", "-o", str(tmp_path / "check")]) == 0
+    out = capsys.readouterr().out
+    doc = (ROOT / "docs" / "tolerances.md").read_text()
+    quoted = [line.strip() for line in doc.split("$ pipegen check examples/techniques/"
+                                                  "toon_deferred.pipe")[1].split("\n\n")[0]
+              .splitlines()[1:] if line.strip() and line.strip() != "..."]
+    printed = [line.strip() for line in out.splitlines()]
+    for line in quoted:
+        assert line in printed, (line, out)
+    assert (tmp_path / "check" / "error_gl_color.png").is_file()
+    assert main(["check", "examples/techniques/toon_deferred.pipe", "--size", "96x64",
+                 "--max-discontinuities", "4", "-o", str(tmp_path / "c2")]) == 0
+    with pytest.raises(SystemExit) as e:
+        main(["check", "examples/techniques/toon_deferred.pipe", "--max-discontinuities", "-1"])
+    assert e.value.code == 2
+    assert "bad count '-1'" in capsys.readouterr().err

@@ -27,6 +27,17 @@ def size_arg(text: str) -> tuple[int, int]:
     return w, h
 
 
+def count_arg(text: str) -> int:
+    """A number of pixels allowed: a whole number, 0 or more."""
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"bad count {text!r}: write a whole number, 0 or more")
+    return n
+
+
 def graph_path_arg(text: str) -> str:
     from pipegen.views.graph import SUFFIXES
     if Path(text).suffix.lower() not in SUFFIXES:

@@ -72,7 +72,8 @@ def cmd_check(args) -> int:
         from pipegen.proof.precision import main_precision_check
         return main_precision_check(compiled, scene, out)
     from pipegen.proof.check import main_check
-    return main_check(compiled, scene, out, mismatches=found)
+    return main_check(compiled, scene, out, mismatches=found,
+                      max_discontinuities=args.max_discontinuities)
 
 
 def cmd_specialise(args) -> int:

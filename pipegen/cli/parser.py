@@ -8,8 +8,8 @@ import argparse
 
 from pipegen.backends import registry
 from pipegen.cli import commands
-from pipegen.cli.arguments import (DEFAULT_SIZE_TEXT, MAX_SIZE, dump_after_arg, graph_path_arg,
-                                   param_arg, size_arg)
+from pipegen.cli.arguments import (DEFAULT_SIZE_TEXT, MAX_SIZE, count_arg, dump_after_arg,
+                                   graph_path_arg, param_arg, size_arg)
 from pipegen.cli.help_text import EXAMPLES, MISMATCH_NOTE, OUTPUT_NOTE, TEST_NOTE
 from pipegen.core.defaults import DEFAULT_SIZE
 
@@ -106,8 +106,13 @@ def add_check(sub) -> None:
                    help="folder for the error images (default: build/check/<technique>)")
     k.add_argument("--precision", choices=("f32", "f64"), default="f32",
                    help="f64: instead of GL against CL, each float32 backend against the "
-                        "technique's float64 evaluation (CL), the precision error per target "
-                        "in codes/ulps (a measurement: exit status 0) (default: f32)")
+                        "technique's float64 evaluation (CL), within the bound of the "
+                        "tolerance model (docs/tolerances.md; a measurement: exit status 0) "
+                        "(default: f32)")
+    k.add_argument("--max-discontinuities", type=count_arg, default=0, metavar="N",
+                   help="pixels where GL and CL may take different sides of a step in the "
+                        "technique's code (a comparison, floor, step, ...), listed with the "
+                        "expression (default: 0)")
     add_specialise_flag(k)
     add_strict(k)
     add_force(k)
