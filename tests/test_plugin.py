@@ -69,22 +69,32 @@ def test_importing_the_plugin_imports_nothing_heavy():
     assert out.strip() == "[]"
 
 
+@pytest.fixture(scope="module")
+def one_token_change(tmp_path_factory):
+    """The project run as it is (passes), then after a one-token change to its technique
+    (``wrap = 0.5`` made ``0.6``) with ``--pipegen-report``: (passing run, failing run, report
+    folder)."""
+    tmp = tmp_path_factory.mktemp("one_token")
+    project = copy_project(tmp / "project")
+    ok = run_pytest(project, "-n0", "-vv")
+    pipe = project / "wrap_deferred.pipe"
+    text = pipe.read_text()
+    assert text.count("float wrap = 0.5;") == 1
+    pipe.write_text(text.replace("float wrap = 0.5;", "float wrap = 0.6;"))
+    report = tmp / "report"
+    bad = run_pytest(project, "-n0", f"--pipegen-report={report}")
+    return ok, bad, report
+
+
 @pytest.mark.gl
 @pytest.mark.cl
-def test_the_project_passes_then_fails_after_a_one_token_change(tmp_path):
-    project = copy_project(tmp_path / "project")
-    ok = run_pytest(project, "-n0", "-vv")
+def test_the_project_passes_then_fails_after_a_one_token_change(one_token_change):
+    ok, bad, report = one_token_change
     assert ok.returncode == 0, ok.output
     assert "5 passed" in ok.output, ok.output        # 4 in test_technique.py, 1 expect line
     assert re.search(r'wrap_deferred.pipe::line 15: expect color agrees gl cl on "scene\S*" PASSED',
                      ok.output), ok.output
 
-    pipe = project / "wrap_deferred.pipe"
-    text = pipe.read_text()
-    assert text.count("float wrap = 0.5;") == 1
-    pipe.write_text(text.replace("float wrap = 0.5;", "float wrap = 0.6;"))
-    report = tmp_path / "report"
-    bad = run_pytest(project, "-n0", f"--pipegen-report={report}")
     assert bad.returncode == 1, bad.output
     # only the goldens notice: both backends still agree, and with float64
     assert re.search(r"2 failed, 3 passed", bad.output), bad.output
@@ -92,7 +102,6 @@ def test_the_project_passes_then_fails_after_a_one_token_change(tmp_path):
         assert f"FAILED test_technique.py::test_matches_golden[{backend}-scene.toml]" in \
             bad.output
     message = _failure_message(bad.output)
-    assert "color" in message, message
     assert re.search(r"target 'color' \(rgba8\): \d+ px differ from the golden by more than "
                      r"the limit \(≤?\d+ codes\); worst at \(x=\d+, y=\d+\): render \(\d+, \d+, \d+, "
                      r"255\) vs golden \(\d+, \d+, \d+, 255\), limit ≤?\d+ codes", message), message
@@ -100,11 +109,37 @@ def test_the_project_passes_then_fails_after_a_one_token_change(tmp_path):
     assert "Traceback" not in bad.output
 
     index = report / "index.html"
-    assert index.is_file(), bad.output
+    assert f"report written to {index}" in bad.output
     html = index.read_text()
     assert "test_matches_golden[gl-scene.toml]" in html
     assert "wrap_deferred" in html and "color" in html
-    assert f"report written to {index}" in bad.output
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_the_report_of_the_failing_run_in_a_browser(one_token_change, tmp_path):
+    """The failing run's report as Chromium draws it (tests/browser.py, as
+    tests/test_report_html.py uses it): the two failing golden comparisons first and open,
+    every picture loaded at the render's size, no console message."""
+    from browser import find_chromium, render_page
+    if find_chromium() is None:
+        pytest.skip("no chromium: the report is not checked in a browser (install Debian's "
+                    "chromium, as .ci/run does where it can, or set CHROMIUM to one)")
+    _, bad, report = one_token_change
+    page = render_page(report / "index.html", width=1000, height=700,
+                       screenshot=tmp_path / "report.png", evaluate={
+        "cards": "[...document.querySelectorAll('details.card')].map(d => "
+                 "[d.dataset.target, d.dataset.status, d.open])"})
+    assert page.console == []
+    cards = page.values["cards"]
+    assert cards[:2] == [["color", "failed", True]] * 2, cards
+    assert all(status == "passed" for _, status, _ in cards[2:]) and len(cards) > 2, cards
+    # the project's scene is 64x40; test_close_to_float64 renders the default scene, 64x36
+    sizes = [(i["naturalWidth"], i["naturalHeight"]) for i in page.images if i["complete"]]
+    assert len(sizes) == len(page.images) > 6, page.images
+    assert sizes[:6] == [(64, 40)] * 6 and set(sizes) == {(64, 40), (64, 36)}, sizes
+    assert [i["src"].rsplit("-", 1)[1] for i in page.images[:3]] == \
+        ["expected.png", "actual.png", "difference.png"]
 
 
 def _failure_message(output: str) -> str:
