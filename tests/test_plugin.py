@@ -219,6 +219,15 @@ def test_a_bad_technique_or_scene_shows_pipegen_message_not_its_frames(tmp_path)
     assert re.search(r"broken.pipe:2:\d+: error: .*rgba9", proc.output), proc.output
     assert "pipegen/" not in proc.output.replace(str(tmp_path), "")     # no frame of ours
 
+    # a report folder holding files pipegen did not write: refused before any test runs
+    (tmp_path / "notes").mkdir()
+    (tmp_path / "notes" / "mine.txt").write_text("mine")
+    refused = run_pytest(tmp_path, "-n0", "--pipegen-report=notes")
+    assert refused.returncode == 4, refused.output            # pytest's usage error
+    assert "--pipegen-report=notes: output folder 'notes' holds files pipegen did not write " \
+        "(mine.txt); pass an empty or new folder" in refused.output
+    assert (tmp_path / "notes" / "mine.txt").read_text() == "mine"
+
 
 @pytest.mark.slow
 @pytest.mark.gl

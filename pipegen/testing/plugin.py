@@ -93,6 +93,21 @@ def pytest_configure(config):
         settings.update_goldens = True
     if report:
         settings.keep_images = True
+        if not hasattr(config, "workerinput"):
+            _check_report_dir(Path(report))
+
+
+def _check_report_dir(path: Path) -> None:
+    """Before any test runs: the report folder must be one pipegen may write (absent, empty,
+    or a report written before), as for every pipegen output."""
+    from pipegen.core.diagnostics import PipegenError
+    from pipegen.core.outdir import OutputDir
+    try:
+        OutputDir(path, "report")
+    except PipegenError as exc:
+        raise pytest.UsageError(f"--pipegen-report={path}: {exc.message}; pass an empty or "
+                                f"new folder (files pipegen did not write are never "
+                                f"overwritten)") from None
 
 
 def pytest_unconfigure(config):
