@@ -524,3 +524,21 @@ def test_gltf_sparse_normalized_and_data_uri_media_types(tmp_path):
     (tmp_path / "bad.gltf").write_text(json.dumps(doc))
     with pytest.raises(GltfError, match="accessor 0 reads past the end of bufferView 0"):
         load_gltf(tmp_path / "bad.gltf")
+
+
+def test_command_lines_say_each_load_note_once_as_a_note(tmp_path, capsys):
+    """``load_scene_noting`` (every command that takes --scene: run, check, stress, sweep...):
+    what the loader ignored is one ``note:`` line on stderr, not also a Python warning with its
+    source line."""
+    import warnings
+    from pipegen.scene.load import load_scene_noting
+    _two_materials(tmp_path)
+    (tmp_path / "s.toml").write_text(SCENE_HEAD + '[[objects]]\nobj = "m.obj"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                      # any warning would raise
+        s = load_scene_noting(tmp_path / "s.toml")
+    err = capsys.readouterr().err
+    assert s.notes and err.splitlines() == [f"note: {n}" for n in s.notes]
+    said = []
+    load_scene_noting(tmp_path / "s.toml", said.append)
+    assert said == [f"note: {n}" for n in s.notes] and capsys.readouterr().err == ""

@@ -17,20 +17,14 @@ def scene_label(args) -> str:
 def load_scene_arg(args, size: bool = True):
     """The scene of ``args.scene`` (the built-in default scene without it), its load notes
     printed on stderr; resized to ``args.size`` when ``size`` and the command has one."""
-    from pipegen.scene.load import default_scene, load_scene
+    from pipegen.scene.load import default_scene, load_scene_noting
     if args.scene:
         if Path(args.scene).suffix.lower() == ".pipe":
             raise PipegenError(None, f"{args.scene}: this looks like a technique (.pipe), not a "
                                      f"scene file (.toml)",
                                hint="the technique is the first argument; --scene takes a "
                                     "scene .toml, e.g. examples/scenes/small.toml")
-        import warnings
-        from pipegen.scene.model import SceneLoadWarning
-        with warnings.catch_warnings():        # printed below as notes, once, not as warnings
-            warnings.simplefilter("ignore", SceneLoadWarning)
-            scene = load_scene(args.scene)
-        for note in getattr(scene, "notes", ()):
-            print(f"note: {note}", file=sys.stderr)
+        scene = load_scene_noting(args.scene)      # notes printed once, not as warnings
     else:
         scene = default_scene().with_size(*DEFAULT_SIZE)
     if size and getattr(args, "size", None):

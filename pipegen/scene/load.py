@@ -269,6 +269,21 @@ def load_scene(path: str | Path) -> Scene:
     return parse_scene(text, str(path), base_dir=path.parent, name=path.stem)
 
 
+def load_scene_noting(path: str | Path, say=None) -> Scene:
+    """``load_scene`` for a command line: what the loader ignored is said once, as a
+    ``note:`` line on stderr (``say``: how), not also as a Python warning with its source
+    line."""
+    import sys
+    import warnings
+    from pipegen.scene.model import SceneLoadWarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneLoadWarning)
+        scene = load_scene(path)
+    for note in scene.notes:
+        (say or (lambda text: print(text, file=sys.stderr)))(f"note: {note}")
+    return scene
+
+
 def _toml_error(e: Exception, text: str, file: str) -> PipegenError:
     """tomllib's message ends in ``(at line L, column C)`` or ``(at end of document)``: the
     position becomes the error's span (tomllib counts lines at '\\n' only, as spans do)."""

@@ -124,7 +124,7 @@ def cmd_stress(args) -> int:
 
 
 def _base_scene(args):
-    from pipegen.scene.load import default_scene, load_scene
+    from pipegen.scene.load import default_scene, load_scene_noting
     if args.scene:
-        return load_scene(args.scene)
+        return load_scene_noting(args.scene)
     return default_scene()

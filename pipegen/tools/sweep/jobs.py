@@ -35,12 +35,15 @@ def scene_spec(path: Optional[str], size: Optional[tuple[int, int]]) -> dict:
             "size": None if size is None else [int(size[0]), int(size[1])]}
 
 
-def load_spec_scene(spec: dict):
+def load_spec_scene(spec: dict, say=None):
+    """The scene of a job; ``say``: how to tell its load notes (the sweep says them once, in
+    the parent: a worker loading it again stays quiet)."""
     key = (spec["path"], tuple(spec["size"] or ()))
     if key not in _SCENES:
         from pipegen.core.defaults import DEFAULT_SIZE
-        from pipegen.scene.load import default_scene, load_scene
-        s = load_scene(spec["path"]) if spec["path"] else default_scene().with_size(*DEFAULT_SIZE)
+        from pipegen.scene.load import default_scene, load_scene_noting
+        s = load_scene_noting(spec["path"], say or (lambda text: None)) if spec["path"] \
+            else default_scene().with_size(*DEFAULT_SIZE)
         if spec["size"]:
             s = s.with_size(*spec["size"])
         _SCENES[key] = s

@@ -4,6 +4,8 @@ writes nothing."""
 
 from __future__ import annotations
 
+import sys
+
 import math
 from typing import Optional
 
@@ -35,7 +37,7 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
     backends = tuple(backends)
     variants, compiled = plan_variants(list(files), axes)
     spec = scene_spec(scene, size)
-    s = load_spec_scene(spec)
+    s = load_spec_scene(spec, say=lambda text: print(text, file=sys.stderr))
     use_f64 = f64_supported()
     notes = []
     if not use_f64:
