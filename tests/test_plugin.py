@@ -245,6 +245,13 @@ def test_the_plugin_from_a_non_editable_install(installed, tmp_path):
     where = Path(re.search(r"PLUGIN (\S+)", proc.output).group(1)).resolve()
     assert where.is_relative_to(installed.parent.resolve()), where       # not the checkout
     assert not where.is_relative_to(ROOT)
+    # the built package itself declares the plugin (the wheel's entry points; the test extra
+    # brings the `wheel` package setuptools < 70.1 needs to build one)
+    purelib = Path(_run([python, "-c", "import sysconfig; print(sysconfig.get_path('purelib'))"]
+                        ).stdout.strip())
+    entry = [p.read_text() for p in purelib.glob("pipegen-*.dist-info/entry_points.txt")]
+    assert entry and "[pytest11]" in entry[0] and \
+        "pipegen = pipegen.testing.plugin" in entry[0], (purelib, entry)
 
 
 def docs_block(title: str) -> str:
@@ -306,7 +313,7 @@ def test_the_python_form_of_check_in_docs_testing_md_runs(tmp_path):
 
 # The venv with pipegen installed from a copy of the sources (not editable), built the way
 # tests/test_install_library.py builds it.
-from test_install_library import _clean_env, installed  # noqa: E402,F401
+from test_install_library import _clean_env, _run, installed  # noqa: E402,F401
 
 
 def update_goldens() -> None:
