@@ -332,3 +332,14 @@ def test_run_prints_the_unused_shadow_note(capsys, tmp_path):
     assert main(["run", tech("forward"), "--scene", scene("small"), "--size", "16x9",
                  "-o", str(tmp_path / "r")]) == 0
     assert "note: no light in this scene casts shadows" in capsys.readouterr().err
+
+
+def test_docs_specialise_md_shows_what_the_command_prints(capsys, monkeypatch):
+    """The example output in docs/specialise.md is the command's output today."""
+    import re
+    monkeypatch.chdir(ROOT)
+    command = "pipegen specialise pipelines/deferred_calver.pipe --scene examples/scenes/small.toml"
+    doc = (ROOT / "docs" / "specialise.md").read_text()
+    shown = re.search(re.escape("$ " + command) + r"\n(.*?)^```", doc, re.S | re.M).group(1)
+    assert main(command.split()[1:]) == 0
+    assert capsys.readouterr().out == shown

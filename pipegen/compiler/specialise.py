@@ -88,8 +88,9 @@ class Specialisation:
                 f"         after  ({len(after_p)}): {', '.join(after_p)}",
                 f"targets  before ({len(before_t)}): {', '.join(before_t)}",
                 f"         after  ({len(after_t)}): {', '.join(after_t)}",
-                f"target memory at {w}x{h}: {format_bytes(before_m)} -> {format_bytes(after_m)} "
-                f"({format_bytes(before_m - after_m)} saved)"]
+                f"target memory at {w}x{h}: {format_bytes(before_m, 'MiB', exact=True)} -> "
+                f"{format_bytes(after_m, 'MiB', exact=True)} "
+                f"({format_bytes(before_m - after_m, 'MiB')} saved)"]
 
 
 _CACHE: dict = {}

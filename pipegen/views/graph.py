@@ -195,7 +195,8 @@ def _title(compiled, tech: ir.Technique, spec, size) -> str:
            f"{len(tech.targets)} targets; {branches} light-type branch"
            f"{'' if branches == 1 else 'es'} removed",
            *other,
-           f"target memory at {w}x{h}: {format_bytes(before)} -> {format_bytes(after)}", legend]
+           f"target memory at {w}x{h}: {format_bytes(before, 'MiB')} -> "
+           f"{format_bytes(after, 'MiB')}", legend]
     return "\n".join(out)
 
 
