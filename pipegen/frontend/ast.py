@@ -218,6 +218,7 @@ class ParamDecl(Node):
     type: Optional[Name]
     value: Expr
     allowed: Optional[list[Expr]]
+    accurate: Optional[Expr] = None     # `accurate VALUE`: the most accurate of its values
 
 
 @record

@@ -201,12 +201,16 @@ class _ToAst(Transformer):
         return ast.Include(_unquote(ch[0]), span=self._span(meta))
 
     def param(self, meta, ch):
-        name, type_tok, value, allowed = ch
+        name, type_tok, value, allowed, accurate = ch
         type_name = self._name(type_tok) if type_tok is not None else None
-        return ast.ParamDecl(self._name(name), type_name, value, allowed, span=self._span(meta))
+        return ast.ParamDecl(self._name(name), type_name, value, allowed, accurate,
+                             span=self._span(meta))
 
     def allowed(self, meta, values):
         return values
+
+    def accurate(self, meta, ch):
+        return ch[0]
 
     def lights(self, meta, ch):
         ch = _present(ch)

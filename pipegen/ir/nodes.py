@@ -464,6 +464,9 @@ class Param:
     default: Union[float, int, bool, str]
     allowed: tuple = ()        # empty: any value of the type
     span: Optional[Span] = field(default=None, compare=False)
+    # `accurate VALUE`: the value that gives the most accurate image (the `self` reference,
+    # pipegen/proof/references.py, evaluates the technique there); None: not declared
+    accurate: Union[float, int, bool, str, None] = None
 
 
 @record(frozen=True)

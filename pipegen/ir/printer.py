@@ -59,7 +59,8 @@ def print_technique(tech: ir.Technique) -> str:
 
 def param(p: ir.Param) -> str:
     allowed = f" in {{{', '.join(_value(v) for v in p.allowed)}}}" if p.allowed else ""
-    return f"param {p.name} : {p.type} = {_value(p.default)}{allowed}"
+    accurate = f" accurate {_value(p.accurate)}" if p.accurate is not None else ""
+    return f"param {p.name} : {p.type} = {_value(p.default)}{allowed}{accurate}"
 
 
 def target(t: ir.Target) -> str:

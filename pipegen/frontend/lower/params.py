@@ -25,7 +25,14 @@ class ParamBuilder:
         if allowed and default not in allowed:
             raise error(d.value.span, f"the default of '{d.name.name}' ({_show(default)}) is "
                         f"not one of its allowed values", f"allowed: {_show_all(allowed)}")
-        return ir.Param(d.name.name, t, default, allowed, d.span)
+        accurate = None
+        if d.accurate is not None:
+            accurate = self._coerce(d.accurate, t)
+            if allowed and accurate not in allowed:
+                raise error(d.accurate.span, f"the accurate value of '{d.name.name}' "
+                            f"({_show(accurate)}) is not one of its allowed values",
+                            f"allowed: {_show_all(allowed)}")
+        return ir.Param(d.name.name, t, default, allowed, d.span, accurate)
 
     def _type(self) -> ir.Type:
         d = self.decl
@@ -66,7 +73,7 @@ class ParamBuilder:
         if p.allowed and converted not in p.allowed:
             raise error(self.decl.name.span, f"{_show(converted)} is not an allowed value of "
                         f"parameter '{p.name}'", f"allowed: {_show_all(p.allowed)}")
-        return ir.Param(p.name, p.type, converted, p.allowed, p.span)
+        return ir.Param(p.name, p.type, converted, p.allowed, p.span, p.accurate)
 
 
 def _convert_param_value(value, kind: str, t: ir.Type):
