@@ -18,6 +18,11 @@ targets *bottom row first* and :func:`pipegen.reference.metrics.to_top_down` fli
   what ``tests/test_techniques.py`` and ``tests/test_issue4_techniques.py`` hold each technique
   to on pixels off silhouettes.
 
+A user chooses what output errors are measured against (``references.py``: ``scene``, the
+scene reference above; ``self``, the technique at its most accurate parameter values; another
+``.pipe``; each optionally supersampled): :func:`codes_vs_reference` gives the figures against
+any of them, with the worst pixels located.
+
 Errors are in rgba8 codes (alpha ignored): ``rmse`` over every channel value, ``p99`` of the
 per-pixel error (the largest of its three channels), ``max``.  Silhouette and crease pixels (the
 reference G-buffer's edges, plus translucent outlines) depend on each rasteriser's coverage and
@@ -40,7 +45,8 @@ import numpy as np
 
 from pipegen.core import formats
 from pipegen.scene.shadows import shadow_lights
-from pipegen.reference.metrics import dilate, heat_map, reference_codes, rgb_error, to_top_down
+from pipegen.reference.metrics import (dilate, heat_map, reference_codes, rgb_error,
+                                       to_top_down)
 
 # families whose image is the light-buffer equation (reference.light_buffer), by technique name
 LIGHT_BUFFER_TECHNIQUES = ("light_prepass", "inferred")
@@ -138,6 +144,30 @@ def scene_error(codes_bottom_up: np.ndarray, ref: SceneReference) -> dict:
     inner = rgb_error(codes_bottom_up, ref.rgb, ref.interior)
     return dict(rmse=whole["rmse"], p99=whole["p99"], max=whole["max"], mean=whole["mean"],
                 rmse_interior=inner["rmse"], max_interior=inner["max"])
+
+
+def codes_vs_reference(codes_bottom_up: np.ndarray, ref, scene, worst: int = 5) -> dict:
+    """The error of an rgba8 output (H, W, 4), bottom row first, against a reference
+    (``references.Reference``) on ``scene``, in rgba8 codes: ``rmse, p99, max, mean`` over
+    the image, ``rmse_interior, max_interior`` away from edges (``Reference.edges`` grown by a
+    pixel), ``reference`` (its label) and ``worst``: up to ``worst`` pixels with the largest
+    error, ``[(x, y, got_rgb, ref_rgb), ...]``, y top row first, both as rgba8 codes (the
+    reference clamped and quantised as ``metrics.reference_codes`` does)."""
+    rgb = ref.output_rgb(scene)
+    interior = ~dilate(ref.edges(scene), 1)
+    whole = rgb_error(codes_bottom_up, rgb)
+    inner = rgb_error(codes_bottom_up, rgb, interior)
+    got = to_top_down(codes_bottom_up)[..., :3].astype(np.int64)
+    want = reference_codes(rgb)
+    per_pixel = np.abs(got - want).max(axis=-1).ravel()
+    order = np.argsort(-per_pixel, kind="stable")[:worst]
+    w = got.shape[1]
+    spots = [(int(i % w), int(i // w), tuple(int(c) for c in got.reshape(-1, 3)[i]),
+              tuple(int(c) for c in want.reshape(-1, 3)[i]))
+             for i in order if per_pixel[i] > 0]
+    return dict(rmse=whole["rmse"], p99=whole["p99"], max=whole["max"], mean=whole["mean"],
+                rmse_interior=inner["rmse"], max_interior=inner["max"], reference=ref.label,
+                worst=spots)
 
 
 def codes_error(a_codes: np.ndarray, b_codes: np.ndarray) -> dict:
