@@ -46,7 +46,7 @@ def cmd_run(args) -> int:
     pipeline = compiled.pipeline(args.backend, precision=args.precision)
     print(f"rendering {compiled.name} on {args.backend} at {scene.width}x{scene.height} "
           f"({len(scene.objects)} objects, {len(scene.lights)} lights)", file=sys.stderr)
-    targets = pipeline.render(scene)
+    targets = _counting_clamps(compiled, lambda: pipeline.render(scene))
     if args.precision != "f32":      # float64 values: written as the codes they quantise to
         from pipegen.proof.precision import quantize_targets
         targets = quantize_targets(compiled.technique, targets)
@@ -72,8 +72,20 @@ def cmd_check(args) -> int:
         from pipegen.proof.precision import main_precision_check
         return main_precision_check(compiled, scene, out)
     from pipegen.proof.check import main_check
-    return main_check(compiled, scene, out, mismatches=found,
-                      max_discontinuities=args.max_discontinuities)
+    return _counting_clamps(compiled, lambda: main_check(
+        compiled, scene, out, mismatches=found, max_discontinuities=args.max_discontinuities))
+
+
+def _counting_clamps(compiled, work):
+    """``work()``, then one warning per pass and target whose values the format clamped in
+    the CL frames it rendered (runtime/cl/clamps.py; GL never shows them)."""
+    from pipegen.proof.clamps import warning_lines
+    from pipegen.runtime.cl.clamps import collect
+    with collect() as log:
+        result = work()
+    for line in warning_lines(log.clamps, compiled.technique.output):
+        print(line, file=sys.stderr)
+    return result
 
 
 def cmd_specialise(args) -> int:

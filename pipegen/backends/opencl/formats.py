@@ -5,9 +5,11 @@ float64 evaluation's ``cl_format64``), its loads, stores and decoding, and the p
 
 from __future__ import annotations
 
+from typing import Optional
+
 from pipegen.core import formats as F
 from pipegen.core.float32 import f32
-from pipegen.backends.opencl.dialect import OpenCLLanguage
+from pipegen.backends.opencl.dialect import OpenCLLanguage, dialect
 
 _CL_SCALAR = {"uint8": "uchar", "int8": "char", "uint16": "ushort", "int16": "short",
               "uint32": "uint", "float16": "half", "float32": "float"}
@@ -98,6 +100,44 @@ def cl_format64(name: str) -> dict:
     return {"name": name, "cls": "f64", "storage": "double" if n == 1 else f"double{n}",
             "reg": "double4", "np": "float64", "load": load, "store": store, "read": load,
             "vec": "double4", "src_clamp": src, "store_clamp": store_clamp}
+
+
+def clamp_range(name: str) -> Optional[tuple[float, float, bool]]:
+    """The range a colour format clamps the values written to it into, as ``(lo, hi,
+    finite)``, or None for formats that hold every value (float32, depth, stencil): unorm
+    [0, 1], snorm [-1, 1], float16 +-65504 (``finite``: infinities are kept, not clamped),
+    unsigned integers narrower than 32 bits [0, the largest code] (llvmpipe saturates them).  NaN is in no range's
+    outside: its conversion (to the low end) is no clamp.  The raster kernel counts the
+    fragments whose outputs lie outside (``clamp_test``; ``runtime/cl/clamps.py``)."""
+    fmt = F.get(name)
+    if fmt.kind is F.Kind.UNORM:
+        return 0.0, 1.0, False
+    if fmt.kind is F.Kind.SNORM:
+        return -1.0, 1.0, False
+    if fmt.kind is F.Kind.FLOAT and max(fmt.bits) == 16:
+        return -65504.0, 65504.0, True
+    if fmt.kind is F.Kind.UINT and max(fmt.bits) < 32:
+        return 0.0, float((1 << max(fmt.bits)) - 1), False
+    return None
+
+
+def clamp_test(name: str, precision: str = "f32") -> Optional[dict]:
+    """The raster kernel's test of a fragment output against ``clamp_range``: ``fn`` (the
+    prelude's ``pg_outside``/``pg_outside_finite``, bit c: channel c outside), its ``lo`` and
+    ``hi`` literals in the output's type, ``mask``: the format's channels; None when the
+    format clamps nothing."""
+    got = clamp_range(name)
+    if got is None:
+        return None
+    lo, hi, finite = got
+    fmt = F.get(name)
+    if fmt.kind is F.Kind.UINT:
+        lit = [f"{int(lo)}u", f"{int(hi)}u"]
+    else:
+        lang = dialect(precision)()
+        lit = [lang.render_float(lo), lang.render_float(hi)]
+    return {"fn": "pg_outside_finite" if finite else "pg_outside", "lo": lit[0], "hi": lit[1],
+            "mask": (1 << fmt.channels) - 1}
 
 
 def pad_to_four(values: list, n: int) -> list:

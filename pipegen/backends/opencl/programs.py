@@ -24,7 +24,7 @@ from pipegen.backends.opencl.abi import (
 from pipegen.backends.opencl.dialect import OpenCLLanguage, dialect
 from pipegen.backends.opencl.expansions import prelude_forms
 from pipegen.backends.opencl.formats import (
-    cl_format, cl_format64, pad_to_four, rcp_literal, read_expr, scaled16_conversions)
+    clamp_test, cl_format, cl_format64, pad_to_four, rcp_literal, read_expr, scaled16_conversions)
 
 # ---- the prelude -----------------------------------------------------------------------------
 
@@ -112,7 +112,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     for k, name in enumerate(pass_.writes):
         f = fmt_of(plan.target(name).format.name)
         writes.append({**f, "k": k, "name": name, "format": f["name"],
-                       "bpp": plan.target(name).format.bytes_per_pixel})
+                       "bpp": plan.target(name).format.bytes_per_pixel,
+                       "clamp": clamp_test(f["name"], precision) if code.fragment else None})
     depth = None
     stencil_bits = 0
     if pass_.depth_target:

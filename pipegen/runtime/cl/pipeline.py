@@ -16,6 +16,10 @@ for after a frame (a frame's count buffers stay until the next frame's first ble
 zeroes them; a frame nobody asks about does not read them).  ``pipegen check`` allows 1 + P
 codes/ulps per pixel from it (DESIGN.md §7).
 
+``last_clamps`` (after ``render``): the fragment outputs outside what their targets' formats
+hold, counted per pass and target by the raster kernel (``runtime/cl/clamps.py``); a frame
+rendered inside ``clamps.collect()`` gives them to it.
+
 Per pass (see ``backends/opencl/`` for the program, ``setup_device.py`` and ``bin.py`` for
 the set-up and binning kernels, ``setup.py`` for the numpy set-up and binning they replace):
 
@@ -90,7 +94,7 @@ import numpy as np
 from pipegen.ir import nodes as ir
 from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
-from pipegen.runtime.cl import context as cl_context
+from pipegen.runtime.cl import clamps as cl_clamps, context as cl_context
 from pipegen.runtime import draws
 from pipegen.runtime.common import check_param_overrides, check_scene
 from pipegen.runtime.cl.device import Device
@@ -175,6 +179,8 @@ class CLPipeline:
         self.device = Device(self.ctx, self.queue, [
             cl_context.build_program(self.source(k)) for k in range(len(plan.passes))])
         self.geometry = DrawGeometry(self.device, plan, tile)
+        self.clamp_counters = cl_clamps.ClampCounters(self.ctx, self.queue, plan)
+        self._clamps: Optional[list] = []
         self._presets: dict = {}
         self._scene = None
         self._selection: Optional[draws.LightSelection] = None
@@ -190,6 +196,7 @@ class CLPipeline:
         self.store = None
         self.geometry = None
         self.device = None
+        self.clamp_counters = None
         self._events = []
         for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf"):
             if hasattr(self, name):
@@ -256,6 +263,7 @@ class CLPipeline:
         check_param_overrides(self.plan, params)
         self._use_scene(scene)
         self.prepare(scene)
+        self.clamp_counters.start_frame()
         self.last_timings = []
         self._events = []
         self._frame_np, self._frame64_np, view, proj = self._frame(scene)
@@ -286,6 +294,9 @@ class CLPipeline:
                 self._run_pass_observed(k, light, captures if capture_passes else None)
         result = self.store.read_all()
         self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
+        self._clamps = None
+        if cl_clamps.collecting():
+            cl_clamps.note(self.last_clamps)
         self.queue.finish()
         for timing, ev in self._events:          # raster kernels run while the host goes on
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
@@ -316,6 +327,14 @@ class CLPipeline:
         if self._blend_counts is None:
             self._blend_counts = self.store.read_blend_counts(self._blend_count_bufs)
         return self._blend_counts
+
+    @property
+    def last_clamps(self) -> list:
+        """The last frame's values clamped by their targets' formats (``clamps.Clamp`` per
+        pass and target that had any), read on first use (``runtime/cl/clamps.py``)."""
+        if self._clamps is None:
+            self._clamps = self.clamp_counters.read()
+        return self._clamps
 
     def _use_scene(self, scene) -> None:
         if self._scene is scene:
@@ -403,6 +422,7 @@ class CLPipeline:
             if not t.fmt.is_integer:
                 on = p.state.blend_for(name).enabled
                 args.append(self.store.blend_count(t) if on else dev.dummy)
+        args.append(self.clamp_counters.args[k])
         if p.depth_target:
             dt = self._targets[p.depth_target]
             args.append(dt.buf)

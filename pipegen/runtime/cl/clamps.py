@@ -1,0 +1,148 @@
+"""The values the formats clamp, counted by the CL backend where it stores them.
+
+A fragment output outside what its target's format holds (``backends/opencl/formats.
+clamp_range``: a specular of 82.8 into rgba8, a negative value into unorm, beyond 65504 into a
+half) is clamped by the store, silently on both backends.  The raster kernel counts, per
+target it writes, the fragments with a channel outside and the highest and lowest such values
+(``cl_pass.cl.j2``: a compare per fragment and target, an atomic per tile row only when some
+fragment was outside); GL stores through fixed-function hardware that never shows the values
+before it clamps them, so the CL backend's counts stand for both (``pipegen check`` renders
+both).
+
+``ClampCounters``: one device buffer, per pass 4 uints per target it writes (the count, the
+highest and the lowest value as order keys, a spare), each pass's kernel given its own
+sub-buffer; zeroed by one fill at a frame's start, read after a frame only when asked
+(``CLPipeline.last_clamps``).  ``collect()`` gathers the clamps of every CL frame rendered
+inside it (``pipegen run`` and ``check`` print them, ``proof/clamps.py`` words them).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+from dataclasses import dataclass
+from typing import Iterator, Optional
+
+import numpy as np
+
+from pipegen.backends.opencl.formats import clamp_range
+from pipegen.backends.plan import Plan
+
+SLOTS = 4       # uints per (pass, target): count, highest key, lowest key, spare
+# a frame's start: count 0, highest key 0 (below every float's), lowest key ~0 (above them)
+_START = np.array([0, 0, 0xFFFFFFFF, 0], np.uint32)
+
+
+@dataclass(frozen=True)
+class Clamp:
+    """Fragments of one pass whose output to one target lay outside its format's range
+    (``lo``, ``hi``): ``count`` of them in a frame, ``highest`` the largest value above the
+    range (None when none was above), ``lowest`` the smallest below it."""
+    technique: str
+    pass_name: str
+    target: str
+    format: str
+    count: int
+    highest: Optional[float]
+    lowest: Optional[float]
+    lo: float
+    hi: float
+
+
+def _from_key(key: int) -> float:
+    """The float whose ``pg_order_key`` is ``key``."""
+    bits = key ^ 0x80000000 if key & 0x80000000 else ~key & 0xFFFFFFFF
+    return float(np.array([bits], np.uint32).view(np.float32)[0])
+
+
+class ClampCounters:
+    """The clamp counters of a plan's passes on one device (module docstring)."""
+
+    def __init__(self, ctx, queue, plan: Plan):
+        import pyopencl as cl
+        self.queue, self.plan = queue, plan
+        align = max(4, ctx.devices[0].mem_base_addr_align // 8)
+        most = max([len(p.writes) for p in plan.passes] + [1])
+        self.stride = -(-most * SLOTS * 4 // align) * align        # bytes per pass
+        self.buf = cl.Buffer(ctx, cl.mem_flags.READ_WRITE,
+                             size=self.stride * max(1, len(plan.passes)))
+        self.args = [self.buf.get_sub_region(k * self.stride, self.stride)
+                     for k in range(len(plan.passes))]
+
+    def start_frame(self) -> None:
+        import pyopencl as cl
+        cl.enqueue_fill_buffer(self.queue, self.buf, _START, 0, self.buf.size)
+
+    def read(self) -> list[Clamp]:
+        """The clamps of the frame the counters hold (call after it was queued)."""
+        import pyopencl as cl
+        words = np.empty(self.buf.size // 4, np.uint32)
+        cl.enqueue_copy(self.queue, words, self.buf)
+        out = []
+        for k, p in enumerate(self.plan.passes):
+            for j, name in enumerate(p.writes):
+                n, top, bottom, _ = (int(x) for x in words[(k * self.stride) // 4 + SLOTS * j:][:SLOTS])
+                if not n:
+                    continue
+                fmt = self.plan.target(name).format.name
+                lo, hi, _ = clamp_range(fmt)
+                high, low = _from_key(top), _from_key(bottom)
+                out.append(Clamp(self.plan.technique, p.name, name, fmt, n,
+                                 high if high > hi else None, low if low < lo else None,
+                                 lo, hi))
+        return out
+
+
+# -- gathering the clamps of the frames rendered in a block -----------------------------------
+
+_LOGS: contextvars.ContextVar[tuple] = contextvars.ContextVar("pipegen_clamp_logs", default=())
+
+
+class ClampLog:
+    """The clamps of the frames rendered inside ``collect()``: per (technique, pass, target)
+    the frame with the most clamped fragments, its extremes widened by every frame's."""
+
+    def __init__(self):
+        self.by_key: dict[tuple, Clamp] = {}
+        self.frames = 0          # CL frames seen (0: nothing was counted, e.g. only GL ran)
+
+    def add(self, clamps: list[Clamp]) -> None:
+        self.frames += 1
+        for c in clamps:
+            key = (c.technique, c.pass_name, c.target)
+            old = self.by_key.get(key)
+            if old is not None:
+                c = Clamp(c.technique, c.pass_name, c.target, c.format, max(c.count, old.count),
+                          _extreme(max, c.highest, old.highest),
+                          _extreme(min, c.lowest, old.lowest), c.lo, c.hi)
+            self.by_key[key] = c
+
+    @property
+    def clamps(self) -> list[Clamp]:
+        return [self.by_key[k] for k in sorted(self.by_key)]
+
+
+def _extreme(pick, a: Optional[float], b: Optional[float]) -> Optional[float]:
+    return b if a is None else a if b is None else pick(a, b)
+
+
+@contextlib.contextmanager
+def collect() -> Iterator[ClampLog]:
+    """A ``ClampLog`` of every CL frame rendered inside the block (nested blocks each see
+    them)."""
+    log = ClampLog()
+    token = _LOGS.set(_LOGS.get() + (log,))
+    try:
+        yield log
+    finally:
+        _LOGS.reset(token)
+
+
+def collecting() -> bool:
+    return bool(_LOGS.get())
+
+
+def note(clamps: list[Clamp]) -> None:
+    """A frame's clamps, to every ``collect()`` block around the render."""
+    for log in _LOGS.get():
+        log.add(clamps)
