@@ -1,6 +1,6 @@
 """The ``pipegen`` argument parser: one function per built-in subcommand adds its options (each
-names its run function in ``commands``), a few more add the options several share; ``sweep`` and
-``stress`` add themselves (``tools/``)."""
+names its run function in ``commands``), a few more add the options several share; ``sweep``,
+``stress`` and ``tune`` add themselves (``tools/``)."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ class _Version(argparse.Action):
 def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
     """The ``pipegen`` argument parser.  ``command_word``: the first word of the command line,
     when known; if it names one of ``COMMANDS``, the subcommands implemented elsewhere
-    (``sweep``, ``stress``: their modules import numpy and the scene code, tens of
+    (``sweep``, ``stress``, ``tune``: their modules import numpy and the scene code, tens of
     milliseconds) are left out, which changes nothing for that command's parse, help or errors.
     ``--version`` leaves them out too (it prints and exits while parsing).  Without it
     (``--help``, an unknown word, ``sweep`` itself) every subcommand is added."""
@@ -55,6 +55,8 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
     add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
     from pipegen.tools.stress.command import add_parser as add_stress  # `pipegen stress`: tools/stress/
     add_stress(sub, size_arg, OUTPUT_NOTE)
+    from pipegen.tools.tune.command import add_parser as add_tune  # `pipegen tune`: tools/tune/
+    add_tune(sub, size_arg, OUTPUT_NOTE)
     return parser
 
 
