@@ -1,0 +1,205 @@
+"""Values the formats clamp (issue 25 item 3): counted per pass and target by the CL backend
+where it stores them (runtime/cl/clamps.py), warned about once by run and check
+(proof/clamps.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipegen.cli.main import main
+from pipegen.compiler.driver import compile_file, compile_source
+from pipegen.proof.clamps import Clamped, clamped_values, warning_lines
+from pipegen.runtime.cl import clamps
+from pipegen.scene import default_scene
+from pipegen.scene.load import parse_scene
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFERRED = str(ROOT / "pipelines/deferred.pipe")
+F82_8 = float(np.float32(82.8))
+
+# a floor drawn first, then one sphere whose specular (82.8, as a glTF material's F0 x
+# (shininess + 8) / 8 can be) deferred.pipe stores into galbedo.a (rgba8): nothing is drawn
+# after the sphere and its front faces never overlap, so each of its fragments is a pixel
+HOT_SCENE = """
+name = "hot"
+width = 64
+height = 48
+ambient = [0.1, 0.1, 0.1]
+[camera]
+position = [0.0, 3.0, 6.0]
+target = [0.0, 0.8, 0.0]
+fov_y_deg = 45
+[[objects]]
+name = "floor"
+mesh = "plane"
+scale = [20, 1, 20]
+material = { albedo = [0.7, 0.7, 0.7], specular = 0.2, shininess = 16 }
+[[objects]]
+name = "hot sphere"
+mesh = "sphere"
+translate = [0.0, 0.9, 0.0]
+scale = 1.8
+material = { albedo = [0.9, 0.9, 0.9], specular = 82.8, shininess = 200 }
+[[lights]]
+position = [1.0, 2.5, 1.0]
+radius = 6.0
+color = [1.0, 1.0, 1.0]
+"""
+
+# full-screen passes writing out-of-range values: a negative and a 2 into unorm (the output),
+# 70000 into a half (an intermediate target) with an infinity beside it (a half keeps it)
+NEGATIVE = """
+technique negative "writes below and above unorm's range into its output"
+target color : rgba8 clear 0
+output color
+pass p {
+  draw fullscreen
+  writes color
+  fragment { color = vec4(-0.5, 0.25, 2.0, 1.0); }
+}
+"""
+HALF = """
+technique overflow "writes beyond 65504 into a half"
+target hdr : rgba16f clear 0
+target color : rgba8 clear 0
+output color
+pass light {
+  draw fullscreen
+  writes hdr
+  fragment { hdr = vec4(70000.0, 1.0, 0.5, 1.0); }
+}
+pass resolve {
+  draw fullscreen
+  reads hdr
+  writes color
+  fragment { color = vec4(load(hdr).yzw, 1.0); }
+}
+"""
+
+
+def hot_scene():
+    return parse_scene(HOT_SCENE, "<hot>", name="hot")
+
+
+# -- without a device ----------------------------------------------------------------------
+
+
+def clamp(pass_name="p", target="color", count=3, highest=None, lowest=None, lo=0.0, hi=1.0):
+    return clamps.Clamp("t", pass_name, target, "rgba8", count, highest, lowest, lo, hi)
+
+
+def test_the_order_keys_round_trip():
+    """The kernel's pg_order_key, as numpy: ordered like the floats, decoded exactly."""
+    xs = np.array([-np.inf, -70000.0, -1.5, -0.0, 0.0, 1e-30, 1.0, 82.8, np.inf], np.float32)
+    u = xs.view(np.uint32).astype(np.uint64)
+    keys = np.where(u >> 31, ~u & 0xFFFFFFFF, u | 0x80000000)
+    assert list(keys) == sorted(keys)
+    assert [clamps._from_key(int(k)) for k in keys] == [float(x) for x in xs]
+
+
+def test_a_log_keeps_the_worst_frame_and_the_widest_extremes():
+    with clamps.collect() as outer:
+        with clamps.collect() as inner:
+            clamps.note([clamp(count=3, highest=2.0)])
+        clamps.note([clamp(count=5, lowest=-1.0), clamp("q", count=1, highest=9.0)])
+    assert inner.frames == 1 and outer.frames == 2
+    got = {(c.pass_name, c.count, c.highest, c.lowest) for c in outer.clamps}
+    assert got == {("p", 5, 2.0, -1.0), ("q", 1, 9.0, None)}
+    assert not clamps.collecting()
+
+
+def test_the_outputs_highlights_are_counted_not_warned():
+    """Above the output's range: the final image saturating, which the picture shows; below
+    it, or any clamp of an intermediate target, is warned with the pass and the target."""
+    assert warning_lines([clamp(highest=1.38)], "color") == []
+    lines = warning_lines([clamp(count=1, lowest=-0.5), clamp("g", "galbedo", 108, F82_8)],
+                          "color")
+    assert lines[0] == ("warning: pass p wrote values outside what color holds (rgba8: 0 to 1) "
+                        "in 1 fragment, as low as -0.5; the format clamped them (counted on "
+                        "the CL backend, per frame)")
+    assert "pass g wrote values outside what galbedo holds (rgba8: 0 to 1) in 108 fragments, " \
+           "as high as 82.8;" in lines[1]
+    assert lines[2].startswith("  hint: ")
+    figures = Clamped([clamp(count=4, highest=1.5), clamp("q", count=2, highest=3.0)], "color")
+    assert dict(figures) == {"color": 6} and figures.passes("color") == {"p": 4, "q": 2}
+    assert figures.warnings() == []
+
+
+# -- on the CL backend ---------------------------------------------------------------------
+
+
+@pytest.mark.cl
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_a_material_beyond_rgba8_is_counted_per_pass_and_target(precision):
+    """specular 82.8 into deferred.pipe's galbedo.a: one count per fragment of the sphere
+    (the pixels whose stored specular saturated), its value as the highest, in the float32
+    run and in the float64 evaluation alike; nothing else but the output's highlights."""
+    c = compile_file(DEFERRED)
+    pipe = c.pipeline("cl", precision=precision)
+    targets = pipe.render(hot_scene())
+    alpha = targets["galbedo"][..., 3]
+    saturated = int(np.sum(alpha == (255 if precision == "f32" else 1.0)))
+    got = {(x.pass_name, x.target): x for x in pipe.last_clamps}
+    g = got.pop(("gbuffer", "galbedo"))
+    assert saturated > 200 and g.count == saturated
+    assert g.highest == F82_8 and g.lowest is None and (g.lo, g.hi) == (0.0, 1.0)
+    assert set(got) <= {("resolve", "color")}
+    figures = clamped_values(pipe, c.technique.output)
+    assert figures["galbedo"] == saturated and figures.passes("galbedo") == {"gbuffer": saturated}
+
+
+@pytest.mark.cl
+def test_run_warns_once_naming_the_pass_and_the_target(tmp_path, capsys):
+    scene = tmp_path / "hot.toml"
+    scene.write_text(HOT_SCENE)
+    assert main(["run", DEFERRED, "--scene", str(scene), "--backend", "cl",
+                 "-o", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    warnings = [line for line in err.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1, err
+    assert warnings[0].startswith("warning: pass gbuffer wrote values outside what galbedo "
+                                  "holds (rgba8: 0 to 1) in ")
+    assert "fragments, as high as 82.8; the format clamped them" in warnings[0]
+
+
+@pytest.mark.cl
+def test_a_negative_value_into_unorm():
+    c = compile_source(NEGATIVE, "negative.pipe")
+    pipe = c.pipeline("cl", size=(24, 16))
+    codes = pipe.render(default_scene())["color"]
+    assert (codes[0, 0] == [0, 64, 255, 255]).all()          # stored clamped
+    (x,) = pipe.last_clamps
+    assert (x.pass_name, x.target, x.count) == ("p", "color", 24 * 16)
+    assert (x.lowest, x.highest) == (-0.5, 2.0)
+    lines = warning_lines(pipe.last_clamps, c.technique.output)      # below the output's range
+    assert "as high as 2 and as low as -0.5" in lines[0]
+
+
+@pytest.mark.cl
+def test_a_half_overflow_is_counted_an_infinity_is_not():
+    c = compile_source(HALF, "overflow.pipe")
+    pipe = c.pipeline("cl", size=(24, 16))
+    values = pipe.render(default_scene())
+    assert values["hdr"][0, 0, 0] == np.float16(65504.0)
+    (x,) = pipe.last_clamps
+    assert (x.pass_name, x.target, x.format, x.count) == ("light", "hdr", "rgba16f", 24 * 16)
+    assert (x.highest, x.lowest, x.hi) == (70000.0, None, 65504.0)
+    inf = compile_source(HALF.replace("70000.0", "1.0 / 0.0"), "inf.pipe")
+    pipe = inf.pipeline("cl", size=(24, 16))
+    assert np.isinf(pipe.render(default_scene())["hdr"][0, 0, 0])
+    assert pipe.last_clamps == []
+
+
+@pytest.mark.cl
+@pytest.mark.parametrize("name", sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe")))
+def test_no_shipped_technique_clamps_on_the_default_scene(name):
+    """Only the output's highlights saturate (the shipped techniques write HDR light into an
+    rgba8 output): no warning, no intermediate target clamped."""
+    c = compile_file(ROOT / "pipelines" / f"{name}.pipe")
+    pipe = c.pipeline("cl", size=(64, 36))
+    pipe.render(default_scene())
+    assert warning_lines(pipe.last_clamps, c.technique.output) == []
+    assert {x.target for x in pipe.last_clamps} <= {c.technique.output}
