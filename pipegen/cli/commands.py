@@ -60,6 +60,15 @@ def cmd_run(args) -> int:
 
 def cmd_check(args) -> int:
     from pipegen.core.outdir import OutputDir
+    reference = None
+    if args.reference is not None or args.reference_samples != 1:
+        if args.precision != "f64":
+            args.parser.error("--reference and --reference-samples measure the output with "
+                              "--precision f64: add it")
+        from pipegen.proof.references import check_samples, parse_reference
+        check_samples(args.reference_samples)
+        if args.reference is not None:     # the text checked before any work
+            parse_reference(args.reference, args.reference_samples)
     out = OutputDir(args.out, "check", args.force) if args.out else None
     compiled = compile_from_args(args)
     scene = load_scene_arg(args)
@@ -70,7 +79,10 @@ def cmd_check(args) -> int:
     found = report_mismatches(compiled, scene, args.strict, scene_label(args))
     if args.precision != "f32":      # the float32 backends against the float64 evaluation
         from pipegen.proof.precision import main_precision_check
-        return main_precision_check(compiled, scene, out)
+        if args.reference is not None or args.reference_samples != 1:
+            from pipegen.proof.references import choose_reference
+            reference = choose_reference(args.reference, compiled, args.reference_samples)
+        return main_precision_check(compiled, scene, out, reference)
     from pipegen.proof.check import main_check
     return _counting_clamps(compiled, lambda: main_check(
         compiled, scene, out, mismatches=found, max_discontinuities=args.max_discontinuities))

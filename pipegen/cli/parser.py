@@ -111,6 +111,12 @@ def add_check(sub) -> None:
                         "technique's float64 evaluation (CL), within the bound of the "
                         "tolerance model (docs/tolerances.md; a measurement: exit status 0) "
                         "(default: f32)")
+    from pipegen.proof.references import REFERENCE_HELP, SAMPLES_HELP
+    k.add_argument("--reference", metavar="R",
+                   help="with --precision f64, also measure the output's error against the "
+                        "reference R: " + REFERENCE_HELP)
+    k.add_argument("--reference-samples", type=count_arg, default=1, metavar="N",
+                   help=SAMPLES_HELP)
     k.add_argument("--max-discontinuities", type=count_arg, default=0, metavar="N",
                    help="pixels where GL and CL may take different sides of a step in the "
                         "technique's code (a comparison, floor, step, ...), listed with the "

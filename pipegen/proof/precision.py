@@ -99,6 +99,7 @@ class PrecisionResult:
     rows: dict[str, list[TargetResult]]      # per float32 backend, one row per target
     parts: dict = field(default_factory=dict)  # per target: the bound's terms (largest)
     notes: list[str] = field(default_factory=list)
+    outputs: dict = field(default_factory=dict)  # per backend and "f64": output rgba8 codes
 
     def discontinuities(self) -> int:
         return max((sum(r.discontinuity_count for r in rows) for rows in self.rows.values()),
@@ -138,15 +139,21 @@ def precision_check(compiled, scene, backends: tuple[str, ...] = F32_BACKENDS,
     progress("comparing")
     rows = compare_with_f64(compiled, scene, {b: renders[b] for b in backends}, f64, bound,
                             blends, explain)
-    return PrecisionResult(compiled.name, rows, parts)
+    from pipegen.proof.accuracy import f64_output_codes, output_codes
+    outputs = {b: output_codes(compiled, renders[b]) for b in backends}
+    outputs["f64"] = f64_output_codes(compiled, f64)
+    return PrecisionResult(compiled.name, rows, parts, outputs=outputs)
 
 
-def main_precision_check(compiled, scene, out_dir: Optional[Path] = None) -> int:
+def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
+                         reference=None) -> int:
     """``pipegen check --precision f64``: the precision error of every target on each float32
     backend, against the bound of the tolerance model (docs/tolerances.md), with the
     discontinuities found (error images ``error_<backend>_<target>.png`` in ``out_dir``).  A
     measurement: the exit status is 0 (``pipegen check`` without ``--precision`` is the
-    pass/fail cross-check; ``pipegen.testing.assert_close_to_f64`` the assertion)."""
+    pass/fail cross-check; ``pipegen.testing.assert_close_to_f64`` the assertion).  With
+    ``reference`` (``references.Reference``, ``--reference``) also the output's error against
+    it, per backend and for the float64 evaluation (``reference_lines``)."""
     def say(msg: str) -> None:
         print(f"  … {msg}", file=sys.stderr)
 
@@ -161,6 +168,10 @@ def main_precision_check(compiled, scene, out_dir: Optional[Path] = None) -> int
         for r in rows:
             for d in r.discontinuities:
                 print(f"  {r.key}: discontinuity: {d.describe()}")
+    if reference is not None:
+        say(f"evaluating the reference ({reference.label})")
+        print()
+        print("\n".join(reference_lines(result, reference, scene, compiled.technique.output)))
     if out_dir is not None:
         from pipegen.core.outdir import as_output_dir, safe_name
         from pipegen.views.visualize import save_png
@@ -170,6 +181,28 @@ def main_precision_check(compiled, scene, out_dir: Optional[Path] = None) -> int
                     save_png(tmp / safe_name(f"error_{b}_{r.key}", ".png"), ratio_image(r))
         print(f"\nerror images: {out_dir}/error_<backend>_<target>.png")
     return 0
+
+
+def reference_lines(result: PrecisionResult, reference, scene, output: str) -> list[str]:
+    """``against <reference>: ...``: the output's rmse/p99/max in rgba8 codes against the
+    chosen reference, per float32 backend (with its worst pixel) and for the float64
+    evaluation (what the algorithm gives up against that reference, precision aside)."""
+    from pipegen.proof.accuracy import codes_vs_reference
+    lines = [f"against {reference.describe()}: rmse/p99/max of the output '{output}' in "
+             f"rgba8 codes"]
+    if reference.spec.why:
+        lines.append(f"  (the default reference: {reference.spec.why})")
+    for b, codes in result.outputs.items():
+        e = codes_vs_reference(codes, reference, scene, worst=1)
+        who = "float64 evaluation" if b == "f64" else registry.get(b).title
+        text = (f"  {who}: rmse {e['rmse']:.2f}, p99 {e['p99']:.0f}, max {e['max']:.0f} "
+                f"(away from edges: rmse {e['rmse_interior']:.2f}, max {e['max_interior']:.0f})")
+        if e["worst"]:
+            x, y, got, want = e["worst"][0]
+            text += (f"; worst at (x={x}, y={y} from the top): {got} vs "
+                     f"{reference.label} {want}")
+        lines.append(text)
+    return lines
 
 
 def ratio_image(row: TargetResult) -> np.ndarray:
@@ -190,18 +223,25 @@ def ratio_image(row: TargetResult) -> np.ndarray:
 
 def error_split(f32_codes: np.ndarray, f64_values: np.ndarray,
                 reference_rgb_top_down: Optional[np.ndarray] = None,
-                mask: Optional[np.ndarray] = None) -> dict:
+                mask: Optional[np.ndarray] = None, reference=None, scene=None) -> dict:
     """The errors of an rgba8 output image in rgba8 codes (``reference.metrics.rgb_error``
     statistics; ``mask``: bool (H, W), top row first).  ``f32_codes``: (H, W, 4) as a float32
     run returns it (row 0 at the bottom); ``f64_values``: the same target of the float64
-    evaluation; ``reference_rgb_top_down``: the scene reference (H, W, 3), top row first.
+    evaluation.  The reference the total and algorithm errors are against: ``reference`` (a
+    ``references.Reference``, evaluated on ``scene``: the one the user chose) or
+    ``reference_rgb_top_down`` (H, W, 3), top row first (e.g. the scene reference's image).
     Returns ``{"precision": f32 vs f64}`` and, with a reference, ``"total"`` (f32 vs the
-    reference) and ``"algorithm"`` (the quantised f64 vs the reference)."""
+    reference), ``"algorithm"`` (the quantised f64 vs the reference) and ``"reference"`` (its
+    label; "" for a bare image)."""
     from pipegen.reference.metrics import rgb_error, to_top_down
     exact = np.asarray(f64_values, np.float64)
     out = {"precision": rgb_error(f32_codes, to_top_down(exact)[..., :3], mask)}
+    if reference is not None:
+        assert scene is not None, "a Reference is evaluated on a scene"
+        reference_rgb_top_down = reference.output_rgb(scene)
     if reference_rgb_top_down is not None:
         codes = formats.get("rgba8").quantize(exact)
         out["total"] = rgb_error(f32_codes, reference_rgb_top_down, mask)
         out["algorithm"] = rgb_error(codes, reference_rgb_top_down, mask)
+        out["reference"] = reference.label if reference is not None else ""
     return out

@@ -25,18 +25,27 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
-
-import numpy as np
+from typing import TYPE_CHECKING, Callable, Optional
 
 from pipegen.core.diagnostics import PipegenError, Span
 from pipegen.core.sources import library_dir
 from pipegen.ir import nodes as ir
 from pipegen.ir.walk import walk_exprs
 
+if TYPE_CHECKING:    # numpy is imported where an image is made: the CLI's parser reads the
+    import numpy as np   # help texts here, and `pipegen compile` never loads numpy
+
 KINDS = ("scene", "self", "technique")
 MAX_SAMPLES = 8                 # 8x8 float64 evaluations per pixel is already minutes
 SYNTAX = "scene, self or FILE.pipe[:name=value,...]"
+# the command-line options' help (check, sweep, stress, tune share them): what R may be
+REFERENCE_HELP = ("scene (pipegen's float64 scene evaluation, the shipped Blinn-Phong "
+                  "lighting), self (the technique in float64 at the values its parameters "
+                  "declare `accurate`) or FILE.pipe[:name=value,...] (any technique, in "
+                  "float64) (default: scene for techniques shaded by the shipped lighting "
+                  "library, else self; docs/accuracy.md)")
+SAMPLES_HELP = (f"evaluate the reference at N x N samples per pixel and average them (a box "
+                f"filter), 1..{MAX_SAMPLES} (default: 1)")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 # the library files that spell the lighting equation the scene reference evaluates
 LIGHTING_FILES = ("lighting.pipe", "light_buffer.pipe")
@@ -196,11 +205,24 @@ def default_reference(compiled) -> ReferenceSpec:
         f"against itself at its most accurate parameter values"))
 
 
+def choose_reference(text: Optional[str], compiled, samples: int = 1,
+                     recompile: Optional[Callable[[dict], object]] = None) -> "Reference":
+    """``--reference TEXT --reference-samples N`` for ``compiled``: the reference named, or
+    with ``text`` None the :func:`default_reference` (its ``why`` kept), N samples each way."""
+    if text is None:
+        spec = default_reference(compiled)
+        spec = ReferenceSpec(spec.kind, spec.path, spec.params, check_samples(samples), spec.why)
+    else:
+        spec = parse_reference(text, samples)
+    return Reference(spec, compiled, recompile)
+
+
 # -- the reference ---------------------------------------------------------------------------
 
 
 def box_filter(image: np.ndarray, n: int) -> np.ndarray:
     """The mean of each n x n block of an (n*H, n*W, C) image: (H, W, C)."""
+    import numpy as np
     if n == 1:
         return np.asarray(image, np.float64)
     a = np.asarray(image, np.float64)
@@ -212,6 +234,7 @@ def output_values_rgb(technique: ir.Technique, values: dict) -> np.ndarray:
     """The float64 evaluation's output target as display RGB (H, W, 3) float64, bottom row
     first, unquantised: the stored values' first three channels (missing ones 0), as
     ``accuracy.f64_output_codes`` reads them before quantising."""
+    import numpy as np
     v = np.asarray(values[technique.output], np.float64)
     if v.ndim == 2:
         v = v[..., None]
@@ -347,6 +370,7 @@ class Reference:
         a pixel is an edge when any of its samples is."""
         if self.spec.kind != "scene":
             return None
+        import numpy as np
         fine = self._scene_ref(self._sampled(scene)).silhouette
         return box_filter(fine[..., None].astype(np.float64), self.spec.samples)[..., 0] > 0
 

@@ -318,6 +318,62 @@ def assert_close_to_f64(technique: TechniqueLike, scene: SceneLike = None,
     return result
 
 
+# -- against a reference (docs/accuracy.md, References) ----------------------------------------
+
+def assert_close_to_reference(technique: TechniqueLike, scene: SceneLike = None,
+                              reference: str = "self", samples: int = 1, *,
+                              p99: Optional[float] = None, max: Optional[float] = None,
+                              rmse: Optional[float] = None,
+                              size: Optional[tuple[int, int]] = None,
+                              params: Optional[dict] = None, backend: str = "cl") -> dict:
+    """The output of ``technique`` on ``backend`` within limits of a reference, in rgba8
+    codes: ``reference`` "self" (the technique at its most accurate parameter values, in
+    float64), "scene" (the float64 scene evaluation), "FILE.pipe[:name=value,...]" or None
+    (``references.default_reference``), evaluated at ``samples`` x ``samples`` per pixel.
+    ``p99``, ``max``, ``rmse``: the limits checked (those given; at least one).  Returns
+    ``accuracy.codes_vs_reference``'s figures (rmse, p99, max, interior, worst pixels)."""
+    from pipegen.proof.accuracy import codes_vs_reference, error_map_rgb, output_codes
+    from pipegen.proof.references import choose_reference
+    limits = {k: v for k, v in (("p99", p99), ("max", max), ("rmse", rmse)) if v is not None}
+    if not limits:
+        raise ValueError("give a limit: p99=, max= or rmse= (rgba8 codes)")
+    compiled = load_technique(technique, params)
+    s = load_test_scene(scene, size)
+    ref = choose_reference(reference, compiled, samples)
+    targets = render(compiled, s, backend)
+    codes = output_codes(compiled, {k: t.values for k, t in targets.items()})
+    e = codes_vs_reference(codes, ref, s)
+    over = {k: v for k, v in limits.items() if e[k] > v}
+    command = _command("check", compiled, scene, s, (
+        "--precision", "f64", "--reference", reference or ref.spec.kind,
+        *(("--reference-samples", str(samples)) if samples != 1 else ())))
+    numbers = {"reference": ref.label, "backend": backend,
+               **{k: f"{e[k]:.3g} codes (limit {limits[k]:g})" if k in limits
+                  else f"{e[k]:.3g} codes" for k in ("rmse", "p99", "max")}}
+    output = compiled.technique.output
+    c = records.Comparison("reference", compiled.name, f"{output} ({backend})", not over,
+                           f"{backend} vs {ref.label}: rmse {e['rmse']:.3g}, p99 "
+                           f"{e['p99']:.3g}, max {e['max']:.3g} codes", numbers,
+                           command=command)
+    picture = error_map_rgb(codes, ref.output_rgb(s))
+    if settings.keep_images:
+        c.images["difference"] = picture
+    if over:
+        path = _save(_artifact(f"reference-{backend}-{output}"), picture)
+        c.artifacts["difference"] = path
+        worst = "".join(f"; worst at (x={x}, y={y}): {backend} {got} vs reference {want}"
+                        for x, y, got, want in e["worst"][:1])
+        c.message = (f"target '{output}' on {backend} against {ref.describe()}: "
+                     + ", ".join(f"{k} {e[k]:.3g} over the limit {v:g}"
+                                 for k, v in over.items())
+                     + f" (rgba8 codes){worst}; error map: {path}")
+    records.record(c)
+    if over:
+        _fail(f"{compiled.name}: not within the limits of the reference {ref.label} "
+              f"({command})", [c], [c])
+    return e
+
+
 # -- goldens -----------------------------------------------------------------------------------
 
 UPDATE_HINT = ("pytest --pipegen-update-goldens (or PIPEGEN_UPDATE_GOLDENS=1) writes it; "
