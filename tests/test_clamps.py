@@ -203,3 +203,36 @@ def test_no_shipped_technique_clamps_on_the_default_scene(name):
     pipe.render(default_scene())
     assert warning_lines(pipe.last_clamps, c.technique.output) == []
     assert {x.target for x in pipe.last_clamps} <= {c.technique.output}
+
+
+@pytest.mark.cl
+@pytest.mark.parametrize("wmin", [1, 64])
+def test_the_wide_path_counts_as_the_scalar_path(monkeypatch, wmin):
+    """The wide fragment functions (PG_W pixels per call; fewer than WMIN pixels of a batch
+    one by one) reach the same count and extremes: the test sits in the blend every path
+    shares."""
+    from pipegen.backends.opencl import wide as cl_wide
+    monkeypatch.setattr(cl_wide, "MIN_COST", 0)
+    monkeypatch.setattr(cl_wide, "WMIN", wmin)
+    got = {}
+    for enabled in (False, True):
+        monkeypatch.setattr(cl_wide, "ENABLED", enabled)
+        pipe = compile_source(NEGATIVE, "negative.pipe").pipeline("cl", size=(40, 20))
+        assert (cl_wide.MARK in pipe.plan.passes[0].code.fragment) == enabled
+        pipe.render(default_scene())
+        got[enabled] = pipe.last_clamps
+    assert got[True] == got[False] and got[True][0].count == 40 * 20
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_check_warns_once_with_the_cl_backends_count(tmp_path, capsys):
+    """check renders both backends; GL cannot see the values before its store clamps them,
+    the CL render counts for both: one warning, the targets still agree."""
+    scene = tmp_path / "hot.toml"
+    scene.write_text(HOT_SCENE)
+    assert main(["check", DEFERRED, "--scene", str(scene), "-o", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    warnings = [line for line in err.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "what galbedo holds (rgba8: 0 to 1)" in warnings[0], err
+    assert "pass gbuffer" in warnings[0] and "as high as 82.8" in warnings[0]
