@@ -9,6 +9,7 @@ import sys
 
 from pipegen.core.units import format_bytes
 from pipegen.tools.tune.budget import METRICS
+from pipegen.tools.tune.measure import overlap
 from pipegen.tools.tune.search import TuneResult, show, within
 
 EXAMPLES = """\
@@ -38,6 +39,9 @@ def add_parser(sub, size_arg, output_note: str):
     p.add_argument("--budget", required=True, metavar="TERMS",
                    help='METRIC<=NUMBER terms joined by commas, e.g. "p99<=2" or '
                         '"p99<=2, lights_dropped==0" (metrics: ' + ", ".join(METRICS) + ")")
+    p.add_argument("-p", "--param", action="append", default=[], metavar="NAME=V1,V2,...",
+                   help="search only these values of a parameter (repeatable; default: every "
+                        "declared value of every parameter declaring them, bools both ways)")
     p.add_argument("--reference", metavar="R",
                    help="what the error is measured against: scene, self or "
                         "FILE.pipe[:name=value,...] (default: scene for techniques shaded "
@@ -65,7 +69,12 @@ def cmd_tune(args) -> int:
     from pipegen.core.outdir import OutputDir
     from pipegen.tools.tune.budget import parse_budget
     from pipegen.tools.tune.run import result_json, tune
-    budget = parse_budget(args.budget)                  # before any work
+    try:
+        budget = parse_budget(args.budget)              # before any work
+    except PipegenError as e:                           # misuse of the command line: exit 2
+        args.parser.print_usage(sys.stderr)
+        print(e.render(), file=sys.stderr)
+        return 2
     out = OutputDir(args.out, "tune", args.force) if args.out else None
     if args.frames < 0:
         raise PipegenError(None, f"--frames {args.frames}: a count >= 0")
@@ -73,8 +82,12 @@ def cmd_tune(args) -> int:
     def say(text: str) -> None:
         print(f"  … {text}", file=sys.stderr)
 
+    axes = None
+    if args.param:
+        from pipegen.tools.sweep.variants import parse_axes
+        axes = parse_axes(args.param)
     r = tune(args.file, list(args.scene), budget, args.reference, args.minimise,
-             args.backend, args.size, args.frames, say=say)
+             args.backend, args.size, args.frames, axes=axes, say=say)
     print(report(r))
     stress = None
     if r.pick is not None and args.stress != "none":
@@ -96,7 +109,7 @@ def run_stress(r: TuneResult, scene_file: str, cases: str, say) -> dict:
     for x in results:
         counts[x.status] = counts.get(x.status, 0) + 1
     failed = [x.case for x in results if x.failed]
-    line = (f"stress at the pick ({cases}, {len(results)} cases at "
+    line = (f"stress at the pick ({cases}, {len(results)} case{'s' * (len(results) != 1)} at "
             f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}): "
             + ", ".join(f"{n} {s}" for s, n in counts.items())
             + (f"; bound broken in {', '.join(failed)} (pipegen stress {r.file} "
@@ -124,7 +137,10 @@ def _time(m) -> str:
 
 def figures(m, budget) -> str:
     f = m.figures
-    parts = [f"{k} {_num(f[k], 4)}" for k in ("p99", "max", "rmse", "flip", "lights_dropped")
+    keys = ["p99", "max", "rmse", "flip"]
+    if f.get("lights_dropped") or "lights_dropped" in budget.metrics:
+        keys.append("lights_dropped")
+    parts = [f"{k} {_num(f[k], 4)}" for k in keys
              if k in f and not (isinstance(f[k], float) and math.isnan(f[k]))]
     parts.append(format_bytes(m.memory, "KiB"))
     if m.time_ms is not None:
@@ -170,6 +186,9 @@ def report(r: TuneResult) -> str:
         if r.runner_up is not None:
             lines.append(f"runner-up: {label(r.runner_up.params)}")
             lines.append(f"  {figures(r.runner_up, r.budget)}")
+            if r.minimise == "time" and overlap(r.pick, r.runner_up):
+                lines.append("  their frame times overlap (interquartile ranges): a tie, "
+                             "resolved by memory")
         else:
             lines.append("runner-up: none within budget")
     else:

@@ -15,7 +15,7 @@ from typing import Callable, Optional
 from pipegen.core.diagnostics import PipegenError
 from pipegen.tools.tune.budget import parse_budget
 from pipegen.tools.tune.measure import Evaluator, Measured, Reference, finite
-from pipegen.tools.tune.search import Search, TuneResult, within
+from pipegen.tools.tune.search import Search, TuneResult, order_key, within
 
 MINIMISE = ("memory", "time")
 
@@ -33,10 +33,32 @@ def load_scenes(scenes: list, size: Optional[tuple] = None, say=None) -> list:
 
 def tune(file: str, scenes: list, budget, reference: Optional[str] = None,
          minimise: str = "memory", backend: str = "gl", size: Optional[tuple] = None,
-         frames: int = 5, samples: int = 1,
+         frames: int = 5, samples: int = 1, axes: Optional[dict] = None,
          say: Callable[[str], None] = lambda text: None) -> TuneResult:
     """The cheapest configuration of ``file``'s declared parameter values within ``budget``
-    (text or ``budget.Budget``) on every scene (search.py's docstring).  Nothing is written."""
+    (text or ``budget.Budget``) on every scene (search.py's docstring).  ``axes``: {name:
+    [values]} searched instead of a parameter's declared values.  Nothing is written."""
+    search = _search(file, scenes, budget, reference, minimise, backend, size, frames,
+                     samples, axes, say)
+    return _finish(search, search.run())
+
+
+def exhaustive(file: str, scenes: list, budget, reference: Optional[str] = None,
+               backend: str = "gl", size: Optional[tuple] = None, samples: int = 1,
+               axes: Optional[dict] = None) -> TuneResult:
+    """What rendering every configuration finds (``sweep``'s way), ranked as ``tune`` ranks:
+    the answer ``tune`` must reproduce with fewer renders.  Memory as cost; no timing."""
+    search = _search(file, scenes, budget, reference, "memory", backend, size, 0, samples,
+                     axes, lambda text: None)
+    for key in search.keys:
+        search.ev.render(key, search.params(key))
+    found = sorted(search.passing(), key=lambda m: order_key(search.budget, "memory", m,
+                                                              search.index[m.key]))
+    return _finish(search, search.result(found[:2], "every configuration rendered"))
+
+
+def _search(file, scenes, budget, reference, minimise, backend, size, frames, samples, axes,
+            say) -> Search:
     from pipegen.compiler.driver import compile_file
     from pipegen.tools.sweep.variants import declared_axes
     if minimise not in MINIMISE:
@@ -45,7 +67,12 @@ def tune(file: str, scenes: list, budget, reference: Optional[str] = None,
         raise PipegenError(None, "tune needs at least one scene", hint="--scene FILE.toml")
     budget = parse_budget(budget) if isinstance(budget, str) else budget
     base = compile_file(file)
-    axes = declared_axes(base.technique)
+    declared = declared_axes(base.technique)
+    unknown = [k for k in (axes or {}) if k not in {p.name for p in base.technique.params}]
+    if unknown:
+        raise PipegenError(None, f"{base.name} has no parameter {', '.join(map(repr, unknown))}",
+                           hint="pipegen info FILE lists a technique's parameters")
+    axes = {**declared, **(axes or {})}
     if not axes:
         raise PipegenError(None, f"{file}: {base.name} declares no parameter values to tune",
                            hint="declare them: param x = a in {a, b, c}")
@@ -53,11 +80,17 @@ def tune(file: str, scenes: list, budget, reference: Optional[str] = None,
     ref = Reference(reference, base, samples)
     ev = Evaluator(file, loaded, ref, backend, frames)
     search = Search(ev, axes, budget, minimise, say)
-    result = search.run()
+    search.loaded, search.ref = loaded, ref
+    return search
+
+
+def _finish(search: Search, result: TuneResult) -> TuneResult:
+    ev, ref, loaded, file = search.ev, search.ref, search.loaded, search.ev.file
+    base = ev.compiled({})
     result.notes += [f"reference: {ref.describe}"] + ([ref.why] if ref.why else [])
     result.technique, result.file, result.reference = base.name, str(file), ref.label
     result.scenes = [f"{s.name} ({s.width}x{s.height})" for s in loaded]
-    result.backend = backend
+    result.backend = ev.backend
     result.compiled_pick = (ev.compiled(result.pick.params) if result.pick else None)
     return result
 

@@ -50,6 +50,7 @@ class Axis:
     values: list                         # declared order
     rank: dict = field(default_factory=dict)      # value -> rank (0: least accurate)
     ordered: bool = True                 # False once a pair of renders contradicts the order
+    scores: dict = field(default_factory=dict)    # value -> [error score per screen, latest first]
 
     def top(self):
         """The most accurate value (declared first among equals)."""
@@ -206,22 +207,24 @@ class Search:
         return found
 
     # -- phases ----------------------------------------------------------------------------
-    def screen(self) -> tuple:
-        """Defaults, then each axis's other values one at a time; ranks the values."""
-        base = tuple(self.default(a) for a in self.axes)
-        base_m = self.render(base, "screen")
+    def screen(self, base: tuple, why: str) -> None:
+        """``base``, then each axis's other values one at a time; ranks every axis's values
+        by their error there (worst first; equal figures, equal rank)."""
+        base_m = self.render(base, why)
         for i, a in enumerate(self.axes):
-            scores = {}
             for v in a.values:
                 key = base[:i] + (v,) + base[i + 1:]
-                mm = self.render(key, "screen") if key != base else base_m
-                scores[v] = tuple(round(x, 9) for x in error_score(self.budget, mm))
+                mm = self.render(key, why) if key != base else base_m
+                a.scores.setdefault(v, []).insert(
+                    0, tuple(round(x, 9) for x in error_score(self.budget, mm)))
+            # the latest screen first; a tie there is broken by the earlier one
+            scores = {v: tuple(a.scores[v]) for v in a.values}
             distinct = sorted(set(scores.values()), reverse=True)      # worst first
             a.rank = {v: distinct.index(scores[v]) for v in a.values}
         self.ranked = True
+        self.base = base
         for m in [x for x in self.ev.known.values() if x.rendered]:
             self.check(m)
-        return base
 
     def default(self, a: Axis):
         for p in self.ev.compiled({}).technique.params:
@@ -368,12 +371,19 @@ class Search:
         free = all(t.metric in self.m(k).figures for k in self.keys for t in self.budget.terms)
         if free and self.minimise == "memory":
             return self.run_free()
-        self.base = self.screen()
+        defaults = tuple(self.default(a) for a in self.axes)
+        self.screen(defaults, "screen")
+        corner = self.corner()
+        self.render(corner, "corner")
+        # the orders again around the corner, where the budget's boundary is: the defaults'
+        # errors may be dominated by one axis and rank the others by noise
+        self.screen(corner, "screen at the corner")
         corner = self.corner()
         c = self.render(corner, "corner")
         found: list[Measured] = []
-        if within(self.budget, c) or not fails_rendered(self.budget, c):
-            self.floors(corner)
+        if self.passing():
+            if within(self.budget, c):
+                self.floors(corner)
             found = self.walk_memory() if self.minimise == "memory" else self.walk_time()
         how = self.how()
         return self.result(found, how)
@@ -423,8 +433,9 @@ class Search:
         cost = ("target memory (exact, from the formats)" if self.minimise == "memory" else
                 "frame time (median, interquartile spread; an additive model from the screen "
                 "orders the walk, successive halving times the finalists)")
-        return (f"screen (defaults, then one axis at a time) ranks each axis's values by error "
-                f"[{orders}]; the most accurate corner; per axis a bisection for the least "
-                f"accurate value that can pass; then a walk in order of {cost}, every "
-                f"configuration no more accurate than a failing one on every axis skipped "
-                f"(monotonicity, checked on every related pair of renders)")
+        return (f"a screen (the defaults, then each axis's other values one at a time) and a "
+                f"second screen around the most accurate corner rank each axis's values by "
+                f"error [{orders}]; per axis a bisection for the least accurate value that can "
+                f"still pass; then a walk in order of {cost}, skipping every configuration no "
+                f"more accurate than a failing one on every axis (monotonicity, checked on "
+                f"every ordered pair of renders)")
