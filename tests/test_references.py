@@ -344,3 +344,29 @@ def test_check_prints_the_output_against_the_reference(toon_path, tmp_path):
     assert lines[at + 2].startswith("  CL (") and ": rmse 12." in lines[at + 2]
     assert lines[at + 3].startswith("  float64 evaluation: rmse 12.")
     assert "worst at (x=" in lines[at + 1]
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_stress_measures_each_case_against_the_reference(toon_path):
+    """``stress --reference``: each case's output against the reference (the bounds stay the
+    technique's own float64 evaluation's); dropping lights shows on the overlap case."""
+    pytest.importorskip("pyopencl")
+    from pipegen.scene import default_scene
+    from pipegen.tools.stress.cases import build
+    from pipegen.tools.stress.command import reference_table
+    from pipegen.tools.stress.run import Stress
+    cheap = compile_file(toon_path, {"lights_per_pixel": 2})
+    ref = Reference(parse_reference("self"), cheap)
+    runner = Stress(cheap, reference=ref)
+    results = [runner.run_case(c) for c in build(default_scene().with_size(48, 32),
+                                                 ["sky", "overlap"])]
+    sky, overlap = (r.vs_reference for r in results)
+    assert set(sky) == {"gl", "cl"} and sky["gl"]["max"] == 0 and sky["gl"]["worst"] == []
+    assert overlap["cl"]["p99"] > 100 and overlap["cl"]["reference"] == "self"
+    lines = reference_table(results, ref)
+    assert lines[0].startswith("against self: toon at its most accurate values")
+    header = lines[1].split("  ")
+    assert "vs ref p99" in [h.strip() for h in header]
+    assert lines[2].split()[:4] == ["sky", "0.00", "0", "0"]
+    assert lines[3].startswith("overlap") and " vs (" in lines[3]

@@ -49,6 +49,13 @@ def add_parser(sub, size_arg, output_note: str):
                    help="also N random scenes (hypothesis, seeded); the first failing one "
                         "is shrunk and saved as TOML (default: 0)")
     p.add_argument("--seed", type=int, default=0, help="seed of --random (default: 0)")
+    from pipegen.proof.references import REFERENCE_HELP, SAMPLES_HELP
+    p.add_argument("--reference", metavar="R",
+                   help="also measure each case's output against the reference R (a table "
+                        "after the bounds, column vs ref p99; the bounds stay the technique's "
+                        "own float64 evaluation's): " + REFERENCE_HELP)
+    p.add_argument("--reference-samples", type=int, default=1, metavar="N",
+                   help=SAMPLES_HELP)
     p.add_argument("-o", "--out", metavar="DIR",
                    help="folder for worst-pixel PNGs and failing scenes (default: "
                         "build/stress/<technique>)")
@@ -66,6 +73,12 @@ def cmd_stress(args) -> int:
     from pipegen.tools.stress.cases import build, case_names, random_scene_toml, scene_toml
     from pipegen.tools.stress.run import Stress
     t_start = time.perf_counter()
+    measured = args.reference is not None or args.reference_samples != 1
+    if measured:                     # the text checked before any work
+        from pipegen.proof.references import check_samples, choose_reference, parse_reference
+        check_samples(args.reference_samples)
+        if args.reference is not None:
+            parse_reference(args.reference, args.reference_samples)
     compiled = compile_technique(args.file, args.param)
     size = args.size
     out = OutputDir(Path(args.out) if args.out else Path("build/stress") / compiled.name,
@@ -79,7 +92,9 @@ def cmd_stress(args) -> int:
     def say(msg: str) -> None:
         print(f"  … {msg}", file=sys.stderr)
 
-    runner = Stress(compiled)
+    reference = choose_reference(args.reference, compiled, args.reference_samples) \
+        if measured else None
+    runner = Stress(compiled, reference=reference)
     results = []
     for case in build(base, names) if names else []:
         say(case.name)
@@ -95,6 +110,9 @@ def cmd_stress(args) -> int:
     print(report.table(results))
     for line in report.notes(results):
         print(f"note: {line}")
+    if reference is not None:
+        print()
+        print("\n".join(reference_table(results, reference)))
     failed = [r for r in results if r.failed]
     with out.staging() as tmp:
         for r in failed:
@@ -121,6 +139,34 @@ def cmd_stress(args) -> int:
               + f"; scenes and worst-pixel PNGs in {out.path}/")
         return 1
     return 0
+
+
+def reference_table(results, reference) -> list[str]:
+    """Each case's output against the chosen reference, in rgba8 codes: rmse, ``vs ref p99``
+    and max of the worse float32 backend, and its worst pixel (y from the top)."""
+    lines = [f"against {reference.describe()}: the output of each case in rgba8 codes "
+             f"(the worse of GL and CL)"]
+    if reference.spec.why:
+        lines.append(f"  (the default reference: {reference.spec.why})")
+    header = ("case", "vs ref rmse", "vs ref p99", "vs ref max", "worst pixel (x, y): got vs ref")
+    rows = [header]
+    for r in results:
+        figures = r.vs_reference
+        if "error" in figures:
+            rows.append((r.case, "-", "-", "-", f"not evaluated: {figures['error']}"))
+            continue
+        if not figures:
+            rows.append((r.case, "-", "-", "-", "not rendered"))
+            continue
+        b, e = max(figures.items(), key=lambda kv: (kv[1]["p99"], kv[1]["rmse"]))
+        where = "-"
+        if e["worst"]:
+            x, y, got, want = e["worst"][0]
+            where = f"({x}, {y}) {b}: {got} vs {want}"
+        rows.append((r.case, f"{e['rmse']:.2f}", f"{e['p99']:.0f}", f"{e['max']:.0f}", where))
+    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
+    return lines
 
 
 def _base_scene(args):

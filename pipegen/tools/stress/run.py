@@ -43,6 +43,9 @@ class CaseResult:
     seconds: float = 0.0
     images: dict = field(default_factory=dict, repr=False)   # for the report's PNGs
     scene: object = field(default=None, repr=False)
+    # with a reference (--reference): backend -> the output's figures against it
+    # (accuracy.codes_vs_reference), or {"error": why it could not be evaluated}
+    vs_reference: dict = field(default_factory=dict)
 
     @property
     def worst(self) -> Optional[TargetResult]:
@@ -55,11 +58,15 @@ class CaseResult:
 
 
 class Stress:
-    def __init__(self, compiled, per_channel: bool = True):
+    def __init__(self, compiled, per_channel: bool = True, reference=None):
         """``per_channel``: perturb each channel of the read targets in turn (2 renders per
-        channel and level of reads); False: all channels at once (2 renders per level)."""
+        channel and level of reads); False: all channels at once (2 renders per level).
+        ``reference`` (``proof.references.Reference``): also measure each case's output
+        against it (``CaseResult.vs_reference``); the bounds stay the technique's own
+        float64 evaluation's."""
         from pipegen.compiler.capabilities import capabilities
         self.compiled = compiled
+        self.reference = reference
         self.bound = F64Bound(compiled, per_channel)
         self.info = self.bound.info
         self.f64 = self.bound.f64
@@ -102,6 +109,17 @@ class Stress:
                 out.append(f"{pack}: 0")
         return "; ".join(out) or "0"
 
+    # -- against the chosen reference ----------------------------------------------------------
+    def vs_reference(self, scene, renders: dict) -> dict:
+        """backend -> the output's error figures against the reference on ``scene`` (the
+        worst pixel located); ``{"error": message}`` when the reference cannot render it."""
+        from pipegen.proof.accuracy import codes_vs_reference, output_codes
+        try:
+            return {b: codes_vs_reference(output_codes(self.compiled, renders[b]),
+                                          self.reference, scene, worst=1) for b in BACKENDS}
+        except PipegenError as e:
+            return {"error": e.message}
+
     # -- one case ----------------------------------------------------------------------------
     def run_case(self, case: Case, keep_images: bool = True) -> CaseResult:
         t0 = time.perf_counter()
@@ -129,6 +147,8 @@ class Stress:
         res.agree = all(r.passed for r in rows)
         res.disagree = [r.name for r in rows if not r.passed]
         res.dropped = self.dropped(scene)
+        if self.reference is not None:
+            res.vs_reference = self.vs_reference(scene, renders)
         bound, parts = self.bounds(scene, f64, blends)
         rows = compare_with_f64(self.compiled, scene, renders, f64, bound, blends)
         res.targets = [row for b in BACKENDS for row in rows[b]]
