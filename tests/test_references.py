@@ -4,9 +4,9 @@
   error with a caret under the offending characters of the ``--reference`` text;
 - ``param … accurate VALUE``: coerced to the parameter's type, inside its allowed set (else an
   error with a caret), kept through overrides, printed by ``--dump-after``;
-- ``default_reference``: ``scene`` for a shipped technique (it calls the shipped lighting
-  equation), ``self`` for a toon technique written here (it uses the library's
-  ``attenuation`` only); ``.why`` names what decided it;
+- ``default_reference``: ``scene`` for every shipped technique (each calls the shipped
+  lighting library), ``self`` for a toon technique written here (its own falloff); ``.why``
+  names the function that decided it; the library is recognised by its text;
 - ``Reference``: ``self`` is the float64 evaluation at the accurate values, exactly;
   supersampling box-filters N x N blocks (checked exactly on a 2x2 case);
 - the issue's must-show: the toon technique is close to ``self`` (p99 <= 1 code) and far
@@ -32,11 +32,15 @@ from pipegen.proof.references import (MAX_SAMPLES, Reference, ReferenceSpec, box
 ROOT = Path(__file__).resolve().parents[1]
 SIZE = (96, 64)
 
-# Toon shading over a small G-buffer: diffuse light quantised into bands.  It uses the
-# library's `attenuation` (a geometry helper) but none of its lighting equation.
+# Toon shading over a small G-buffer: diffuse light quantised into bands.  Nothing of the
+# shipped lighting library: its own falloff.
 TOON = """\
 technique toon "Toon shading: diffuse light quantised into bands, from a small G-buffer"
-include "common/lighting.pipe"
+
+float falloff(float d, float radius) {
+  float x = clamp(1.0 - (d * d) / (radius * radius), 0.0, 1.0);
+  return x * x;
+}
 
 param max_lights = 16
 param bands = 4
@@ -81,7 +85,7 @@ pass shade {
       float d = length(to_light);
       if (d >= lights[i].radius) continue;
       shaded += 1;
-      float ndl = max(dot(n, to_light / max(d, 1e-6)), 0.0) * attenuation(d, lights[i].radius);
+      float ndl = max(dot(n, to_light / max(d, 1e-6)), 0.0) * falloff(d, lights[i].radius);
       c += lights[i].color * a * (floor(ndl * float(bands) + 0.5) / float(bands));
     }
     color = vec4(c, 1.0);
@@ -186,30 +190,46 @@ def test_accurate_value_errors_point_at_the_value(clause, message, caret_at):
 # -- the default reference ---------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("name, function", [("deferred", "blinn_phong"),
-                                            ("inferred", "light_buffer_along"),
-                                            ("forward", "blinn_phong")])
-def test_default_is_scene_for_shipped_lighting(name, function):
+SHIPPED = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_default_is_scene_for_every_shipped_technique(name):
+    """Every shipped technique calls the library (as today: the sweep measured all of them
+    against the scene); Calver's tabulated lighting only through world_from_depth."""
     spec = default_reference(compile_file(ROOT / "pipelines" / f"{name}.pipe"))
     assert spec.kind == "scene"
-    assert f"shades with the shipped lighting library ({function}, " in spec.why
-    assert "common/light" in spec.why
+    function = {"deferred": "blinn_phong", "inferred": "apply_light_buffer",
+                "deferred_calver": "world_from_depth"}.get(name, "")
+    assert f"{name} calls the shipped lighting library ({function}" in spec.why
+    assert "pipelines/common/light" in spec.why and "--reference self" in spec.why
 
 
 def test_default_is_self_for_a_toon_technique(toon_path):
     spec = default_reference(compile_file(toon_path))
     assert spec.kind == "self"
-    assert spec.why.startswith("toon calls no lighting function of the shipped library")
+    assert spec.why == ("toon calls no function of the shipped lighting library "
+                        "(common/lighting.pipe or common/light_buffer.pipe): its own shading "
+                        "is measured against itself at its most accurate parameter values")
 
 
-def test_a_copy_of_the_lighting_equation_elsewhere_is_not_the_library(tmp_path):
-    """Only the shipped files count: the same function name in the user's own file is the
-    user's shading."""
-    (tmp_path / "mine.pipe").write_text(TOON.replace(
-        'include "common/lighting.pipe"',
-        "float attenuation(float d, float r) { float x = clamp(1.0 - d * d / (r * r), 0.0, "
-        "1.0); return pow(x, 2.0); }"))
-    assert default_reference(compile_file(tmp_path / "mine.pipe")).kind == "self"
+def test_the_library_counts_by_its_text(tmp_path):
+    """Including the library for `attenuation` is using it (the why names the function); a
+    byte-identical copy next to the technique counts as the library, an edited one does not."""
+    from pipegen.core.sources import library_dir
+    text = TOON.replace("float falloff(", 'include "common/lighting.pipe"\nfloat unused(') \
+        .replace("* falloff(d,", "* attenuation(d,")
+    (tmp_path / "a.pipe").write_text(text)
+    spec = default_reference(compile_file(tmp_path / "a.pipe"))
+    assert spec.kind == "scene" and "(attenuation, " in spec.why
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / "toon.pipe").write_text(text)
+    (tmp_path / "b" / "common").mkdir()
+    shipped = (library_dir() / "lighting.pipe").read_text()
+    (tmp_path / "b" / "common" / "lighting.pipe").write_text(shipped)
+    assert default_reference(compile_file(tmp_path / "b" / "toon.pipe")).kind == "scene"
+    (tmp_path / "b" / "common" / "lighting.pipe").write_text(shipped + "\n// mine\n")
+    assert default_reference(compile_file(tmp_path / "b" / "toon.pipe")).kind == "self"
 
 
 # -- the reference's image ---------------------------------------------------------------------

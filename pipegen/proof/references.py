@@ -13,7 +13,7 @@
 
 Each may be supersampled (``samples`` N): evaluated at N*W x N*H and box-filtered over N x N
 blocks.  :func:`default_reference` picks ``scene`` for techniques whose code calls the shipped
-lighting equation and ``self`` otherwise, and says how it decided.
+lighting library and ``self`` otherwise, and says how it decided.
 
 Images are float64 display values before clamping, top row first (``reference.metrics``);
 ``targets`` keeps the renders' row order (row 0 at the bottom).
@@ -156,36 +156,28 @@ def _in_library(file: Optional[str]) -> Optional[str]:
 
 
 def lighting_calls(tech: ir.Technique) -> list[ir.Function]:
-    """The shipped lighting functions the technique's passes call (directly or through other
-    functions) that evaluate the lighting equation: those of ``common/lighting.pipe`` and
-    ``common/light_buffer.pipe`` that compute its specular term (a ``pow``, in the function or
-    a library function it calls).  Geometry helpers (``attenuation``, ``world_from_depth``,
-    ``light_reaches``) do not count: a toon shader may use them."""
+    """The functions of the shipped lighting library (``common/lighting.pipe``,
+    ``common/light_buffer.pipe``) the technique's passes call, directly or through other
+    functions; those a pass calls itself first.  Any of them counts, geometry helpers
+    (``attenuation``, ``world_from_depth``) too: a technique built on the library is taken to
+    approximate its equation (Calver's deferred shading tabulates it in textures and reaches
+    the library only through ``world_from_depth``)."""
     functions = {f.name: f for f in tech.all_functions()}
 
     def calls(stmts) -> set[str]:
-        return {e.name for e in walk_exprs(stmts) if isinstance(e, ir.Call)
-                and (not e.builtin or e.name == "pow")}
+        return {e.name for e in walk_exprs(stmts) if isinstance(e, ir.Call) and not e.builtin}
 
-    shades: dict[str, bool] = {}
-
-    def shading(name: str, seen=()) -> bool:
-        f = functions.get(name)
-        if f is None or name in seen or not _in_library(f.span.file if f.span else None):
-            return False
-        if name not in shades:
-            called = calls(f.body)
-            shades[name] = "pow" in called or any(shading(c, seen + (name,)) for c in called)
-        return shades[name]
-
-    reached, todo = set(), [c for p in tech.passes for c in calls(p.body)]
+    direct = {c for p in tech.passes for c in calls(p.body)}
+    reached, todo = set(), list(direct)
     while todo:
         name = todo.pop()
         if name in reached or name not in functions:
             continue
         reached.add(name)
         todo += calls(functions[name].body)
-    return [functions[n] for n in sorted(reached) if shading(n)]
+    # those a pass calls itself first: the one .why names is the one a reader finds
+    return [functions[n] for n in sorted(reached, key=lambda n: (n not in direct, n))
+            if _in_library(functions[n].span.file if functions[n].span else None)]
 
 
 def default_reference(compiled) -> ReferenceSpec:
@@ -193,16 +185,17 @@ def default_reference(compiled) -> ReferenceSpec:
     passes reach a function of :func:`lighting_calls`), else ``self``; ``.why`` says which
     function decided it, or that none was found."""
     found = lighting_calls(compiled.technique)
+    files = " or ".join("common/" + n for n in LIGHTING_FILES)
     if found:
         f = found[0]
         where = f"{f.span.file}:{f.span.line}" if f.span else "the library"
         return ReferenceSpec("scene", why=(
-            f"{compiled.name} shades with the shipped lighting library ({f.name}, {where}), "
-            f"the equation the scene reference evaluates in float64"))
+            f"{compiled.name} calls the shipped lighting library ({f.name}, {where}), whose "
+            f"equation the scene reference evaluates in float64; a technique that shades "
+            f"otherwise: --reference self"))
     return ReferenceSpec("self", why=(
-        f"{compiled.name} calls no lighting function of the shipped library "
-        f"({', '.join('common/' + n for n in LIGHTING_FILES)}): its own shading is measured "
-        f"against itself at its most accurate parameter values"))
+        f"{compiled.name} calls no function of the shipped lighting library ({files}): "
+        f"its own shading is measured against itself at its most accurate parameter values"))
 
 
 def choose_reference(text: Optional[str], compiled, samples: int = 1,
