@@ -17,7 +17,7 @@ EXAMPLES = """\
       the least target memory with p99 <= 2 codes against the scene reference
   pipegen tune pipelines/lidr_bitplanes.pipe --scene examples/scenes/stress_overlap.toml --budget "lights_dropped==0"
       no light dropped: exit 1 naming the closest configuration when none holds them all
-  pipegen tune pipelines/inferred.pipe --scene examples/scenes/edges.toml --scene examples/scenes/many_lights.toml --budget "p99<=2, max<=40" --minimise time -o out/tune
+  pipegen tune pipelines/inferred.pipe --scene examples/scenes/edges.toml --scene examples/scenes/many_lights.toml --size 160x90 --budget "p99<=6, max<=40" --minimise time -o out/tune
       the fastest within budget on both scenes; DIR/tune.json, then stress at the pick
 """
 
@@ -30,8 +30,8 @@ def add_parser(sub, size_arg, output_note: str):
                     "reference stays within the budget on every scene, without rendering "
                     "every combination (docs/accuracy.md, `pipegen tune`); then run stress at "
                     "the pick. Exit 1 when no configuration meets the budget.",
-        epilog="examples:\n" + EXAMPLES + "\nbudget metrics: "
-               + "; ".join(f"{k}: {v}" for k, v in METRICS.items()) + "\n\n" + output_note,
+        epilog="examples:\n" + EXAMPLES + "\nbudget metrics:\n"
+               + "".join(f"  {k}: {v}\n" for k, v in METRICS.items()) + "\n" + output_note,
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("file", metavar="FILE", help="the technique, a .pipe file")
     p.add_argument("--scene", action="append", required=True, metavar="FILE",
@@ -178,8 +178,9 @@ def report(r: TuneResult) -> str:
     sweep = r.total * len(r.scenes)
     lines.append(f"renders: {r.renders} (the exhaustive sweep: {sweep}, {r.total} "
                  f"configurations x {len(r.scenes)} scene{'s' if len(r.scenes) > 1 else ''}); "
-                 f"{r.pruned} configurations ruled out by monotonicity without rendering; "
-                 f"{r.timed_frames} frames timed")
+                 f"{r.pruned} ruled out by monotonicity without rendering, "
+                 f"{r.total - len(r.tried) - len(r.analytic) - r.pruned} not needed (costlier "
+                 f"than the answer); {r.timed_frames} frames timed")
     if r.pick is not None:
         lines.append(f"pick: {label(r.pick.params)}")
         lines.append(f"  {figures(r.pick, r.budget)}")

@@ -419,11 +419,13 @@ class Search:
         if self.minimise == "memory" and timed:
             self.ev.time(timed)
         tried = sorted([m for m in self.ev.known.values() if m.rendered], key=lambda m: m.order)
-        analytic = [m for m in self.ev.known.values() if not m.rendered and
-                    any(t.metric in m.figures for t in self.budget.terms)]
-        pruned = sum(1 for k in self.keys if not (k in self.ev.known and
-                                                 self.ev.known[k].rendered)
-                     and self.pruned(k) is not None)
+        # judged without rendering: every budget figure known, or one that needs no render
+        # already out of budget
+        analytic = [m for m in self.ev.known.values() if not m.rendered and (
+            all(t.metric in m.figures for t in self.budget.terms) or self.free_fail(m.key))]
+        judged = {m.key for m in analytic}
+        pruned = sum(1 for k in self.keys if k not in judged and not (
+            k in self.ev.known and self.ev.known[k].rendered) and self.pruned(k) is not None)
         return TuneResult(self.axes, self.budget, self.minimise, pick, runner, closest, tried,
                           analytic, pruned, len(self.keys), self.ev.renders,
                           self.ev.timed_frames, how, list(self.violations), len(self.pairs))
