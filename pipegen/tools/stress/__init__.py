@@ -25,11 +25,19 @@ DEFAULT_SIZE = (96, 64)
 def stress(compiled, base=None, cases: Optional[str] = None, size=DEFAULT_SIZE,
            progress: Callable[[str], None] = lambda msg: None):
     """Run the named cases (``cases``: comma-separated names or groups, None: all) of
-    ``compiled`` on ``base`` (default: the built-in scene) at ``size``: ``[CaseResult]``."""
-    from pipegen.scene.load import default_scene
+    ``compiled`` (a ``Compiled`` or a technique path) on ``base`` (a loaded ``Scene``, a scene
+    path, or None: the built-in scene) at ``size`` (None: the scene's): ``[CaseResult]``."""
+    import os
+    from pipegen.scene.load import default_scene, load_scene
     from pipegen.tools.stress.cases import build, case_names
     from pipegen.tools.stress.run import Stress
-    base = (base or default_scene()).with_size(*size) if size else (base or default_scene())
+    if isinstance(compiled, (str, os.PathLike)):
+        from pipegen.compiler.driver import compile_file
+        compiled = compile_file(compiled)
+    if isinstance(base, (str, os.PathLike)):
+        base = load_scene(base)
+    base = base if base is not None else default_scene()
+    base = base.with_size(*size) if size else base
     runner = Stress(compiled)
     out = []
     for case in build(base, case_names(cases)):

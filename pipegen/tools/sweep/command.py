@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from pipegen.core.diagnostics import PipegenError
+from pipegen.proof.references import REFERENCE_HELP, SAMPLES_HELP
 from pipegen.tools.sweep.outputs import write_outputs
 from pipegen.tools.sweep.run import BACKEND_ORDER, DEFAULT_THREADS, run_sweep
 from pipegen.tools.sweep.variants import parse_axes
@@ -19,6 +20,9 @@ EXAMPLES = """\
   pipegen sweep pipelines/inferred.pipe -p lbuffer_scale=0.5,1.0 -p dsf=true --size 640x360 --frames 9 -o out/s
   pipegen sweep pipelines/inferred.pipe --scheduler tcp://scheduler-host:8786 -o out/s
       renders on a Dask cluster (pip install 'pipegen[dask]'); timings on one of its workers
+  pipegen sweep examples/techniques/toon_deferred.pipe -p bands=2,3,4 --reference examples/techniques/toon_deferred.pipe:bands=8 -o out/s-toon
+      a technique of your own against a reference .pipe (here: itself with more bands) in
+      float64; --reference self: against its parameters' `accurate` values
 """
 
 
@@ -28,8 +32,10 @@ def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size
     p = sub.add_parser(
         "sweep", help="render parameter variants, measure frame time and error",
         description="Render every combination of parameter values of one or more techniques "
-                    "on each backend; measure frame time, target memory, error against the "
-                    "float64 scene reference and the f64 evaluation, and GL/CL agreement.",
+                    "on each backend; measure frame time (median and interquartile range), "
+                    "target memory, error against a float64 reference (--reference) and the "
+                    "f64 evaluation, and GL/CL agreement; write the results, a Pareto plot "
+                    "and an HTML report (DIR/index.html).",
         epilog="examples:\n" + EXAMPLES + "\n" + output_note,
         formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("files", nargs="+", metavar="FILE", help="techniques (.pipe files)")
@@ -43,6 +49,9 @@ def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size
     p.add_argument("--size", type=size_arg, metavar="WxH",
                    help=f"output size (default: the scene file's width x height, "
                         f"{default_size_text} for the built-in scene; each side 1..{max_size})")
+    p.add_argument("--reference", metavar="R", help=REFERENCE_HELP)
+    p.add_argument("--reference-samples", type=_count_arg, default=1, metavar="N",
+                   help=SAMPLES_HELP)
     p.add_argument("--backend", type=_backends_arg, default=BACKEND_ORDER, metavar="gl,cl",
                    help="backends, comma-separated (default: gl,cl; agreement needs both)")
     p.add_argument("--frames", type=_count_arg, default=5, metavar="N",
@@ -85,6 +94,26 @@ def _count_arg(text: str) -> int:
     return n
 
 
+def command_line(args) -> str:
+    """The sweep's command line, rebuilt from its arguments (not sys.argv: ``main([...])``
+    may be called from Python)."""
+    import shlex
+    words = ["pipegen", "sweep", *args.files]
+    for p in args.param:
+        words += ["-p", p]
+    if args.scene:
+        words += ["--scene", args.scene]
+    if args.size:
+        words += ["--size", f"{args.size[0]}x{args.size[1]}"]
+    words += ["--backend", ",".join(args.backend), "--frames", str(args.frames)]
+    for flag in ("reference", "reference_samples", "jobs", "scheduler"):
+        value = getattr(args, flag, None)
+        if value is not None and not (flag == "reference_samples" and value == 1):
+            words += ["--" + flag.replace("_", "-"), str(value)]
+    words += ["-o", str(args.out)]
+    return " ".join(shlex.quote(w) for w in words)
+
+
 def cmd_sweep(args) -> int:
     from pipegen.compiler.inputs import looks_like_scene
     from pipegen.core.outdir import OutputDir
@@ -102,10 +131,12 @@ def cmd_sweep(args) -> int:
     axes = parse_axes(args.param) if args.param else None
     result = run_sweep(args.files, args.scene, args.size, axes, args.backend, args.frames,
                        args.jobs, args.scheduler, max(1, args.threads),
-                       progress=not args.no_progress)
+                       progress=not args.no_progress, reference=args.reference,
+                       reference_samples=args.reference_samples)
+    result.command = command_line(args)
     write_outputs(result, out)
     print(result.summary(), end="")
-    print(f"wrote {out}/: results.csv, results.json, table.txt, pareto.png, "
-          f"errors/ ({len(result.maps)} maps)")
+    print(f"wrote {out}/: index.html, results.csv, results.json, table.txt, pareto.png, "
+          f"errors/ ({len(result.maps)} maps), images/")
     return 0
 

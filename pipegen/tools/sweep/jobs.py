@@ -1,19 +1,22 @@
 """The sweep's jobs: plain data in, plain data out, so that a local process pool or a Dask
 worker can run them (the package docstring describes the two phases).
 
-- a scene spec (``scene_spec``): a path and a size; the scene and its float64 reference are
-  loaded where the job runs, once per process;
+- a scene spec (``scene_spec``): a path (or a pickled ``Scene``) and a size; the scene and its
+  float64 reference are loaded where the job runs, once per process;
 - phase 1, ``render_job``: one variant rendered on each backend and measured against the
-  references (``render_worker_init`` sets up a pool's render processes);
+  references (``RENDER_ENV``: the environment of a pool's render processes);
 - phase 2, ``time_job``: every variant timed in one fresh process, ``timing_main``
   (``python -m pipegen.tools.sweep``, JSON in on stdin, one JSON line out on stdout).
 """
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import json
 import math
 import os
+import pickle
 import statistics
 import subprocess
 import sys
@@ -23,38 +26,87 @@ from typing import Optional
 
 from pipegen.tools.sweep.progress import progress_bar
 from pipegen.tools.timing import interleave
+from pipegen.tools.sweep.worker import child_env
 
-# -- scenes (loaded where the job runs: a job carries a path and a size) -----------------------
+# -- scenes (loaded where the job runs: a job carries a path and a size, or a pickled Scene) -----
 
 _SCENES: dict = {}
 _REFERENCES: dict = {}
+WORST_PIXELS = 5            # per row, the pixels of largest error results.json lists
 
 
-def scene_spec(path: Optional[str], size: Optional[tuple[int, int]]) -> dict:
-    return {"path": None if path is None else str(Path(path).resolve()),
-            "size": None if size is None else [int(size[0]), int(size[1])]}
+def scene_spec(scene, size: Optional[tuple[int, int]]) -> dict:
+    """What a job needs to load its scene: ``scene`` is a path (str or Path), a loaded
+    ``Scene`` (pickled into the spec: a worker on another machine has no file of it) or None
+    (the built-in scene)."""
+    spec = {"path": None, "size": None if size is None else [int(size[0]), int(size[1])],
+            "pickle": None, "key": None}
+    if isinstance(scene, (str, os.PathLike)):
+        spec["path"] = str(Path(scene).resolve())
+        spec["key"] = spec["path"]
+    elif scene is not None:
+        if not hasattr(scene, "with_size") or not hasattr(scene, "lights"):
+            from pipegen.core.diagnostics import PipegenError
+            raise PipegenError(None, f"a sweep's scene is a path, a Scene or None, not "
+                                     f"{type(scene).__name__}",
+                               hint="load one with pipegen.scene.load_scene(PATH)")
+        data = pickle.dumps(scene, protocol=pickle.HIGHEST_PROTOCOL)
+        spec["pickle"] = base64.b64encode(data).decode("ascii")    # JSON for the timing process
+        spec["key"] = "scene:" + hashlib.sha1(data).hexdigest()
+    return spec
+
+
+def spec_name(spec: dict, scene) -> str:
+    """How results name the scene: its path, or the loaded Scene's name."""
+    if spec["path"]:
+        return spec["path"]
+    return f"the scene {scene.name!r} (given as a Scene)" if spec["pickle"] \
+        else "the built-in scene"
 
 
 def load_spec_scene(spec: dict, say=None):
     """The scene of a job; ``say``: how to tell its load notes (the sweep says them once, in
     the parent: a worker loading it again stays quiet)."""
-    key = (spec["path"], tuple(spec["size"] or ()))
+    key = (spec.get("key"), tuple(spec["size"] or ()))
     if key not in _SCENES:
         from pipegen.core.defaults import DEFAULT_SIZE
         from pipegen.scene.load import default_scene, load_scene_noting
-        s = load_scene_noting(spec["path"], say or (lambda text: None)) if spec["path"] \
-            else default_scene().with_size(*DEFAULT_SIZE)
+        if spec.get("pickle"):
+            s = pickle.loads(base64.b64decode(spec["pickle"]))
+        elif spec["path"]:
+            s = load_scene_noting(spec["path"], say or (lambda text: None))
+        else:
+            s = default_scene().with_size(*DEFAULT_SIZE)
         if spec["size"]:
             s = s.with_size(*spec["size"])
         _SCENES[key] = s
     return _SCENES[key]
 
 
-def _scene_reference(spec: dict):
-    key = (spec["path"], tuple(spec["size"] or ()))
+def reference_data(spec) -> dict:
+    """A ``references.ReferenceSpec`` as plain data for a job (a technique path made absolute:
+    a worker may run elsewhere)."""
+    return dict(kind=spec.kind, path=None if spec.path is None else str(Path(spec.path).resolve()),
+                params=dict(spec.params), samples=int(spec.samples))
+
+
+def job_reference(job: dict, compiled):
+    """The variant's reference (``references.Reference``), one per process for each distinct
+    reference evaluation: the scene reference is shared by every variant, ``self`` by the
+    variants that agree on the parameters without an ``accurate`` value."""
+    from pipegen.proof.references import Reference, ReferenceSpec
+    data = job["reference"]
+    spec = ReferenceSpec(data["kind"], data["path"], dict(data["params"]), data["samples"])
+    ref = Reference(spec, compiled)
+    evaluated = {}
+    if spec.kind == "self":
+        evaluated = {"file": job["file"], **(job["params"] or {}), **ref.accurate_params()}
+    elif spec.kind == "technique":
+        evaluated = {"file": spec.path, **spec.params}
+    key = (spec.kind, spec.samples, job["scene"].get("key"), tuple(job["scene"]["size"] or ()),
+           tuple(sorted((k, repr(v)) for k, v in evaluated.items())))
     if key not in _REFERENCES:
-        from pipegen.proof.accuracy import scene_reference
-        _REFERENCES[key] = scene_reference(load_spec_scene(spec))
+        _REFERENCES[key] = ref
     return _REFERENCES[key]
 
 
@@ -65,16 +117,19 @@ def render_job(job: dict) -> dict:
     """Render one variant on each backend and measure it (``pipegen.tools.sweep``, phase 1).
 
     ``job``: ``file``, ``params`` ({name: value}), ``scene`` (``scene_spec``), ``backends``,
-    ``f64`` (ask for the f64 evaluation).  Returns plain data: ``metrics`` {backend: {...}},
+    ``f64`` (ask for the f64 evaluation), ``reference`` (``reference_data``).  Returns plain
+    data: ``metrics`` {backend: {...}, the *_scene errors against the reference, ``worst``},
     ``agree`` (None with fewer than both backends), ``disagree`` (targets over tolerance),
-    ``maps`` {backend: PNG bytes}, ``notes``.
+    ``maps`` {backend: PNG bytes of the error map}, ``images`` {backend: PNG bytes of the
+    output}, ``notes``.
     """
     from pipegen.proof import accuracy
     from pipegen.compiler.driver import compile_file
 
     scene = load_spec_scene(job["scene"])
-    ref = _scene_reference(job["scene"])
     compiled = compile_file(job["file"], job["params"] or None)
+    ref = job_reference(job, compiled)
+    ref_rgb = ref.output_rgb(scene)            # float64, top row first: errors against it
     notes = [m.message for m in compiled.mismatches(scene)]
     renders, pipes = {}, {}
     try:
@@ -101,27 +156,29 @@ def render_job(job: dict) -> dict:
     finally:
         for p in pipes.values():
             getattr(p, "release", lambda: None)()
-    metrics, maps = {}, {}
+    from pipegen.reference.metrics import to_top_down
+    metrics, maps, images = {}, {}, {}
     for b, targets in renders.items():
         codes = accuracy.output_codes(compiled, targets)
-        e = accuracy.scene_error(codes, ref)
+        e = accuracy.codes_vs_reference(codes, ref, scene, worst=WORST_PIXELS)
         m = dict(rmse_scene=e["rmse"], p99_scene=e["p99"], max_scene=e["max"],
                  rmse_interior=e["rmse_interior"], max_interior=e["max_interior"],
-                 flip_scene=accuracy.flip_mean(codes, ref.rgb),
-                 rmse_f64=math.nan, p99_f64=math.nan, max_f64=math.nan)
+                 flip_scene=accuracy.flip_mean(codes, ref_rgb),
+                 rmse_f64=math.nan, p99_f64=math.nan, max_f64=math.nan,
+                 worst=[[x, y, list(got), list(want)] for x, y, got, want in e["worst"]])
         if f64_codes is not None:
             d = accuracy.codes_error(codes, f64_codes)
             m.update(rmse_f64=d["rmse"], p99_f64=d["p99"], max_f64=d["max"])
         metrics[b] = m
-        maps[b] = accuracy.png_bytes(accuracy.error_map_rgb(codes, ref.rgb))
-    return dict(metrics=metrics, agree=agree, disagree=disagree, maps=maps, notes=notes)
+        maps[b] = accuracy.png_bytes(accuracy.error_map_rgb(codes, ref_rgb))
+        images[b] = accuracy.png_bytes(to_top_down(codes)[..., :3])
+    return dict(metrics=metrics, agree=agree, disagree=disagree, maps=maps, images=images,
+                notes=notes)
 
 
-def render_worker_init() -> None:
-    """Render workers share the cores: one rasteriser thread each (results do not depend on
-    it; only timings would, and none are taken here)."""
-    os.environ["LP_NUM_THREADS"] = "1"
-    os.environ["POCL_MAX_PTHREAD_COUNT"] = "1"
+# render processes share the cores: one rasteriser thread each (results do not depend on it;
+# only timings would, and none are taken there)
+RENDER_ENV = {"LP_NUM_THREADS": "1", "POCL_MAX_PTHREAD_COUNT": "1"}
 
 
 # -- phase 2: timing in one fresh process ------------------------------------------------------
@@ -130,9 +187,10 @@ def render_worker_init() -> None:
 def time_job(job: dict) -> dict:
     """Time every variant in one fresh Python process (``pipegen.tools.sweep``, phase 2).
     ``job``: ``variants`` [{file, params}], ``scene``, ``backends``, ``frames``, ``threads``.
-    Returns ``{"ms": [{backend: ms}, ...] (per variant), "how": text}``."""
-    env = dict(os.environ)
-    env["LP_NUM_THREADS"] = env["POCL_MAX_PTHREAD_COUNT"] = str(job["threads"])
+    Returns ``{"ms": [{backend: median ms}, ...] (per variant), "q1", "q3" (the quartiles,
+    alike), "cpu_ms", "how": text}``."""
+    env = child_env(LP_NUM_THREADS=str(job["threads"]),
+                    POCL_MAX_PTHREAD_COUNT=str(job["threads"]))
     # the package, not this module, as __main__ (tools/sweep/__main__.py calls timing_main):
     # run as a script, jobs.py would be loaded twice, once as __main__ and once by name
     proc = subprocess.run([sys.executable, "-m", "pipegen.tools.sweep"], input=json.dumps(job),
@@ -140,6 +198,21 @@ def time_job(job: dict) -> dict:
     if proc.returncode != 0:
         raise RuntimeError(f"the timing process failed (exit {proc.returncode})")
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def quartiles(xs: list) -> tuple[float, float, float]:
+    """(first quartile, median, third quartile) of ``xs``, interpolated linearly between the
+    sorted values (numpy's default): one value gives it three times, two give their quarter
+    points."""
+    v = sorted(xs)
+
+    def at(q: float) -> float:
+        pos = q * (len(v) - 1)
+        lo = math.floor(pos)
+        hi = min(lo + 1, len(v) - 1)
+        return v[lo] + (v[hi] - v[lo]) * (pos - lo)
+
+    return at(0.25), at(0.5), at(0.75)
 
 
 def timing_main() -> int:
@@ -171,11 +244,14 @@ def timing_main() -> int:
                          frames, cpu=time.process_time, warmup=False,
                          after_call=lambda _: bar.update(1))
     bar.close()
-    ms = [{b: statistics.median(samples[b, i].wall) * 1e3 for b in backends}
-          for i in range(len(pipes))]
+    spread = [{b: quartiles(samples[b, i].wall) for b in backends} for i in range(len(pipes))]
+    ms = [{b: q[b][1] * 1e3 for b in backends} for q in spread]
+    q1 = [{b: q[b][0] * 1e3 for b in backends} for q in spread]
+    q3 = [{b: q[b][2] * 1e3 for b in backends} for q in spread]
     cpu_ms = [{b: statistics.median(samples[b, i].cpu) * 1e3 for b in backends}
               for i in range(len(pipes))]
-    how = (f"frame times: median of {frames} frames after 1 warm-up, "
+    how = (f"frame times: median of {frames} frames after 1 warm-up, with the interquartile "
+           f"range (frame_ms_q1..frame_ms_q3: times whose ranges overlap are ties), "
            f"in one fresh process ({os.uname().nodename}, "
            f"pid {os.getpid()}) with LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = {threads}, "
            f"pinned to CPU{'s' if len(pinned) != 1 else ''} "
@@ -184,6 +260,7 @@ def timing_main() -> int:
            f"GL: frame() to glFinish without read-back; CL: render() with read-back; "
            f"cpu_ms: the process's CPU time per frame, all its threads (steadier than wall "
            f"time where other work shares the CPUs)")
-    sys.stdout.write(json.dumps({"ms": ms, "cpu_ms": cpu_ms, "how": how}) + "\n")
+    sys.stdout.write(json.dumps({"ms": ms, "q1": q1, "q3": q3, "cpu_ms": cpu_ms, "how": how})
+                     + "\n")
     return 0
 

@@ -1,5 +1,6 @@
 """What a sweep writes into its output folder (``results.csv``, ``results.json``,
-``table.txt``, ``pareto.png``, ``errors/``), and ``load_result`` to read a folder back."""
+``table.txt``, ``pareto.png``, ``errors/``, ``images/``, ``index.html``), and ``load_result``
+to read a folder back."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ import math
 from pathlib import Path
 
 from pipegen.tools.sweep.pareto import pareto_png
-from pipegen.tools.sweep.result import COLUMNS, EXTRA_COLUMNS, NUMERIC, SweepResult
+from pipegen.tools.sweep.report_html import report_page
+from pipegen.tools.sweep.result import COLUMNS, EXTRA_COLUMNS, JSON_ONLY, NUMERIC, SweepResult
 
 
 def csv_text(rows: list[dict]) -> str:
@@ -23,6 +25,8 @@ def csv_text(rows: list[dict]) -> str:
             v = r.get(k)
             if isinstance(v, bool):
                 v = "true" if v else "false"
+            elif isinstance(v, list):                   # ties: row numbers, space-separated
+                v = " ".join(map(str, v))
             elif v is None or (isinstance(v, float) and math.isnan(v)):
                 v = ""
             elif isinstance(v, float):
@@ -36,11 +40,12 @@ def json_text(result: SweepResult) -> str:
     from pipegen.proof.accuracy import finite_or_none
     rows = []
     for r in result.rows:
-        rows.append({k: (finite_or_none(r[k]) if isinstance(r[k], float) else r[k])
-                     for k in COLUMNS + EXTRA_COLUMNS})
+        rows.append({k: (finite_or_none(r.get(k)) if isinstance(r.get(k), float) else r.get(k))
+                     for k in COLUMNS + EXTRA_COLUMNS + JSON_ONLY})
     meta = dict(scene=result.scene, width=result.width, height=result.height,
                 lights=result.lights, backends=list(result.backends), renders=result.where,
-                timing=result.timing, notes=result.notes, columns=COLUMNS + EXTRA_COLUMNS)
+                timing=result.timing, notes=result.notes, references=result.references,
+                command=result.command, columns=COLUMNS + EXTRA_COLUMNS)
     return json.dumps(dict(meta, rows=rows), indent=1) + "\n"
 
 
@@ -51,12 +56,14 @@ def load_result(folder) -> SweepResult:
     rows = [{k: (math.nan if v is None and k in NUMERIC else v) for k, v in r.items()}
             for r in data["rows"]]
     return SweepResult(rows, data["scene"], data["width"], data["height"], data["lights"],
-                       tuple(data["backends"]), data["renders"], data["timing"], data["notes"])
+                       tuple(data["backends"]), data["renders"], data["timing"], data["notes"],
+                       references=data.get("references", {}), command=data.get("command", ""))
 
 
 def write_outputs(result: SweepResult, out) -> Path:
-    """results.csv, results.json, table.txt, pareto.png and errors/ into ``out`` (a path or an
-    ``outdir.OutputDir``), through a staging folder like every pipegen output."""
+    """results.csv, results.json, table.txt, pareto.png, errors/, images/ and index.html into
+    ``out`` (a path or an ``outdir.OutputDir``), through a staging folder like every pipegen
+    output."""
     from pipegen.core.outdir import as_output_dir
     out = as_output_dir(out, "sweep")
     with out.staging() as tmp:
@@ -67,4 +74,8 @@ def write_outputs(result: SweepResult, out) -> Path:
         (tmp / "errors").mkdir()
         for name, data in result.maps.items():
             (tmp / "errors" / name).write_bytes(data)
+        (tmp / "images").mkdir()
+        for name, data in result.images.items():
+            (tmp / "images" / name).write_bytes(data)
+        (tmp / "index.html").write_text(report_page(result), encoding="utf-8")
     return out.path

@@ -1,37 +1,104 @@
-"""Where the render jobs run: a local pool of spawned processes (``LocalPool``) or a Dask
+"""Where the render jobs run: a local pool of worker processes (``LocalPool``) or a Dask
 distributed cluster (``DaskPool``).  Both hand results back as they finish and run one job
 alone once the others are done (``run_alone``: the timing phase)."""
 
 from __future__ import annotations
 
 import os
+import queue
+import subprocess
+import sys
+import threading
 
 from pipegen.core.diagnostics import PipegenError
-from pipegen.tools.sweep.jobs import render_worker_init
+from pipegen.tools.sweep.jobs import RENDER_ENV
+from pipegen.tools.sweep.worker import child_env, receive, reply_error, send
 
 
 class LocalPool:
+    """``jobs`` render processes of this machine (``worker.py``: they need no importable
+    ``__main__``, so a sweep runs from a script on standard input or a notebook), each with one
+    rasteriser thread; a thread here feeds each one its next job."""
+
     name = "local process pool"
 
     def __init__(self, jobs: int):
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
         self.jobs = jobs
-        self.ex = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
-                                      initializer=render_worker_init)
-        self.where = f"a local process pool of {jobs} (spawned processes, 1 render thread each)"
+        self.procs: list = []
+        self.stop = threading.Event()           # set when closing: feeders take no new job
+        self.where = f"a local process pool of {jobs} (separate processes, 1 render thread each)"
+
+    def _start(self, n: int) -> None:
+        env = child_env(**RENDER_ENV)
+        while len(self.procs) < n:
+            self.procs.append(subprocess.Popen(
+                [sys.executable, "-m", "pipegen.tools.sweep.worker"], stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE, env=env))
 
     def map_unordered(self, fn, items):
-        from concurrent.futures import as_completed
-        futures = {self.ex.submit(fn, x): i for i, x in enumerate(items)}
-        for f in as_completed(futures):
-            yield futures[f], f.result()
+        items = list(items)
+        self._start(min(self.jobs, len(items)))
+        todo: queue.SimpleQueue = queue.SimpleQueue()
+        for i, x in enumerate(items):
+            todo.put((i, x))
+        done: queue.SimpleQueue = queue.SimpleQueue()
+        stop = self.stop
+
+        def feed(proc):
+            while not stop.is_set():
+                try:
+                    i, x = todo.get_nowait()
+                except queue.Empty:
+                    return
+                try:
+                    send(proc.stdin, (fn, x))
+                    reply = receive(proc.stdout)
+                except (EOFError, OSError):
+                    done.put((i, ("died", proc.wait())))
+                    return
+                except Exception as e:          # a reply that does not unpickle: say so
+                    done.put((i, ("error", e, "")))
+                    return
+                done.put((i, reply))
+
+        threads = [threading.Thread(target=feed, args=(p,), daemon=True) for p in self.procs]
+        for t in threads:
+            t.start()
+        try:
+            for _ in items:
+                i, reply = done.get()
+                if reply[0] == "ok":
+                    yield i, reply[1]
+                elif reply[0] == "died":
+                    raise RuntimeError(f"a render process died (exit status {reply[1]}) on "
+                                       f"job {i + 1} of {len(items)}")
+                else:
+                    error, text = reply_error(reply)
+                    if not isinstance(error, PipegenError) and text:   # a bug: where it was
+                        sys.stderr.write(f"in the render process:\n{text}")
+                    raise error
+        finally:
+            stop.set()
 
     def run_alone(self, fn, arg):
         return fn(arg)                          # here, after the pool's jobs have all finished
 
     def close(self) -> None:
-        self.ex.shutdown()
+        self.stop.set()
+        for p in self.procs:
+            try:
+                send(p.stdin, None)
+                p.stdin.close()
+            except OSError:
+                pass
+        for p in self.procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:   # busy on a job nobody waits for any more
+                p.kill()
+                p.wait()
+            p.stdout.close()
+        self.procs = []
 
 
 class DaskPool:

@@ -5,16 +5,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Optional
 
 from pipegen.core.units import format_bytes
 
 # at least these columns, in this order, then the extras
 COLUMNS = ["technique", "params", "backend", "frame_ms", "target_bytes", "rmse_scene",
            "p99_scene", "max_scene", "flip_scene", "rmse_f64", "p99_f64", "max_f64", "agree"]
-EXTRA_COLUMNS = ["cpu_ms", "rmse_interior", "max_interior", "file", "width", "height", "notes"]
+# (frame_ms is the median of the timed frames, frame_ms_q1..frame_ms_q3 their interquartile
+# range; ties: the numbers of the rows on the same backend whose ranges overlap; pareto: on its
+# backend's front; reference: what the *_scene errors are measured against)
+EXTRA_COLUMNS = ["cpu_ms", "rmse_interior", "max_interior", "file", "width", "height", "notes",
+                 "frame_ms_q1", "frame_ms_q3", "ties", "pareto", "reference"]
+# results.json only, per row: where its error map and image are, its worst pixels
+# ([x, y, [got r, g, b], [reference r, g, b]], y from the top, rgba8 codes), the command that
+# reproduces it
+JSON_ONLY = ["error_map", "image", "worst", "command"]
 # the columns that hold numbers (an empty one is NaN in memory, null in results.json)
 NUMERIC = {"frame_ms", "cpu_ms", "rmse_scene", "p99_scene", "max_scene", "flip_scene", "rmse_f64",
-           "p99_f64", "max_f64", "rmse_interior", "max_interior"}
+           "p99_f64", "max_f64", "rmse_interior", "max_interior", "frame_ms_q1", "frame_ms_q3"}
 
 
 @dataclass
@@ -29,9 +38,12 @@ class SweepResult:
     timing: str                            # how frame times were taken (or why not)
     notes: list[str] = field(default_factory=list)
     maps: dict = field(default_factory=dict)   # {file name under errors/: PNG bytes}
+    images: dict = field(default_factory=dict)  # {file name under images/: PNG bytes}
+    references: dict = field(default_factory=dict)  # {technique: {label, text, why}}
+    command: str = ""                      # the command line that reproduces the sweep
 
     def table(self) -> str:
-        return format_table(self.rows)
+        return format_table(self.rows, self.references)
 
     def summary(self) -> str:
         head = (f"sweep on {self.scene} at {self.width}x{self.height} ({self.lights} lights), "
@@ -48,19 +60,67 @@ def _fmt(value, digits: int) -> str:
     return f"{value:.{digits}f}"
 
 
-def format_table(rows: list[dict]) -> str:
-    header = ("technique", "params", "backend", "frame ms", "targets MiB", "rmse", "p99",
-              "max", "ꟻLIP", "rmse f64", "p99 f64", "max f64", "agree")
-    body = [(r["technique"], r["params"] or "-", r["backend"], _fmt(r["frame_ms"], 1),
+def _ties(numbers) -> str:
+    numbers = list(numbers or ())
+    if not numbers:
+        return ""
+    shown = ",".join(map(str, numbers[:3]))
+    return "=" + shown + (f"+{len(numbers) - 3}" if len(numbers) > 3 else "")
+
+
+def _spread(r: dict) -> str:
+    q1, q3 = r.get("frame_ms_q1", math.nan), r.get("frame_ms_q3", math.nan)
+    if not (isinstance(q1, float) and math.isfinite(q1) and math.isfinite(q3)):
+        return "-"
+    return f"{q1:.1f}-{q3:.1f}"
+
+
+def reference_line(rows: list[dict], references: dict) -> str:
+    """What the errors are measured against (``references``: {technique: {label, text, why}}):
+    one reference, or one per technique."""
+    techniques = list(dict.fromkeys(r["technique"] for r in rows))
+    known = [references[t] for t in techniques if t in references]
+    if not known:                       # an older results.json: the label alone
+        labels = sorted({r.get("reference") or "scene" for r in rows})
+        return "reference: " + ", ".join(labels)
+    said = {(k["text"], k.get("why", "")) for k in known}
+    if len(said) == 1:
+        text, why = next(iter(said))
+        return f"reference: {text}" + (f" (the default: {why})" if why else "")
+    return "references: " + "; ".join(
+        f"{t}: {references[t]['text']}" + (" (its default)" if references[t].get("why") else "")
+        for t in techniques if t in references)
+
+
+def reference_label(rows: list[dict]) -> str:
+    """The reference as plot titles and table headings name it."""
+    labels = list(dict.fromkeys(r.get("reference") or "scene" for r in rows))
+    return labels[0] if len(labels) == 1 else "each technique's reference (" + \
+        ", ".join(labels) + ")"
+
+
+def format_table(rows: list[dict], references: Optional[dict] = None) -> str:
+    header = ("#", "technique", "params", "backend", "frame ms", "q1-q3", "tie", "targets MiB",
+              "rmse", "p99", "max", "ꟻLIP", "rmse f64", "p99 f64", "max f64", "agree", "front")
+    body = [(str(n), r["technique"], r["params"] or "-", r["backend"], _fmt(r["frame_ms"], 1),
+             _spread(r), _ties(r.get("ties")),
              format_bytes(r["target_bytes"], "MiB", suffix=False), _fmt(r["rmse_scene"], 2),
              _fmt(r["p99_scene"], 0), _fmt(r["max_scene"], 0), _fmt(r["flip_scene"], 4),
              _fmt(r["rmse_f64"], 3), _fmt(r["p99_f64"], 0), _fmt(r["max_f64"], 0),
-             {True: "yes", False: "NO", None: "-"}[r["agree"]]) for r in rows]
+             {True: "yes", False: "NO", None: "-"}[r["agree"]],
+             "*" if r.get("pareto") else "") for n, r in enumerate(rows, 1)]
     table = [header, *body]
     widths = [max(len(x[i]) for x in table) for i in range(len(header))]
-    right = set(range(3, 12))
+    right = {0, *range(4, 6), *range(7, 15)}
     lines = ["  ".join((c.rjust(w) if i in right else c.ljust(w))
                        for i, (c, w) in enumerate(zip(x, widths))).rstrip() for x in table]
-    lines.insert(1, "errors in rgba8 codes vs the scene reference (rmse, p99, max: whole "
-                    "image) and vs the f64 evaluation; ꟻLIP: mean, vs the scene reference")
+    against = reference_label(rows)
+    against = f"the {against} reference" if "(" not in against else against
+    lines.insert(1, f"errors in rgba8 codes vs {against} (rmse, p99, max: whole image) and vs "
+                    f"the f64 evaluation; ꟻLIP: mean, vs {against}")
+    lines.append("frame ms: median of the timed frames, q1-q3 their interquartile range; tie: "
+                 "the rows (# on the same backend) whose ranges overlap, not ranked by time; "
+                 "front *: on the Pareto front of its backend (error against frame time, ties "
+                 "not ranked)")
+    lines.append(reference_line(rows, references or {}))
     return "\n".join(lines)

@@ -4,13 +4,17 @@ writes nothing."""
 
 from __future__ import annotations
 
-import sys
-
 import math
+import os
+import sys
 from typing import Optional
 
+from pipegen.core.outdir import safe_name
 from pipegen.ir.memory import technique_bytes
-from pipegen.tools.sweep.jobs import load_spec_scene, render_job, scene_spec, time_job
+from pipegen.tools.sweep.commands import row_command
+from pipegen.tools.sweep.jobs import (load_spec_scene, reference_data, render_job, scene_spec,
+                                      spec_name, time_job)
+from pipegen.tools.sweep.pareto import mark_front_and_ties
 from pipegen.tools.sweep.pools import DaskPool, LocalPool, available_cpus
 from pipegen.tools.sweep.progress import progress_bar
 from pipegen.tools.sweep.result import SweepResult
@@ -29,13 +33,25 @@ def f64_supported() -> bool:
     return "precision" in inspect.signature(Compiled.pipeline).parameters
 
 
-def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = None,
+def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
               axes: Optional[dict] = None, backends=BACKEND_ORDER, frames: int = 5,
               jobs: Optional[int] = None, scheduler: Optional[str] = None,
-              threads: int = DEFAULT_THREADS, progress: bool = True) -> SweepResult:
-    """Sweep ``files`` (the package docstring) and return the rows; nothing is written."""
+              threads: int = DEFAULT_THREADS, progress: bool = True,
+              reference: Optional[str] = None, reference_samples: int = 1) -> SweepResult:
+    """Sweep ``files`` (the package docstring) and return the rows; nothing is written.
+
+    ``files``: technique paths (str or Path); ``scene``: a scene path, a loaded ``Scene``
+    (``pipegen.scene.load_scene``) or None for the built-in scene; ``size``: (width, height)
+    or None for the scene's; ``axes``: {name: [values]} (``variants.parse_axes``) or None for
+    the declared ones; ``reference``: what the errors are measured against, ``scene``,
+    ``self`` or ``FILE.pipe[:name=value,...]`` (``proof.references``; None: each technique's
+    default), evaluated at ``reference_samples`` x ``reference_samples`` per pixel.  Works from a notebook or a script on standard input: the render
+    processes import only pipegen (``worker.py``)."""
     backends = tuple(backends)
-    variants, compiled = plan_variants(list(files), axes)
+    if isinstance(files, (str, os.PathLike)):
+        files = [files]
+    variants, compiled = plan_variants([str(f) for f in files], axes)
+    refs = plan_references(variants, compiled, reference, reference_samples)
     spec = scene_spec(scene, size)
     s = load_spec_scene(spec, say=lambda text: print(text, file=sys.stderr))
     use_f64 = f64_supported()
@@ -46,7 +62,8 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
     if FLIP_NOTE:
         notes.append(FLIP_NOTE)
     job_list = [dict(file=v.file, params=dict(v.params), scene=spec, backends=list(backends),
-                     f64=use_f64) for v in variants]
+                     f64=use_f64, reference=reference_data(refs[v.technique].spec))
+                for v in variants]
     pool = DaskPool(scheduler) if scheduler else \
         LocalPool(max(1, jobs or len(available_cpus())))
     results: list = [None] * len(variants)
@@ -62,29 +79,49 @@ def run_sweep(files: list, scene: Optional[str] = None, size: Optional[tuple] = 
                 scene=spec, backends=list(backends), frames=frames, threads=threads,
                 progress=progress))
             ms, cpu_ms, how = timing["ms"], timing["cpu_ms"], timing["how"]
+            q1, q3 = timing["q1"], timing["q3"]
             how = how.replace("in one fresh process", "after every render job had finished, "
                               "in one fresh process alone" + (" on one Dask worker"
                                                               if scheduler else ""), 1)
         else:
             ms, how = [{} for _ in variants], "frame times: not measured (--frames 0)"
-            cpu_ms = ms
+            cpu_ms = q1 = q3 = ms
     finally:
         pool.close()
 
-    rows, maps = [], {}
+    rows, maps, images = [], {}, {}
     for v, res in zip(variants, results):
         tb = technique_bytes(compiled[v.index].technique, s.width, s.height)
         for b in backends:
             m = res["metrics"][b]
+            name = safe_name(f"{v.slug}_{b}", ".png")
             row = dict(technique=v.technique, params=v.params_text, backend=b,
                        frame_ms=ms[v.index].get(b, math.nan), target_bytes=tb,
                        cpu_ms=cpu_ms[v.index].get(b, math.nan),
+                       frame_ms_q1=q1[v.index].get(b, math.nan),
+                       frame_ms_q3=q3[v.index].get(b, math.nan),
                        agree=res["agree"], file=v.file, width=s.width, height=s.height,
-                       notes="; ".join(res["notes"]))
+                       notes="; ".join(res["notes"]), reference=refs[v.technique].label,
+                       error_map=f"errors/{name}", image=f"images/{name}", worst=[],
+                       command=row_command(v.file, v.params, b, spec, (s.width, s.height),
+                                           frames, reference, reference_samples))
             row.update({k: m[k] for k in m})
             rows.append(row)
-            from pipegen.core.outdir import safe_name
-            maps[safe_name(f"{v.slug}_{b}", ".png")] = res["maps"][b]
-    return SweepResult(rows, spec["path"] or "the built-in scene", s.width, s.height,
-                       len(s.lights), backends, pool.where, how, notes, maps)
+            maps[name] = res["maps"][b]
+            images[name] = res["images"][b]
+    mark_front_and_ties(rows)
+    described = {t: dict(label=r.label, text=r.describe(), why=r.spec.why)
+                 for t, r in refs.items()}
+    return SweepResult(rows, spec_name(spec, s), s.width, s.height, len(s.lights), backends,
+                       pool.where, how, notes, maps, images, described)
 
+
+def plan_references(variants: list, compiled: dict, text: Optional[str], samples: int) -> dict:
+    """{technique name: ``references.Reference``}: the one named (``text``) or each technique's
+    default, made for its first variant (a bad ``text`` fails here, before any job)."""
+    from pipegen.proof.references import choose_reference
+    refs = {}
+    for v in variants:
+        if v.technique not in refs:
+            refs[v.technique] = choose_reference(text, compiled[v.index], samples)
+    return refs

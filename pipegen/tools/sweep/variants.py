@@ -21,7 +21,7 @@ class Variant:
 
     @property
     def params_text(self) -> str:
-        return " ".join(f"{k}={_value_text(v)}" for k, v in self.params)
+        return " ".join(f"{k}={value_text(v)}" for k, v in self.params)
 
     @property
     def label(self) -> str:
@@ -29,11 +29,11 @@ class Variant:
 
     @property
     def slug(self) -> str:
-        parts = [f"{k}-{_value_text(v)}" for k, v in self.params]
+        parts = [f"{k}-{value_text(v)}" for k, v in self.params]
         return "_".join([f"{self.index:02d}", self.technique, *parts])
 
 
-def _value_text(v) -> str:
+def value_text(v) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     return f"{v:g}" if isinstance(v, float) else str(v)
