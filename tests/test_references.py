@@ -390,3 +390,22 @@ def test_stress_measures_each_case_against_the_reference(toon_path):
     assert "vs ref p99" in [h.strip() for h in header]
     assert lines[2].split()[:4] == ["sky", "0.00", "0", "0"]
     assert lines[3].startswith("overlap") and " vs (" in lines[3]
+
+
+def test_a_reference_technique_is_compiled_first_and_says_what_it_cannot_render(toon_path):
+    """Its errors come before any rendering, as the reference's; what it will not render of
+    the scene is a note next to its figures."""
+    from pipegen.proof.references import choose_reference
+    from pipegen.scene import load_scene
+    toon = compile_file(toon_path)
+    with pytest.raises(PipegenError) as e:
+        choose_reference(f"{toon_path}:nope=1", toon)
+    assert e.value.message == "the reference toon.pipe:nope=1: unknown parameter 'nope'"
+    with pytest.raises(PipegenError, match=r"the reference toon.pipe:bands=x: parameter "
+                                           r"'bands' is an int; the value 'x'"):
+        choose_reference(f"{toon_path}:bands=x", toon)
+    ref = choose_reference(str(toon_path), compile_file(ROOT / "pipelines/deferred.pipe"))
+    notes = ref.notes(load_scene(ROOT / "examples/scenes/mixed_lights.toml"))
+    assert "the reference toon.pipe will not render all of the scene: 2 spot lights are lit " \
+           "as point lights (the technique reads no cone angle)" in notes
+    assert choose_reference("scene", toon).notes(None) == []

@@ -192,6 +192,7 @@ def reference_lines(result: PrecisionResult, reference, scene, output: str) -> l
              f"rgba8 codes"]
     if reference.spec.why:
         lines.append(f"  (the default reference: {reference.spec.why})")
+    lines += [f"  note: {n}" for n in reference.notes(scene)]
     for b, codes in result.outputs.items():
         e = codes_vs_reference(codes, reference, scene, worst=1)
         who = "float64 evaluation" if b == "f64" else registry.get(b).title

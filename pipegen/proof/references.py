@@ -207,7 +207,9 @@ def choose_reference(text: Optional[str], compiled, samples: int = 1,
         spec = ReferenceSpec(spec.kind, spec.path, spec.params, check_samples(samples), spec.why)
     else:
         spec = parse_reference(text, samples)
-    return Reference(spec, compiled, recompile)
+    ref = Reference(spec, compiled, recompile)
+    ref.technique()                  # compiled now: its errors before any rendering
+    return ref
 
 
 # -- the reference ---------------------------------------------------------------------------
@@ -293,6 +295,13 @@ class Reference:
         return self._evaluated
 
     def _compile(self):
+        try:
+            return self._compile_it()
+        except PipegenError as e:        # say whose error it is: the reference's
+            raise PipegenError(e.span, f"the reference {self.label}: {e.message}",
+                               e.hint) from None
+
+    def _compile_it(self):
         from pipegen.compiler.driver import compile_file
         if self.spec.kind == "technique":
             return compile_file(self.spec.path, dict(self.spec.params) or None)
@@ -347,8 +356,24 @@ class Reference:
         if self.spec.kind == "scene":
             rgb = self._scene_ref(fine).rgb
         else:
-            rgb = output_values_rgb(self.technique().technique, self._f64(fine))[::-1]
+            tech = self.technique().technique
+            rgb = output_values_rgb(tech, self._f64(fine))[::-1]
+            if rgb.shape[:2] != (fine.height, fine.width):
+                raise PipegenError(None, f"the reference {self.label}: its output "
+                                         f"'{tech.output}' is {rgb.shape[1]}x{rgb.shape[0]}, "
+                                         f"not the scene's {fine.width}x{fine.height}",
+                                   hint="a reference's output target is sized with the "
+                                        "output (`size output`, the default)")
         return box_filter(rgb, self.spec.samples)
+
+    def notes(self, scene) -> list[str]:
+        """What the reference technique will not render of ``scene`` (``mismatches``):
+        its figures there measure that too."""
+        other = self.technique()
+        if other is None:
+            return []
+        return [f"the reference {self.label} will not render all of the scene: {m.message}"
+                for m in other.mismatches(scene)]
 
     def targets(self, scene) -> Optional[dict]:
         """float64 values of every target of the reference technique at the scene's size (row

@@ -148,6 +148,8 @@ def reference_table(results, reference) -> list[str]:
              f"(the worse of GL and CL)"]
     if reference.spec.why:
         lines.append(f"  (the default reference: {reference.spec.why})")
+    notes = {n for r in results if r.scene is not None for n in reference.notes(r.scene)}
+    lines += [f"  note: {n}" for n in sorted(notes)]
     header = ("case", "vs ref rmse", "vs ref p99", "vs ref max", "worst pixel (x, y): got vs ref")
     rows = [header]
     for r in results:
