@@ -257,3 +257,43 @@ def test_inferred_whole_grid_within_a_third_of_the_sweep():
     e = exhaustive(INFERRED, [EDGES], "p99<=2", size=(96, 54))
     assert t.pick.params == e.pick.params
     assert e.renders == 192 and t.renders * 3 <= e.renders
+
+
+class TimedSynthetic(Synthetic):
+    """Frame time a formula too: filtering and more bits cost time, scale most of all."""
+
+    def time(self, measured, frames=None):
+        for m in measured:
+            p = m.params
+            t = 10 * p["scale"] ** 2 + (1.0 if p["filter"] else 0.0) + \
+                {"r8": 0.0, "r16": 0.2, "r32": 0.5}[p["fmt"]]
+            m.time_ms, m.time_q, m.frames = t, (t - 0.01, t + 0.01), 5
+
+
+@pytest.mark.parametrize("budget", ["p99<=3", "p99<=11", "p99<=25"])
+def test_minimise_time_finds_the_fastest_within_budget(budget):
+    ev = TimedSynthetic(smooth)
+    result = Search(ev, Synthetic.AXES, parse_budget(budget), minimise="time").run()
+    everything = TimedSynthetic(smooth)
+    rows = [everything.render(k, dict(zip(Synthetic.AXES, k)))
+            for k in itertools.product(*Synthetic.AXES.values())]
+    everything.time(rows)
+    b = parse_budget(budget)
+    fastest = min((m for m in rows if within(b, m)), key=lambda m: m.time_ms)
+    assert result.pick.params == fastest.params
+    assert result.pick.time_ms == pytest.approx(fastest.time_ms)
+    assert result.renders < len(rows)
+
+
+@pytest.mark.gl
+def test_every_scene_counts_and_the_worst_one_decides():
+    from pipegen.tools.tune.run import tune
+    axes = {"lbuffer_scale": [0.75, 1.0], "dsf": [True], "normal_encoding": ["kircher"],
+            "normal_format": ["rg8", "rg16f"], "lbuffer_format": ["rgba16f"]}
+    r = tune(INFERRED, [EDGES, SMALL], "p99<=2", size=(64, 36), frames=0, axes=axes)
+    assert r.renders == 2 * len(r.tried)
+    for m in r.tried:
+        assert [e["scene"] for e in m.per_scene] == ["edges", "small"]
+        for metric in ("p99", "max", "rmse"):
+            assert m.figures[metric] == max(e[metric] for e in m.per_scene)
+    assert r.scenes == ["edges (64x36)", "small (64x36)"]

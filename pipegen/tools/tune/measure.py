@@ -68,8 +68,14 @@ class Reference:
     def errors(self, codes, scene) -> dict:
         from pipegen.proof import accuracy
         if self.ref is not None and hasattr(accuracy, "codes_vs_reference"):
+            try:
+                rgb = self.ref.output_rgb(scene)     # evaluated once per scene, then cached
+            except RuntimeError as exc:              # e.g. its float64 program fails to build
+                raise PipegenError(None, f"the reference ({self.label}) could not be evaluated "
+                                         f"on {scene.name}: {str(exc).splitlines()[0]}",
+                                   hint="try --reference scene, or pipegen run --backend cl "
+                                        "--precision f64 on the reference technique") from None
             e = accuracy.codes_vs_reference(codes, self.ref, scene)
-            rgb = self.ref.output_rgb(scene)
         else:
             if id(scene) not in self.scene_refs:
                 self.scene_refs[id(scene)] = accuracy.scene_reference(scene)
