@@ -409,3 +409,23 @@ def test_a_reference_technique_is_compiled_first_and_says_what_it_cannot_render(
     assert "the reference toon.pipe will not render all of the scene: 2 spot lights are lit " \
            "as point lights (the technique reads no cone angle)" in notes
     assert choose_reference("scene", toon).notes(None) == []
+
+
+def test_self_recompiles_from_the_source_file_or_a_given_function():
+    """``self`` compiles the technique again at its accurate values: from its .pipe file, or
+    with ``recompile`` where there is none (a technique compiled from a string)."""
+    c = compile_source(ACCURATE, "<no such file>.pipe", params={"s": 0.5})
+    with pytest.raises(PipegenError, match=r"the reference self: cannot recompile t at its "
+                                           r"most accurate values: its source file"):
+        Reference(parse_reference("self"), c).technique()
+    seen = []
+
+    def recompile(params):
+        seen.append(params)
+        return compile_source(ACCURATE, "t.pipe", params=params)
+
+    best = Reference(parse_reference("self"), c, recompile).technique()
+    assert seen == [{"s": 1.0, "fmt": "rgba16f"}]
+    assert [p.default for p in best.technique.params] == [1.0, "rgba16f", 3]
+    at_best = compile_source(ACCURATE, "t.pipe", params={"s": 1.0, "fmt": "rgba16f"})
+    assert Reference(parse_reference("self"), at_best).technique() is at_best
