@@ -104,7 +104,12 @@ def run_stress(r: TuneResult, scene_file: str, cases: str, say) -> dict:
     """``stress`` at the pick on the first scene: counts by status and the failing cases."""
     from pipegen.scene.load import load_scene
     from pipegen.tools.stress import DEFAULT_SIZE, stress
-    results = stress(r.compiled_pick, load_scene(scene_file), cases=cases, progress=say)
+    try:
+        results = stress(r.compiled_pick, load_scene(scene_file), cases=cases, progress=say)
+    except RuntimeError as exc:          # a backend that cannot build the pick: said, and the
+        first = str(exc).splitlines()[0]  # answer above stands
+        return dict(cases=cases, counts={}, failed=[], error=first,
+                    line=f"stress at the pick ({cases}) could not run: {first}")
     counts: dict = {}
     for x in results:
         counts[x.status] = counts.get(x.status, 0) + 1
