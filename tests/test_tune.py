@@ -297,3 +297,17 @@ def test_every_scene_counts_and_the_worst_one_decides():
         for metric in ("p99", "max", "rmse"):
             assert m.figures[metric] == max(e[metric] for e in m.per_scene)
     assert r.scenes == ["edges (64x36)", "small (64x36)"]
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_reference_self_is_the_technique_in_float64():
+    """Against itself in float64 (at its defaults: no parameter declares `accurate`), the
+    default index_bits=8 is exact on small.toml and the others drop lights."""
+    from pipegen.tools.tune.run import tune
+    r = tune(LIDR, [SMALL], "p99<=1", reference="self", size=(48, 27), frames=0)
+    assert r.reference == "self"
+    assert r.pick.params == {"index_bits": 8} and r.pick.figures["max"] == 0
+    worse = {m.params["index_bits"]: m.figures["p99"] for m in r.tried if m is not r.pick}
+    assert all(p99 > 1 for p99 in worse.values()) and set(worse) == {16, 32}
+    assert any("self: lidr_bitplanes" in n for n in r.notes)

@@ -63,6 +63,8 @@ def _search(file, scenes, budget, reference, minimise, backend, size, frames, sa
     from pipegen.tools.sweep.variants import declared_axes
     if minimise not in MINIMISE:
         raise PipegenError(None, f"minimise {minimise!r}: choose memory or time")
+    if minimise == "time" and frames < 1:
+        raise PipegenError(None, "minimising time needs timed frames", hint="--frames 5")
     if not scenes:
         raise PipegenError(None, "tune needs at least one scene", hint="--scene FILE.toml")
     budget = parse_budget(budget) if isinstance(budget, str) else budget
