@@ -311,3 +311,23 @@ def test_reference_self_is_the_technique_in_float64():
     worse = {m.params["index_bits"]: m.figures["p99"] for m in r.tried if m is not r.pick}
     assert all(p99 > 1 for p99 in worse.values()) and set(worse) == {16, 32}
     assert any("self: lidr_bitplanes" in n for n in r.notes)
+
+
+@pytest.mark.gl
+def test_tune_measures_what_sweep_measures():
+    """tools.tune.run.exhaustive (what the comparisons count as the sweep) and run_sweep give
+    the same figures, row for row: p99/max/rmse against the scene reference, target bytes."""
+    from pipegen.tools.sweep.run import run_sweep
+    from pipegen.tools.tune.run import exhaustive
+    axes = {"lbuffer_scale": [0.75, 1.0], "dsf": [True], "normal_encoding": ["octahedral"],
+            "normal_format": ["rg8", "rg16f"], "lbuffer_format": ["rgba16f"]}
+    s = run_sweep([INFERRED], EDGES, (96, 54), axes, backends=("gl",), frames=0, jobs=1,
+                  progress=False)
+    e = exhaustive(INFERRED, [EDGES], "p99<=2", size=(96, 54), axes=axes)
+    assert len(s.rows) == len(e.tried) == 4
+    for row, m in zip(s.rows, e.tried):
+        assert row["params"] == " ".join(f"{k}={v:g}" if isinstance(v, float) else
+                                         f"{k}={str(v).lower()}" for k, v in m.params.items())
+        assert (row["p99_scene"], row["max_scene"], row["target_bytes"]) == \
+            (m.figures["p99"], m.figures["max"], m.memory)
+        assert row["rmse_scene"] == pytest.approx(m.figures["rmse"], abs=1e-12)
