@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import statistics
-import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -228,10 +227,6 @@ def overlap(a: Measured, b: Measured) -> bool:
     if a.time_q is None or b.time_q is None:
         return False
     return a.time_q[0] <= b.time_q[1] and b.time_q[0] <= a.time_q[1]
-
-
-def now() -> float:
-    return time.perf_counter()
 
 
 def finite(x) -> Optional[float]:

@@ -41,8 +41,6 @@ from typing import Callable, Optional
 from pipegen.tools.tune.budget import RENDERED, Budget
 from pipegen.tools.tune.measure import Evaluator, Measured, overlap
 
-TOLERANCE = {"p99": 1.0, "max": 1.0, "rmse": 0.25, "flip": 0.01, "lights_dropped": 0.0}
-
 
 @dataclass
 class Axis:
