@@ -117,11 +117,11 @@ def test_the_outputs_highlights_are_counted_not_warned():
     assert warning_lines([clamp(highest=1.38)], "color") == []
     lines = warning_lines([clamp(count=1, lowest=-0.5), clamp("g", "galbedo", 108, F82_8)],
                           "color")
-    assert lines[0] == ("warning: pass p wrote values outside what color holds (rgba8: 0 to 1) "
-                        "in 1 fragment, as low as -0.5; the format clamped them (counted on "
-                        "the CL backend, per frame)")
-    assert "pass g wrote values outside what galbedo holds (rgba8: 0 to 1) in 108 fragments, " \
-           "as high as 82.8;" in lines[1]
+    assert lines[0] == ("warning: pass p wrote 1 value outside what color holds (rgba8: 0 to 1), "
+                        "as low as -0.5; the format clamped them (counted on the CL backend, "
+                        "per frame)")
+    assert "pass g wrote 108 values outside what galbedo holds (rgba8: 0 to 1), as high as " \
+           "82.8;" in lines[1]
     assert lines[2].startswith("  hint: ")
     figures = Clamped([clamp(count=4, highest=1.5), clamp("q", count=2, highest=3.0)], "color")
     assert dict(figures) == {"color": 6} and figures.passes("color") == {"p": 4, "q": 2}
@@ -134,7 +134,7 @@ def test_the_outputs_highlights_are_counted_not_warned():
 @pytest.mark.cl
 @pytest.mark.parametrize("precision", ["f32", "f64"])
 def test_a_material_beyond_rgba8_is_counted_per_pass_and_target(precision):
-    """specular 82.8 into deferred.pipe's galbedo.a: one count per fragment of the sphere
+    """specular 82.8 into deferred.pipe's galbedo.a: one value per fragment of the sphere
     (the pixels whose stored specular saturated), its value as the highest, in the float32
     run and in the float64 evaluation alike; nothing else but the output's highlights."""
     c = compile_file(DEFERRED)
@@ -160,9 +160,9 @@ def test_run_warns_once_naming_the_pass_and_the_target(tmp_path, capsys):
     err = capsys.readouterr().err
     warnings = [line for line in err.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1, err
-    assert warnings[0].startswith("warning: pass gbuffer wrote values outside what galbedo "
-                                  "holds (rgba8: 0 to 1) in ")
-    assert "fragments, as high as 82.8; the format clamped them" in warnings[0]
+    assert warnings[0].startswith("warning: pass gbuffer wrote ")
+    assert " values outside what galbedo holds (rgba8: 0 to 1), as high as 82.8; the format " \
+           "clamped them" in warnings[0]
 
 
 @pytest.mark.cl
@@ -172,7 +172,7 @@ def test_a_negative_value_into_unorm():
     codes = pipe.render(default_scene())["color"]
     assert (codes[0, 0] == [0, 64, 255, 255]).all()          # stored clamped
     (x,) = pipe.last_clamps
-    assert (x.pass_name, x.target, x.count) == ("p", "color", 24 * 16)
+    assert (x.pass_name, x.target, x.count) == ("p", "color", 2 * 24 * 16)   # x and z
     assert (x.lowest, x.highest) == (-0.5, 2.0)
     lines = warning_lines(pipe.last_clamps, c.technique.output)      # below the output's range
     assert "as high as 2 and as low as -0.5" in lines[0]
@@ -221,7 +221,7 @@ def test_the_wide_path_counts_as_the_scalar_path(monkeypatch, wmin):
         assert (cl_wide.MARK in pipe.plan.passes[0].code.fragment) == enabled
         pipe.render(default_scene())
         got[enabled] = pipe.last_clamps
-    assert got[True] == got[False] and got[True][0].count == 40 * 20
+    assert got[True] == got[False] and got[True][0].count == 2 * 40 * 20
 
 
 @pytest.mark.gl

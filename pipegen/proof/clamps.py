@@ -8,8 +8,8 @@ picture shows (every shipped technique writes HDR light into its rgba8 output): 
 counted, not warned about; a value below it, and any clamp of an intermediate target, is
 invisible in the picture and warned about.
 
-``Clamped``: the testing API's figure (``Targets.clamped``): target -> fragments clamped in the
-frame, all passes together, ``passes(target)`` per pass.
+``Clamped``: the testing API's figure (``Targets.clamped``): target -> values clamped in the
+frame (channels of fragments), all passes together, ``passes(target)`` per pass.
 """
 
 from __future__ import annotations
@@ -30,14 +30,14 @@ def warned(c: Clamp, output: Optional[str]) -> bool:
 
 
 def describe(c: Clamp) -> str:
-    """``pass gbuffer wrote values outside what galbedo holds (rgba8: 0 to 1) in 108
-    fragments, as high as 82.8; ...``: the format's range, the fragments and the extremes."""
+    """``pass gbuffer wrote 108 values outside what galbedo holds (rgba8: 0 to 1), as high
+    as 82.8; ...``: the values (channels of fragments), the format's range, the extremes."""
     extremes = [f"as high as {_number(c.highest)}" if c.highest is not None else "",
                 f"as low as {_number(c.lowest)}" if c.lowest is not None else ""]
     extremes = " and ".join(e for e in extremes if e)
-    noun = "fragment" if c.count == 1 else "fragments"
-    return (f"pass {c.pass_name} wrote values outside what {c.target} holds ({c.format}: "
-            f"{_number(c.lo)} to {_number(c.hi)}) in {c.count} {noun}"
+    noun = "value" if c.count == 1 else "values"
+    return (f"pass {c.pass_name} wrote {c.count} {noun} outside what {c.target} holds "
+            f"({c.format}: {_number(c.lo)} to {_number(c.hi)})"
             f"{', ' + extremes if extremes else ''}; the format clamped them")
 
 
@@ -54,7 +54,7 @@ def warning_lines(clamps: list[Clamp], output: Optional[str]) -> list[str]:
 
 
 class Clamped(Mapping):
-    """A frame's clamped fragments: ``clamped["galbedo"]`` (all passes; only targets with
+    """A frame's clamped values: ``clamped["galbedo"]`` (all passes; only targets with
     some are keys: ``clamped.get(name, 0)``), ``passes("galbedo")`` -> {pass: count},
     ``clamps``: the records (extremes, range), ``warnings()``: what ``pipegen run`` says."""
 

@@ -122,22 +122,27 @@ def clamp_range(name: str) -> Optional[tuple[float, float, bool]]:
 
 
 def clamp_test(name: str, precision: str = "f32") -> Optional[dict]:
-    """The raster kernel's test of a fragment output against ``clamp_range``: ``fn`` (the
-    prelude's ``pg_outside``/``pg_outside_finite``, bit c: channel c outside), its ``lo`` and
-    ``hi`` literals in the output's type, ``mask``: the format's channels; None when the
-    format clamps nothing."""
+    """The raster kernel's count of the values a fragment writes outside ``clamp_range``
+    (the prelude's ``pg_outside``/``pg_outside_half``, ``pg_track``, ``pg_add_clamps``), or
+    None when the format clamps nothing: ``fn`` and its ``lo``/``hi`` literals in the
+    output's type, ``mask`` (the format's channels, bits), ``types``: the row's counters
+    (counts, largest, smallest: vectors of the output's width) and the largest's ``start``."""
     got = clamp_range(name)
     if got is None:
         return None
     lo, hi, finite = got
     fmt = F.get(name)
+    mask = (1 << fmt.channels) - 1
     if fmt.kind is F.Kind.UINT:
-        lit = [f"{int(lo)}u", f"{int(hi)}u"]
-    else:
-        lang = dialect(precision)()
-        lit = [lang.render_float(lo), lang.render_float(hi)]
-    return {"fn": "pg_outside_finite" if finite else "pg_outside", "lo": lit[0], "hi": lit[1],
-            "mask": (1 << fmt.channels) - 1}
+        return {"fn": "pg_outside", "lo": f"{int(lo)}u", "hi": f"{int(hi)}u", "mask": mask,
+                "types": ("int4", "uint4", "uint4"), "start": ("(uint4)(0u)",)}
+    lang = dialect(precision)()
+    fn = "pg_outside_half" if finite else "pg_outside"
+    types, start = ("int4", "int4", "uint4"), "(int4)(INT_MIN)"
+    if precision == "f64":
+        types, start = ("long4", "long4", "ulong4"), "(long4)(LONG_MIN)"
+    return {"fn": fn, "lo": lang.render_float(lo), "hi": lang.render_float(hi), "mask": mask,
+            "types": types, "start": (start,)}
 
 
 def pad_to_four(values: list, n: int) -> list:

@@ -3,11 +3,11 @@
 A fragment output outside what its target's format holds (``backends/opencl/formats.
 clamp_range``: a specular of 82.8 into rgba8, a negative value into unorm, beyond 65504 into a
 half) is clamped by the store, silently on both backends.  The raster kernel counts, per
-target it writes, the fragments with a channel outside and the highest and lowest such values
-(``cl_pass.cl.j2``: a compare per fragment and target, an atomic per tile row only when some
-fragment was outside); GL stores through fixed-function hardware that never shows the values
-before it clamps them, so the CL backend's counts stand for both (``pipegen check`` renders
-both).
+target it writes, the values (channels of fragments) outside, and keeps the largest and
+smallest values (``cl_pass.cl.j2``, the prelude's ``pg_track``: a few vector integer operations
+per fragment and target, an atomic per tile row only when some value was out); GL stores
+through fixed-function hardware that never shows the values before it clamps them, so the CL
+backend's counts stand for both (``pipegen check`` renders both).
 
 ``ClampCounters``: one device buffer, per pass 4 uints per target it writes (the count, the
 highest and the lowest value as order keys, a spare), each pass's kernel given its own
@@ -35,9 +35,10 @@ _START = np.array([0, 0, 0xFFFFFFFF, 0], np.uint32)
 
 @dataclass(frozen=True)
 class Clamp:
-    """Fragments of one pass whose output to one target lay outside its format's range
-    (``lo``, ``hi``): ``count`` of them in a frame, ``highest`` the largest value above the
-    range (None when none was above), ``lowest`` the smallest below it."""
+    """Values one pass wrote to one target outside its format's range (``lo``, ``hi``):
+    ``count`` of them in a frame (channels of fragments, the channels written), ``highest``
+    the largest value above the range (None when none was above), ``lowest`` the smallest
+    below it (a NaN written into a channel that also clamped may stand in for either)."""
     technique: str
     pass_name: str
     target: str
@@ -100,7 +101,7 @@ _LOGS: contextvars.ContextVar[tuple] = contextvars.ContextVar("pipegen_clamp_log
 
 class ClampLog:
     """The clamps of the frames rendered inside ``collect()``: per (technique, pass, target)
-    the frame with the most clamped fragments, its extremes widened by every frame's."""
+    the frame with the most values clamped, its extremes widened by every frame's."""
 
     def __init__(self):
         self.by_key: dict[tuple, Clamp] = {}
