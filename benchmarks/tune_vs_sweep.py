@@ -38,6 +38,10 @@ def answer(r) -> str:
     return f"none within budget; closest {params}"
 
 
+def renders(n: int) -> str:
+    return f"{n} render" + "s" * (n != 1)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="96x54", help="render size (default 96x54)")
@@ -56,8 +60,8 @@ def main() -> int:
         ok &= same and ratio <= 1 / 3
         print(f"{Path(file).name} on {Path(scene).stem} at {size[0]}x{size[1]}, budget "
               f"{budget} ({e.total} configurations)")
-        print(f"  tune:       {answer(t)}  [{t.renders} renders, {t1 - t0:.1f}s]")
-        print(f"  exhaustive: {answer(e)}  [{e.renders} renders, {t2 - t1:.1f}s]")
+        print(f"  tune:       {answer(t)}  [{renders(t.renders)}, {t1 - t0:.1f}s]")
+        print(f"  exhaustive: {answer(e)}  [{renders(e.renders)}, {t2 - t1:.1f}s]")
         print(f"  same answer: {'yes' if same else 'NO'}; tune's renders: {ratio:.0%} of the "
               f"sweep's")
     return 0 if ok else 1
