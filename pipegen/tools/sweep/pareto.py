@@ -13,27 +13,27 @@ from pipegen.tools.sweep.result import SweepResult, reference_label
 
 def pareto_front(points: list[tuple[float, float]],
                  spans: Optional[list[tuple[float, float]]] = None) -> list[int]:
-    """Indices of the points no other point beats (lower is better on both), sorted by x.
+    """Indices of the front (lower is better on both x and y), sorted by x.
 
     ``spans``: per point, the range ``(lo, hi)`` its y was measured in (frame times: the
-    interquartile range); y values whose ranges overlap are ties, neither better.  A beats B
-    when A's x is at most B's, B's y is not clearly better (B's range entirely below A's), and
-    A is clearly better in one (a smaller x, or A's y range entirely below B's).  So a variant
-    only faster within the noise is beaten by a more accurate one, and two equally accurate
-    variants whose times tie both stay.  Without ``spans`` each y is exact (the usual front).
-    """
+    interquartile range); y values whose ranges overlap are ties, neither better.  Walking from
+    the most accurate point (smallest x), a point joins the front only when its range lies
+    entirely below the range of every more accurate point already on it, or, equally accurate,
+    when no such point's range lies entirely below its own.  So a variant faster than a more
+    accurate one only within the noise is off the front, two equally accurate variants whose
+    times tie both stay, and a variant clearly faster than every more accurate one on the
+    front stays even where a tie links it to them.  Without ``spans`` each y is exact: the
+    usual front."""
     idx = [i for i, (x, y) in enumerate(points) if math.isfinite(x) and math.isfinite(y)]
     lo_hi = [(y, y) for _, y in points] if spans is None else \
         [(min(s[0], p[1]), max(s[1], p[1])) if all(map(math.isfinite, s)) else (p[1], p[1])
          for s, p in zip(spans, points)]
-
-    def beats(a: int, b: int) -> bool:
-        (xa, _), (xb, _) = points[a], points[b]
-        a_faster = lo_hi[a][1] < lo_hi[b][0]
-        b_faster = lo_hi[b][1] < lo_hi[a][0]
-        return xa <= xb and not b_faster and (xa < xb or a_faster)
-
-    front = [b for b in idx if not any(beats(a, b) for a in idx if a != b)]
+    idx.sort(key=lambda i: (points[i][0], lo_hi[i][0], points[i][1]))
+    front: list[int] = []
+    for b in idx:
+        if all(lo_hi[b][1] < lo_hi[a][0] if points[a][0] < points[b][0]
+               else not lo_hi[a][1] < lo_hi[b][0] for a in front):
+            front.append(b)
     return sorted(front, key=lambda i: (points[i][0], points[i][1]))
 
 

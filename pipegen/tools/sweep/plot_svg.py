@@ -125,7 +125,8 @@ def panel(rows: list[tuple[int, dict]], backend: str, title: str, xlabel: str,
                        f'y1="{py(spans[i][0]):.1f}" y2="{py(spans[i][1]):.1f}"/>')
         label = f"#{n} {r['technique']} {r['params']}".strip()
         cls = "pt front-pt" if i in front else "pt"
-        stroke = ' stroke="#000" stroke-width="2"' if r["agree"] is False else ""
+        # GL and CL disagree: a red ring (a style: it wins over the front's stroke)
+        stroke = ' style="stroke:#d00;stroke-width:3"' if r["agree"] is False else ""
         out.append(f'<circle class="{cls}" data-row="{n}" cx="{cx:.1f}" cy="{cy:.1f}" r="6" '
                    f'fill="{colour[r["file"]]}"{stroke} tabindex="0"><title>{_e(label)}: '
                    f'rmse {xs[i]:.3g}, {ys[i]:.3g} {"ms" if timed else "MiB"}</title></circle>')

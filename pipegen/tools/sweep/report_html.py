@@ -24,7 +24,7 @@ from pipegen.core.units import format_bytes
 from pipegen.tools.sweep.plot_svg import plot_svg
 from pipegen.tools.sweep.result import SweepResult, reference_label, reference_line
 
-SHOWN_WIDTH = 240      # small renders are scaled up by a whole factor to at most this width
+SHOWN_WIDTH = 320      # small renders are scaled up by a whole factor to at most this width
 MAX_SCALE = 8
 
 
@@ -60,9 +60,12 @@ def _summary(result: SweepResult) -> str:
         parts = []
         if finite:
             n, r = min(finite, key=lambda t: t[1]["rmse_scene"])
+            same = [f'<a href="#row-{k}">#{k}</a>' for k, o in finite
+                    if k != n and o["rmse_scene"] == r["rmse_scene"]]
+            also = f" (the same error: {', '.join(same)})" if same else ""
             parts.append(f'<li>most accurate: <a href="#row-{n}">{_e(_label(n, r))}</a>, '
                          f'rmse {_num(r["rmse_scene"], 3)}, p99 {_num(r["p99_scene"], 0)}, '
-                         f'max {_num(r["max_scene"], 0)} codes</li>')
+                         f'max {_num(r["max_scene"], 0)} codes{also}</li>')
         timed = [(n, r) for n, r in mine if math.isfinite(r["frame_ms"])]
         if timed:
             n, r = min(timed, key=lambda t: t[1]["frame_ms"])
@@ -109,7 +112,7 @@ def _cell(n: int, r: dict, key, digits) -> tuple[str, str]:
     if key == "ties":
         return " ".join(f"#{t}" for t in v or ()), str(len(v or ()))
     if key in ("agree", "pareto"):
-        text = {True: "yes" if key == "agree" else "*", False: "NO" if key == "agree" else "",
+        text = {True: "yes", False: "NO" if key == "agree" else "",
                 None: "-"}[v]
         return text, {True: "1", False: "0", None: ""}[v]
     if digits is not None:
@@ -133,8 +136,8 @@ def _table(result: SweepResult) -> str:
             cells.append(f'<td data-v="{_e(sort)}">{text}</td>')
         cls = ' class="front-row"' if r.get("pareto") else ""
         body.append(f'<tr data-row="{n}"{cls}>{"".join(cells)}</tr>')
-    return (f'<table id="table"><thead><tr>{head}</tr></thead><tbody>\n' + "\n".join(body)
-            + "\n</tbody></table>")
+    return (f'<div class="scroll"><table id="table"><thead><tr>{head}</tr></thead><tbody>\n'
+            + "\n".join(body) + "\n</tbody></table></div>")
 
 
 # -- the cards --------------------------------------------------------------------------------
@@ -221,15 +224,15 @@ svg .grid{stroke:#eee} svg .front{fill:none;stroke:#666;stroke-dasharray:5 3}
 svg .iqr{stroke:#444;stroke-width:1.5} svg .tie rect{fill:#fd3;fill-opacity:.35;stroke:#c90}
 svg .tie text{fill:#960;font-weight:600} svg .pt{cursor:pointer}
 svg .pt.sel{stroke:#000;stroke-width:3} svg .front-pt{stroke:#333;stroke-width:1}
-#detail{min-width:280px;max-width:560px;border:1px solid #ccc;padding:.5em;background:#fafafa}
+#detail{flex:1 1 300px;min-width:300px;max-width:680px;border:1px solid #ccc;padding:.5em;background:#fafafa}
 table{border-collapse:collapse} #table td,#table th{border:1px solid #ddd;padding:2px 6px}
 #table td{text-align:right} #table td:nth-child(2),#table td:nth-child(3),
 #table td:nth-child(4),#table td:last-child{text-align:left}
 #table th button{font:inherit;font-weight:600;border:0;background:none;cursor:pointer}
 #table tr.front-row{background:#f1f8ff} #table tr.sel{outline:2px solid #000}
-#table tbody tr{cursor:pointer}
+#table tbody tr{cursor:pointer} #table td{white-space:nowrap} .scroll{overflow-x:auto}
 .card{border:1px solid #ddd;padding:.5em;margin:.6em 0;max-width:900px}
-.pics{display:flex;gap:1em} figure{margin:0} figcaption{color:#555;font-size:.9em}
+.pics{display:flex;flex-wrap:wrap;gap:1em} figure{margin:0} figcaption{color:#555;font-size:.9em}
 img{image-rendering:pixelated;border:1px solid #ccc}
 dl{display:grid;grid-template-columns:max-content auto;gap:0 1em;margin:.4em 0}
 dt{color:#555} dd{margin:0} .worst td,.worst th{padding:1px 6px;text-align:left}
@@ -300,9 +303,10 @@ _PAGE = """<!DOCTYPE html>
 <h2>Summary</h2>
 {summary}
 <h2>Error against cost</h2>
-<p class="meta">Each point is a row: hover to see it beside the plot, click to keep it there.
-A bar is the interquartile range of its frame times; front members whose ranges overlap are
-one shaded band (tie: their order by time is noise).</p>
+<p class="meta">Each point is a row: hover over it to see it in the panel next to the plots,
+click to keep it there.  A bar is the interquartile range of its frame times; the dashed line
+is the Pareto front; front members whose ranges overlap are one shaded band (tie: their order
+by time is noise); a red ring: GL and CL disagree.</p>
 <div class="explore"><div class="plots">{plot}</div>
 <div id="detail" data-row="">Hover over or click a point (or a table row) to see its image,
 error map, parameters and worst pixels.</div></div>

@@ -58,6 +58,10 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
     notes = []
     if not use_f64:
         notes.append(F64_NOTE)
+    if 0 < frames < 3:
+        notes.append(f"{frames} timed frame{'s' if frames > 1 else ''} per variant: the "
+                     f"interquartile ranges say little about the noise, so few ties are found "
+                     f"(--frames 5 or more to rank frame times you can believe)")
     from pipegen.proof.accuracy import FLIP_NOTE
     if FLIP_NOTE:
         notes.append(FLIP_NOTE)
