@@ -125,6 +125,10 @@ def test_command_line_misuse():
     r = pipegen("sweep", ROOT / "examples/scenes/edges.toml", "-o", "/tmp/never-written")
     assert r.returncode == 1 and "scene file" in r.stderr
     assert not Path("/tmp/never-written/results.csv").exists()
+    r = pipegen("sweep", INFERRED, "--reference", "ref.pipe:x", "-o", "/tmp/never-written")
+    assert r.returncode == 1 and "not a parameter setting: 'x'" in r.stderr
+    assert "1 | ref.pipe:x" in r.stderr and "Traceback" not in r.stderr
+    assert not Path("/tmp/never-written").exists()
 
 
 # -- sweeps (subprocesses: renders on GL and CL) -------------------------------------------------
@@ -145,8 +149,9 @@ def inferred_sweep(tmp_path_factory):
 @pytest.mark.cl
 def test_inferred_sweep_writes_its_files(inferred_sweep):
     out, stdout = inferred_sweep
-    for name in ("results.csv", "results.json", "table.txt", "pareto.png"):
+    for name in ("results.csv", "results.json", "table.txt", "pareto.png", "index.html"):
         assert (out / name).stat().st_size > 0, name
+    assert len(list((out / "images").glob("*.png"))) == 16
     assert (out / "pareto.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     maps = sorted((out / "errors").glob("*.png"))
     assert len(maps) == 16
@@ -161,6 +166,10 @@ def test_inferred_sweep_writes_its_files(inferred_sweep):
     for r in rows:
         assert num(r["frame_ms"]) > 0 and num(r["cpu_ms"]) > 0 and int(r["target_bytes"]) > 0
         assert 0 < num(r["flip_scene"]) < 1
+        # one frame: its quartiles are itself; the default reference of a shipped technique
+        assert num(r["frame_ms_q1"]) == num(r["frame_ms"]) == num(r["frame_ms_q3"])
+        assert r["reference"] == "scene" and r["pareto"] in ("true", "false")
+    assert any("1 timed frame per variant" in n for n in meta["notes"])
 
 
 @pytest.mark.gl

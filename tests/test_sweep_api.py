@@ -131,8 +131,8 @@ def test_run_sweep_from_stdin_with_a_loaded_scene():
 def test_reference_names_what_errors_are_against_and_worst_pixels_are_located(tmp_path):
     """A toon technique (no shipped lighting): by default measured against itself in float64
     ("self"), with a technique reference its error falls to its rounding where it is the
-    reference, and against the scene's Blinn-Phong it is large.  The worst pixels listed per row are the
-    image's own pixels, compared with the reference's."""
+    reference, and against the scene's Blinn-Phong it is large.  The worst pixels listed per
+    row are the image's own pixels, compared with the reference's."""
     from pipegen.scene.load import load_scene
     from pipegen.tools.sweep.outputs import write_outputs
     from pipegen.tools.sweep.run import run_sweep
@@ -144,7 +144,8 @@ def test_reference_names_what_errors_are_against_and_worst_pixels_are_located(tm
     vs_scene = run_sweep([Path(TOON)], EDGES, axes=axes, reference="scene", **kw)
     vs_default = run_sweep(TOON, scene, axes={"max_lights": [16]}, **kw)
 
-    assert [r["reference"] for r in vs_tech.rows] == ["toon_deferred.pipe:bands=8,max_lights=16"] * 2
+    label = "toon_deferred.pipe:bands=8,max_lights=16"
+    assert [r["reference"] for r in vs_tech.rows] == [label] * 2
     coarse, same = vs_tech.rows
     # where the variant is the reference, its error is its float32 rounding: the figures of
     # its own f64 evaluation (a few pixels sit on a band's edge and round across it: max 46)
@@ -176,3 +177,13 @@ def test_reference_names_what_errors_are_against_and_worst_pixels_are_located(tm
         assert emap[y, x].sum() > 0                     # lit in the error map
     with pytest.raises(PipegenError, match="not a reference"):
         run_sweep([TOON], scene, axes=axes, reference="nonsense", **kw)
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_stress_takes_paths_as_well_as_loaded_objects():
+    pytest.importorskip("pyopencl")
+    from pipegen.tools.stress import stress
+    (result,) = stress(TOON, str(ROOT / "examples/scenes/small.toml"), cases="base",
+                       size=(32, 18))
+    assert result.case == "base" and result.status in ("ok", "warn"), result.status

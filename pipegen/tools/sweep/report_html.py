@@ -224,7 +224,8 @@ svg .grid{stroke:#eee} svg .front{fill:none;stroke:#666;stroke-dasharray:5 3}
 svg .iqr{stroke:#444;stroke-width:1.5} svg .tie rect{fill:#fd3;fill-opacity:.35;stroke:#c90}
 svg .tie text{fill:#960;font-weight:600} svg .pt{cursor:pointer}
 svg .pt.sel{stroke:#000;stroke-width:3} svg .front-pt{stroke:#333;stroke-width:1}
-#detail{flex:1 1 300px;min-width:300px;max-width:680px;border:1px solid #ccc;padding:.5em;background:#fafafa}
+#detail{flex:1 1 300px;min-width:300px;max-width:680px;border:1px solid #ccc;padding:.5em;
+background:#fafafa}
 table{border-collapse:collapse} #table td,#table th{border:1px solid #ddd;padding:2px 6px}
 #table td{text-align:right} #table td:nth-child(2),#table td:nth-child(3),
 #table td:nth-child(4),#table td:last-child{text-align:left}

@@ -45,8 +45,9 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
     or None for the scene's; ``axes``: {name: [values]} (``variants.parse_axes``) or None for
     the declared ones; ``reference``: what the errors are measured against, ``scene``,
     ``self`` or ``FILE.pipe[:name=value,...]`` (``proof.references``; None: each technique's
-    default), evaluated at ``reference_samples`` x ``reference_samples`` per pixel.  Works from a notebook or a script on standard input: the render
-    processes import only pipegen (``worker.py``)."""
+    default), evaluated at ``reference_samples`` x ``reference_samples`` per pixel.  Works
+    from a notebook or a script on standard input: the render processes import only pipegen
+    (``worker.py``)."""
     backends = tuple(backends)
     if isinstance(files, (str, os.PathLike)):
         files = [files]
