@@ -111,6 +111,19 @@ def test_a_log_keeps_the_worst_frame_and_the_widest_extremes():
     assert not clamps.collecting()
 
 
+def test_a_log_gives_the_float32_frames_clamps_when_it_saw_any():
+    """check --precision f64 renders float64 copies around the technique (nudged steps, the
+    reference): beside float32 frames their clamps are not the technique's."""
+    f64 = clamps.Clamp("t", "p", "color", "rgba8", 7, None, -0.01, 0.0, 1.0, "f64")
+    with clamps.collect() as alone:
+        clamps.note([f64], "f64")
+    assert alone.clamps == [f64]
+    with clamps.collect() as both:
+        clamps.note([clamp(count=2, highest=1.5)], "f32")
+        clamps.note([f64], "f64")
+    assert [(c.count, c.lowest, c.precision) for c in both.clamps] == [(2, None, "f32")]
+
+
 def test_the_outputs_highlights_are_counted_not_warned():
     """Above the output's range: the final image saturating, which the picture shows; below
     it, or any clamp of an intermediate target, is warned with the pass and the target."""
@@ -226,12 +239,15 @@ def test_the_wide_path_counts_as_the_scalar_path(monkeypatch, wmin):
 
 @pytest.mark.gl
 @pytest.mark.cl
-def test_check_warns_once_with_the_cl_backends_count(tmp_path, capsys):
-    """check renders both backends; GL cannot see the values before its store clamps them,
-    the CL render counts for both: one warning, the targets still agree."""
+@pytest.mark.parametrize("precision", ["f32", "f64"])
+def test_check_warns_once_with_the_cl_backends_count(tmp_path, capsys, precision):
+    """check renders both backends (and with --precision f64 the float64 evaluation too); GL
+    cannot see the values before its store clamps them, the CL renders count for both: one
+    warning, the check itself unchanged."""
     scene = tmp_path / "hot.toml"
     scene.write_text(HOT_SCENE)
-    assert main(["check", DEFERRED, "--scene", str(scene), "-o", str(tmp_path / "out")]) == 0
+    assert main(["check", DEFERRED, "--scene", str(scene), "--precision", precision,
+                 "-o", str(tmp_path / "out")]) == 0
     err = capsys.readouterr().err
     warnings = [line for line in err.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1 and "what galbedo holds (rgba8: 0 to 1)" in warnings[0], err

@@ -82,7 +82,8 @@ def cmd_check(args) -> int:
         if args.reference is not None or args.reference_samples != 1:
             from pipegen.proof.references import choose_reference
             reference = choose_reference(args.reference, compiled, args.reference_samples)
-        return main_precision_check(compiled, scene, out, reference)
+        return _counting_clamps(compiled, lambda: main_precision_check(
+            compiled, scene, out, reference))
     from pipegen.proof.check import main_check
     return _counting_clamps(compiled, lambda: main_check(
         compiled, scene, out, mismatches=found, max_discontinuities=args.max_discontinuities))

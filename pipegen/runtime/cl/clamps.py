@@ -48,6 +48,7 @@ class Clamp:
     lowest: Optional[float]
     lo: float
     hi: float
+    precision: str = "f32"      # the plan's: "f64" for the float64 evaluation
 
 
 def _from_key(key: int) -> float:
@@ -90,7 +91,7 @@ class ClampCounters:
                 high, low = _from_key(top), _from_key(bottom)
                 out.append(Clamp(self.plan.technique, p.name, name, fmt, n,
                                  high if high > hi else None, low if low < lo else None,
-                                 lo, hi))
+                                 lo, hi, self.plan.precision))
         return out
 
 
@@ -101,26 +102,37 @@ _LOGS: contextvars.ContextVar[tuple] = contextvars.ContextVar("pipegen_clamp_log
 
 class ClampLog:
     """The clamps of the frames rendered inside ``collect()``: per (technique, pass, target)
-    the frame with the most values clamped, its extremes widened by every frame's."""
+    the frame with the most values clamped, its extremes widened by every frame's.
+
+    ``clamps`` are the float32 frames' when the block rendered any: float64 frames beside
+    them are evaluations around the technique (``check --precision f64`` renders its
+    reference, and copies with the technique's steps nudged to find discontinuities, whose
+    values are not the technique's); a block of float64 frames alone (``run --precision
+    f64``) gives theirs."""
 
     def __init__(self):
         self.by_key: dict[tuple, Clamp] = {}
         self.frames = 0          # CL frames seen (0: nothing was counted, e.g. only GL ran)
+        self.precisions: set[str] = set()      # of the frames seen
 
     def add(self, clamps: list[Clamp]) -> None:
         self.frames += 1
         for c in clamps:
-            key = (c.technique, c.pass_name, c.target)
+            key = (c.precision, c.technique, c.pass_name, c.target)
             old = self.by_key.get(key)
             if old is not None:
                 c = Clamp(c.technique, c.pass_name, c.target, c.format, max(c.count, old.count),
                           _extreme(max, c.highest, old.highest),
-                          _extreme(min, c.lowest, old.lowest), c.lo, c.hi)
+                          _extreme(min, c.lowest, old.lowest), c.lo, c.hi, c.precision)
             self.by_key[key] = c
+
+    def frame_seen(self, precision: str) -> None:
+        self.precisions.add(precision)
 
     @property
     def clamps(self) -> list[Clamp]:
-        return [self.by_key[k] for k in sorted(self.by_key)]
+        pick = "f32" if "f32" in self.precisions else "f64"
+        return [self.by_key[k] for k in sorted(self.by_key) if k[0] == pick]
 
 
 def _extreme(pick, a: Optional[float], b: Optional[float]) -> Optional[float]:
@@ -143,7 +155,9 @@ def collecting() -> bool:
     return bool(_LOGS.get())
 
 
-def note(clamps: list[Clamp]) -> None:
-    """A frame's clamps, to every ``collect()`` block around the render."""
+def note(clamps: list[Clamp], precision: str = "f32") -> None:
+    """A frame's clamps (a frame of a plan of ``precision``), to every ``collect()`` block
+    around the render."""
     for log in _LOGS.get():
+        log.frame_seen(precision)
         log.add(clamps)

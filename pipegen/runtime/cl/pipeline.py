@@ -296,7 +296,7 @@ class CLPipeline:
         self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
         self._clamps = None
         if cl_clamps.collecting():
-            cl_clamps.note(self.last_clamps)
+            cl_clamps.note(self.last_clamps, self.precision)
         self.queue.finish()
         for timing, ev in self._events:          # raster kernels run while the host goes on
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
