@@ -105,10 +105,10 @@ class ClampLog:
     the frame with the most values clamped, its extremes widened by every frame's.
 
     ``clamps`` are the float32 frames' when the block rendered any: float64 frames beside
-    them are evaluations around the technique (``check --precision f64`` renders its
-    reference, and copies with the technique's steps nudged to find discontinuities, whose
-    values are not the technique's); a block of float64 frames alone (``run --precision
-    f64``) gives theirs."""
+    them are evaluations around the technique (``check --precision f64`` renders it with its
+    reads moved by their bounds, copies with its steps nudged, its reference: values that are
+    not the technique's); a block of float64 frames alone (``run --precision f64``) gives
+    theirs."""
 
     def __init__(self):
         self.by_key: dict[tuple, Clamp] = {}
