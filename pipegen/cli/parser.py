@@ -52,7 +52,7 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
     if command_word in COMMANDS or command_word == "--version":
         return parser
     from pipegen.tools.sweep.command import add_parser as add_sweep  # `pipegen sweep`: tools/sweep/
-    add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE)
+    add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE, count_arg)
     from pipegen.tools.stress.command import add_parser as add_stress  # `pipegen stress`: tools/stress/
     add_stress(sub, size_arg, OUTPUT_NOTE)
     from pipegen.tools.tune.command import add_parser as add_tune  # `pipegen tune`: tools/tune/

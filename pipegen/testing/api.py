@@ -187,6 +187,17 @@ def _save(path: Path, rgb_top_down: np.ndarray) -> str:
     return str(path)
 
 
+def _too_many_discontinuities(kind: str, technique: str, target: str, sides: str, count: int,
+                              allowed: int, lines: list[str], command: str
+                              ) -> records.Comparison:
+    """The recorded failure of more discontinuities than ``max_discontinuities`` allows."""
+    return records.record(records.Comparison(
+        kind, technique, target, False, f"{count} discontinuities (allowed {allowed})",
+        {"discontinuities": str(count)}, command=command,
+        message=f"{count} px where {sides} took different sides of a step in the technique's "
+                f"code (allowed: max_discontinuities={allowed}):\n" + "\n".join(lines)))
+
+
 def _fail(what: str, failed: list[records.Comparison], every: list[records.Comparison]):
     raise ComparisonFailure(f"{what}\n" + "\n".join(c.message for c in failed), every)
 
@@ -206,6 +217,7 @@ def assert_backends_agree(technique: TechniqueLike, scene: SceneLike = None,
     result = check(compiled, s, max_discontinuities=max_discontinuities if only is None
                    else 1 << 62)          # counted below, over the targets asked for
     command = _command("check", compiled, scene, s)
+    gl, cl = result.renders["gl"], result.renders["cl"]
     made, failed = [], []
     for row in result.rows:
         if only is not None and row.name.partition(".")[0] not in only:
@@ -227,9 +239,8 @@ def assert_backends_agree(technique: TechniqueLike, scene: SceneLike = None,
             c.artifacts["difference"] = path
             c.message = (f"target '{row.name}' ({row.format.name}): {row.over} px where GL and "
                          f"CL differ by more than the limit ({limit} {unit}); worst at "
-                         f"(x={xy[0]}, y={xy[1]}): GL {_channels(_at(result.renders['gl'][row.name], xy))}"
-                         f" vs CL {_channels(_at(result.renders['cl'][row.name], xy))} "
-                         f"codes; error image: {path}")
+                         f"(x={xy[0]}, y={xy[1]}): GL {_channels(_at(gl[row.name], xy))} vs CL "
+                         f"{_channels(_at(cl[row.name], xy))} codes; error image: {path}")
             failed.append(c)
         if settings.keep_images:
             c.images["difference"] = err
@@ -240,13 +251,8 @@ def assert_backends_agree(technique: TechniqueLike, scene: SceneLike = None,
     total = sum(r.discontinuity_count for r in counted)
     if total > max_discontinuities:
         lines = [f"  {r.name}: {d.describe()}" for r in counted for d in r.discontinuities]
-        c = records.record(records.Comparison(
-            "backends", compiled.name, "discontinuities", False,
-            f"{total} discontinuities (allowed {max_discontinuities})",
-            {"discontinuities": str(total)}, command=command,
-            message=f"{total} px where GL and CL took different sides of a "
-                    f"step in the technique's code (allowed: max_discontinuities="
-                    f"{max_discontinuities}):\n" + "\n".join(lines)))
+        c = _too_many_discontinuities("backends", compiled.name, "discontinuities", "GL and CL",
+                                      total, max_discontinuities, lines, command)
         _fail(f"{compiled.name}: discontinuities ({command})", [c], made + [c])
     return result
 
@@ -303,13 +309,9 @@ def assert_close_to_f64(technique: TechniqueLike, scene: SceneLike = None,
             for d in row.discontinuities:
                 disc.append(f"  {row.key} ({b}): {d.describe()}")
         if count > max_discontinuities and not failed:
-            c = records.record(records.Comparison(
-                "f64", compiled.name, f"discontinuities ({b})", False,
-                f"{count} discontinuities (allowed {max_discontinuities})",
-                {"discontinuities": str(count)}, command=command,
-                message=f"{count} px where {b} and the float64 evaluation took different sides "
-                        f"of a step in the technique's code (allowed: max_discontinuities="
-                        f"{max_discontinuities}):\n" + "\n".join(disc)))
+            c = _too_many_discontinuities("f64", compiled.name, f"discontinuities ({b})",
+                                          f"{b} and the float64 evaluation", count,
+                                          max_discontinuities, disc, command)
             made.append(c)
             failed.append(c)
     if failed:
@@ -494,9 +496,10 @@ def assert_matches_golden(targets: Targets, golden_dir: Union[str, os.PathLike],
             xy = row.worst_pixel()
             c.artifacts["difference"] = _save(_artifact(f"golden-{k}"), diff)
             c.artifacts["actual"] = _save(_artifact(f"actual-{k}"), targets[k].picture())
+            flips = ", ".join(f"{a} {b}" for a, b in numbers.items() if "LIP" in a)
             why = (f"{row.over} px differ from the golden by more than the limit "
                    f"({limit} {unit})") if flip is None else \
-                f"ꟻLIP over its threshold ({', '.join(f'{a} {b}' for a, b in numbers.items() if 'LIP' in a)})"
+                f"ꟻLIP over its threshold ({flips})"
             c.message = (f"target '{k}' ({fmt.name}): {why}; worst at (x={xy[0]}, y={xy[1]}): "
                          f"render {_channels(_at(got[k], xy))} vs golden "
                          f"{_channels(_at(golden[k], xy))}, limit {limit} {unit}; error image: "

@@ -27,8 +27,10 @@ EXAMPLES = """\
 
 
 
-def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size: int):
-    """Add ``sweep`` to the ``pipegen`` subcommands (``cli.build_parser``)."""
+def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size: int,
+               count_arg):
+    """Add ``sweep`` to the ``pipegen`` subcommands (``cli.build_parser``, which gives the
+    argument types: ``size_arg``, ``count_arg``)."""
     p = sub.add_parser(
         "sweep", help="render parameter variants, measure frame time and error",
         description="Render every combination of parameter values of one or more techniques "
@@ -50,16 +52,16 @@ def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size
                    help=f"output size (default: the scene file's width x height, "
                         f"{default_size_text} for the built-in scene; each side 1..{max_size})")
     p.add_argument("--reference", metavar="R", help=REFERENCE_HELP)
-    p.add_argument("--reference-samples", type=_count_arg, default=1, metavar="N",
+    p.add_argument("--reference-samples", type=count_arg, default=1, metavar="N",
                    help=SAMPLES_HELP)
     p.add_argument("--backend", type=_backends_arg, default=BACKEND_ORDER, metavar="gl,cl",
                    help="backends, comma-separated (default: gl,cl; agreement needs both)")
-    p.add_argument("--frames", type=_count_arg, default=5, metavar="N",
+    p.add_argument("--frames", type=count_arg, default=5, metavar="N",
                    help="timed frames per variant and backend, median taken after one warm-up "
                         "(default: 5; 0: no timing)")
-    p.add_argument("--jobs", type=_count_arg, default=None, metavar="N",
+    p.add_argument("--jobs", type=count_arg, default=None, metavar="N",
                    help="render processes in the local pool (default: the CPUs available)")
-    p.add_argument("--threads", type=_count_arg, default=DEFAULT_THREADS, metavar="T",
+    p.add_argument("--threads", type=count_arg, default=DEFAULT_THREADS, metavar="T",
                    help=f"rasteriser threads while timing (LP_NUM_THREADS, "
                         f"POCL_MAX_PTHREAD_COUNT; the timing process is pinned to T CPUs; "
                         f"default: {DEFAULT_THREADS})")
@@ -82,16 +84,6 @@ def _backends_arg(text: str) -> tuple:
             f"bad backend list {text!r}: choose from {', '.join(registry.BACKENDS)}, "
             f"comma-separated")
     return names
-
-
-def _count_arg(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = -1
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"bad count {text!r}: a whole number >= 0")
-    return n
 
 
 def command_line(args) -> str:
