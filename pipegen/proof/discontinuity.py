@@ -10,12 +10,13 @@ on precision can hold it.
 
 How a pixel is recognised: the float64 evaluation is rendered again with the step *nudged*,
 its input moved by ``delta * (|operands| + 1)`` up and down (``delta`` in ``LEVELS``, smallest
-first).  A pixel over its bound is a discontinuity of a site when, with that one site nudged
-(and nothing else changed), the float64 evaluation gives each side's value within the bound:
-the difference was the choice the step made, and that site made it.  All sites are nudged at
-once first (two renders per level); one site at a time (two more each) only when that explains
-something, to name the site.  Every nudged variant is the technique recompiled for the float64
-evaluation, so nothing is paid unless a comparison has pixels over its bound.
+first).  A candidate pixel (the two evaluations differ there by more than a continuous
+computation could) is a discontinuity of a site when nudging that one site makes the float64
+evaluation jump there (a choice flipped, not a value moved) and one evaluation is closer to the
+jumped value than to the unnudged one: it took the other side.  All sites upstream of the
+target are nudged at once first (two renders per level); one site at a time (two more each)
+only when that explains something, to name the site.  Every nudged variant is the technique
+recompiled for the float64 evaluation, so nothing is paid unless some pixel is a candidate.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import numpy as np
 from pipegen.core.diagnostics import Span
 from pipegen.ir import nodes as ir
 from pipegen.ir import printer, walk
+from pipegen.proof.f64_compare import error
 
 # the nudges tried, relative to the operands' magnitude (and absolute below 1): 2^-12 is
 # arithmetic error, 2^-6 an input read from an 8-bit target (half a code is 2^-9 of 1, and a
@@ -291,13 +293,8 @@ class Explainer:
 
 
 def distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(H, W): the largest channel difference (NaN against a number: infinite)."""
-    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    with np.errstate(invalid="ignore", over="ignore"):
-        d = np.abs(a - b)
-    d = np.where(np.isnan(a) & np.isnan(b), 0.0, d)
-    d = np.where(np.isinf(a) & np.isinf(b) & (np.sign(a) == np.sign(b)), 0.0, d)
-    d = np.where(np.isnan(d), np.inf, d)
+    """(H, W): the largest channel difference (``f64_compare.error``: NaN matches only NaN)."""
+    d = error(np.asarray(a, np.float64), np.asarray(b, np.float64))
     return d.max(axis=-1) if d.ndim == 3 else d
 
 
