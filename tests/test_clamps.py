@@ -252,3 +252,24 @@ def test_check_warns_once_with_the_cl_backends_count(tmp_path, capsys, precision
     warnings = [line for line in err.splitlines() if line.startswith("warning:")]
     assert len(warnings) == 1 and "what galbedo holds (rgba8: 0 to 1)" in warnings[0], err
     assert "pass gbuffer" in warnings[0] and "as high as 82.8" in warnings[0]
+
+
+@pytest.mark.cl
+def test_a_sweep_counts_clamps_per_row_and_warns_once(tmp_path):
+    """run_sweep on the hot scene (given as a loaded Scene): the CL rows count the specular
+    values galbedo clamped, results.json keeps the records, and the sweep warns once per pass
+    and target, naming the rows."""
+    from pipegen.tools.sweep.run import run_sweep
+    from pipegen.tools.sweep.outputs import csv_text
+    result = run_sweep([DEFERRED], scene=parse_scene(HOT_SCENE, "hot.toml"),
+                       axes={"max_lights": [4, 8]}, backends=("cl",), frames=0, jobs=1,
+                       progress=False)
+    assert [r["clamped"] for r in result.rows] == [result.rows[0]["clamped"]] * 2
+    assert result.rows[0]["clamped"] > 200
+    records = {(c["pass_name"], c["target"]) for c in result.rows[0]["clamps"] if c["warned"]}
+    assert records == {("gbuffer", "galbedo")}
+    assert len(result.warnings) == 1
+    assert result.warnings[0].startswith("warning: deferred: pass gbuffer wrote ")
+    assert "galbedo holds (rgba8: 0 to 1), as high as 82.8" in result.warnings[0]
+    assert "(rows 1,2;" in result.warnings[0] and result.warnings[0] in result.summary()
+    assert ",clamped," in csv_text(result.rows).splitlines()[0] + ","

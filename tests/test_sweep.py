@@ -169,7 +169,14 @@ def test_inferred_sweep_writes_its_files(inferred_sweep):
         # one frame: its quartiles are itself; the default reference of a shipped technique
         assert num(r["frame_ms_q1"]) == num(r["frame_ms"]) == num(r["frame_ms_q3"])
         assert r["reference"] == "scene" and r["pareto"] in ("true", "false")
+        # GL never shows what its formats clamp; on CL nothing is clamped in this scene
+        assert r["clamped"] == ("0" if r["backend"] == "cl" else "")
     assert any("1 timed frame per variant" in n for n in meta["notes"])
+    # the scene reference has no targets: the intermediate targets against the variant's own
+    # float64 evaluation (precision alone), said so
+    for r in meta["rows"]:
+        assert r["targets"] and {e["against"] for e in r["targets"]} == {"f64"}
+    assert "vs f64: the variant's own float64 evaluation" in stdout
 
 
 @pytest.mark.gl
@@ -264,3 +271,36 @@ def test_dask_local_cluster_gives_the_local_pool_results():
 
     assert strip(remote.rows) == strip(local.rows)
     assert remote.maps == local.maps
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_the_sweep_reports_each_intermediate_attribute_in_its_own_units(tmp_path):
+    """The user's question (issue 25): which G-buffer layout keeps normals best?  Against
+    ``self`` (inferred at lbuffer_scale 1, normals in rg16, the L-buffer in rgba32f; the
+    reference evaluated where its G-buffer has this one's size) each row gives the decoded
+    normal's error in degrees, within the encoding's measured bound, and the reference."""
+    from pipegen.packing.error_tables import NORMAL_ERRORS
+    out = tmp_path / "layouts"
+    r = pipegen("sweep", INFERRED, "--scene", ROOT / "examples/scenes/edges.toml",
+                "-p", "normal_format=rg8,rg16", "--reference", "self", "--size", "64x36",
+                "--frames", "0", "--jobs", "2", "--no-progress", "-o", out)
+    assert r.returncode == 0, r.stderr
+    assert "gnormal.xy normal (deg)" in r.stdout and "ds depth (world)" in r.stdout
+    rows = json.loads((out / "results.json").read_text())["rows"]
+    normal = {}
+    for row in rows:
+        by = {e["attribute"]: e for e in row["targets"]}
+        e = by["gnormal.xy normal (kircher)"]
+        assert e["against"] == "self" and e["units"] == "degrees" and len(e["worst"]) > 0
+        assert "evaluated at" in e["note"]              # the reference resized, not resampled
+        normal[row["params"], row["backend"]] = e["max"]
+        # the object ids and the depth are the same at every layout
+        assert by["gdsf.y object (bitfield id)"]["differing"] == 0
+        assert by["gds depth as world position"]["p99"] < 1e-3
+    for b in ("gl", "cl"):
+        rg8, rg16 = normal["normal_format=rg8", b], normal["normal_format=rg16", b]
+        assert 0.1 < rg8 <= NORMAL_ERRORS[("kircher", "rg8", "hemisphere")][0] + 0.01
+        assert rg16 < 0.1 * rg8
+    csv_rows = read_rows(out)
+    assert all("gnormal.xy normal (kircher) p99" in c["target_errors"] for c in csv_rows)

@@ -382,6 +382,40 @@ class Reference:
             return None
         return self._f64(scene)
 
+    def target_at(self, scene, name: str, shape) -> tuple[Optional[np.ndarray], str]:
+        """float64 values of the reference technique's target ``name`` with ``shape``'s
+        height and width, and a note: a target sized relative to the output is evaluated
+        on the scene resized so that it comes out that size (the same texel centres as a
+        render's target of that size, e.g. a G-buffer at ``lbuffer_scale 0.625`` against
+        the reference's at 1.0); otherwise (None, why).  None for ``scene``."""
+        tech = self.technique()
+        if tech is None:
+            return None, "the scene reference has no targets"
+        target = next((t for t in tech.technique.targets if t.name == name), None)
+        if target is None:
+            return None, f"the reference {self.label} has no target '{name}'"
+        h, w = int(shape[0]), int(shape[1])
+        if target.size.resolve(scene.width, scene.height) == (w, h):
+            return self._f64(scene)[name], ""
+        if not target.size.relative:
+            return None, (f"the reference's '{name}' is {target.size.width}x"
+                          f"{target.size.height}, not {w}x{h}")
+        s = target.size.scale
+        out = (max(1, round(w / s)), max(1, round(h / s)))
+        if target.size.resolve(*out) != (w, h):
+            return None, f"no output size gives the reference's '{name}' {w}x{h}"
+        key = ("resized", id(scene), scene.width, scene.height, out)
+        if key not in self._cache:
+            import dataclasses
+            cams = [scene.camera, scene.prev_camera]
+            keep = [dataclasses.replace(c, aspect=c.aspect or scene.aspect) for c in cams]
+            resized = dataclasses.replace(scene.with_size(*out), camera=keep[0],
+                                          previous_camera=keep[1])
+            self._cache[key] = (scene, resized)
+        note = (f"the reference evaluated at {out[0]}x{out[1]} with the output's aspect "
+                f"ratio, where its '{name}' is {w}x{h} as here")
+        return self._f64(self._cache[key][1])[name], note
+
     def silhouette(self, scene) -> Optional[np.ndarray]:
         """bool (H, W), top row first: the scene reference's edges (silhouettes, creases,
         translucent outlines), for interior figures; None for other references.  Supersampled:

@@ -139,6 +139,9 @@ class Camera:
     fov_y_deg: float = 45.0
     near: float = 0.1
     far: float = 100.0
+    # a fixed aspect ratio (None: the output's): a reference evaluated at the size of a
+    # scaled target keeps the projection of the output it stands in for
+    aspect: Optional[float] = None
 
     def view_matrix(self) -> np.ndarray:
         """World -> view (look-at; the camera looks down its -z), float64, column vectors."""
@@ -154,7 +157,9 @@ class Camera:
         return m
 
     def projection(self, aspect: float) -> np.ndarray:
-        """View -> GL clip space (z in [-w, w]), like ``gluPerspective``; float64."""
+        """View -> GL clip space (z in [-w, w]), like ``gluPerspective``; float64.  ``aspect``:
+        the output's width / height, unless the camera fixes its own."""
+        aspect = self.aspect or aspect
         t = 1.0 / math.tan(math.radians(self.fov_y_deg) / 2.0)
         n, f = self.near, self.far
         p = np.zeros((4, 4))

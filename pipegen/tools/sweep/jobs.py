@@ -118,10 +118,12 @@ def render_job(job: dict) -> dict:
 
     ``job``: ``file``, ``params`` ({name: value}), ``scene`` (``scene_spec``), ``backends``,
     ``f64`` (ask for the f64 evaluation), ``reference`` (``reference_data``).  Returns plain
-    data: ``metrics`` {backend: {...}, the *_scene errors against the reference, ``worst``},
+    data: ``metrics`` {backend: {...}, the *_scene errors against the reference, ``worst``,
+    ``targets``: the intermediate targets' errors (``intermediate_errors``)},
     ``agree`` (None with fewer than both backends), ``disagree`` (targets over tolerance),
     ``maps`` {backend: PNG bytes of the error map}, ``images`` {backend: PNG bytes of the
-    output}, ``notes``.
+    output}, ``notes``, ``clamps`` (the CL frame's ``Clamp`` records as dicts, ``warned``
+    added: not the output's highlights).
     """
     from pipegen.proof import accuracy
     from pipegen.compiler.driver import compile_file
@@ -145,11 +147,13 @@ def render_job(job: dict) -> dict:
             agree = not disagree
             if disagree:
                 notes.append("GL and CL disagree on " + ", ".join(disagree))
-        f64_codes = None
+        clamps = list(getattr(pipes.get("cl"), "last_clamps", None) or [])
+        f64_codes = f64_values = None
         if job.get("f64"):
             try:
                 f64 = compiled.pipeline("cl", size=None, precision="f64")
-                f64_codes = accuracy.f64_output_codes(compiled, f64.render(scene))
+                f64_values = f64.render(scene)
+                f64_codes = accuracy.f64_output_codes(compiled, f64_values)
                 getattr(f64, "release", lambda: None)()
             except Exception as e:      # the f64 evaluation is optional: NaN and say why
                 notes.append(f"no f64 evaluation: {type(e).__name__}: {e}")
@@ -169,11 +173,39 @@ def render_job(job: dict) -> dict:
         if f64_codes is not None:
             d = accuracy.codes_error(codes, f64_codes)
             m.update(rmse_f64=d["rmse"], p99_f64=d["p99"], max_f64=d["max"])
+        m["targets"], target_notes = intermediate_errors(compiled, targets, ref, scene,
+                                                         f64_values)
         metrics[b] = m
         maps[b] = accuracy.png_bytes(accuracy.error_map_rgb(codes, ref_rgb))
         images[b] = accuracy.png_bytes(to_top_down(codes)[..., :3])
+    notes += list(dict.fromkeys(target_notes)) if renders else []
+    from pipegen.proof.clamps import warned
+    output = compiled.technique.output
     return dict(metrics=metrics, agree=agree, disagree=disagree, maps=maps, images=images,
-                notes=notes)
+                notes=notes, clamps=[dict(vars(c), warned=warned(c, output)) for c in clamps])
+
+
+def intermediate_errors(compiled, targets: dict, ref, scene, f64_values) -> tuple[list, list]:
+    """Each intermediate target's attributes against the reference technique's same target
+    (``proof.attributes``), or, against the scene reference (which has no targets), against
+    the variant's own float64 evaluation: then the figures are its precision error alone.
+    Returns (plain dicts with ``against``, notes)."""
+    from pipegen.proof.attributes import attribute_errors, values_lookup
+    if ref.technique() is not None:
+        against = ref.label
+        errors, notes = attribute_errors(compiled.technique, targets,
+                                         ref.technique().technique,
+                                         lambda name, shape: ref.target_at(scene, name, shape),
+                                         scene, worst=WORST_PIXELS)
+    elif f64_values is not None:
+        against = "f64"
+        errors, notes = attribute_errors(compiled.technique, targets, compiled.technique,
+                                         values_lookup(f64_values), scene, worst=WORST_PIXELS)
+    else:
+        return [], ["intermediate targets not measured: the scene reference has no targets "
+                    "and there is no float64 evaluation"]
+    return [dict(e.as_dict(), against=against) for e in errors], \
+        [f"intermediate target {n}" for n in notes]
 
 
 # render processes share the cores: one rasteriser thread each (results do not depend on it;

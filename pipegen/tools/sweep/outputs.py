@@ -38,14 +38,21 @@ def csv_text(rows: list[dict]) -> str:
 
 def json_text(result: SweepResult) -> str:
     from pipegen.proof.accuracy import finite_or_none
-    rows = []
-    for r in result.rows:
-        rows.append({k: (finite_or_none(r.get(k)) if isinstance(r.get(k), float) else r.get(k))
-                     for k in COLUMNS + EXTRA_COLUMNS + JSON_ONLY})
+    def plain(v):                    # JSON has no NaN or infinity: null
+        if isinstance(v, float):
+            return finite_or_none(v)
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [plain(x) for x in v]
+        return v
+    rows = [{k: plain(r.get(k)) for k in COLUMNS + EXTRA_COLUMNS + JSON_ONLY}
+            for r in result.rows]
     meta = dict(scene=result.scene, width=result.width, height=result.height,
                 lights=result.lights, backends=list(result.backends), renders=result.where,
                 timing=result.timing, notes=result.notes, references=result.references,
-                command=result.command, columns=COLUMNS + EXTRA_COLUMNS)
+                command=result.command, warnings=result.warnings,
+                columns=COLUMNS + EXTRA_COLUMNS)
     return json.dumps(dict(meta, rows=rows), indent=1) + "\n"
 
 
@@ -57,7 +64,8 @@ def load_result(folder) -> SweepResult:
             for r in data["rows"]]
     return SweepResult(rows, data["scene"], data["width"], data["height"], data["lights"],
                        tuple(data["backends"]), data["renders"], data["timing"], data["notes"],
-                       references=data.get("references", {}), command=data.get("command", ""))
+                       references=data.get("references", {}), command=data.get("command", ""),
+                       warnings=data.get("warnings", []))
 
 
 def write_outputs(result: SweepResult, out) -> Path:

@@ -178,6 +178,7 @@ def _card(n: int, r: dict, result: SweepResult) -> str:
                       f'<th>reference</th><th>error</th></tr>{lines}</table>')
     else:
         worst_html = '<p class="worst">worst pixels: none recorded</p>'
+    worst_html += _targets_html(r) + _clamps_html(r)
     pics = "".join(
         f'<figure><img src="{_e(r[key])}" width="{w}" height="{h}" alt="{_e(cap)} of row {n}">'
         f'<figcaption>{_e(cap)}</figcaption></figure>'
@@ -186,6 +187,48 @@ def _card(n: int, r: dict, result: SweepResult) -> str:
     return (f'<section class="card" id="row-{n}" data-row="{n}"><h3>{_e(_label(n, r))}'
             f'{front}</h3><div class="pics">{pics}</div><dl>{dl}</dl>{worst_html}'
             f'<p class="cmd">reproduce:</p><pre>{_e(r.get("command") or "")}</pre></section>')
+
+
+def _targets_html(r: dict) -> str:
+    """The row's intermediate targets, each attribute in its own units, with its worst
+    pixel."""
+    errors = r.get("targets") or []
+    if not errors:
+        return ""
+    lines = "".join(
+        f"<tr><td>{_e(e['attribute'])}</td><td>{_sig(e['rmse'])}</td>"
+        f"<td>{_sig(e['p99'])}</td><td>{_sig(e['max'])}</td><td>{_e(e['units'])}</td>"
+        f"<td>{_e(_where(e))}</td><td>{_e(e['against'])}</td></tr>" for e in errors)
+    return ('<table class="worst targets"><caption>intermediate targets, against the '
+            "reference's same target (f64: this variant's own float64 evaluation)</caption>"
+            '<tr><th>attribute</th><th>rmse</th><th>p99</th><th>max</th><th>units</th>'
+            f'<th>worst pixel (x, y: got / reference)</th><th>vs</th></tr>{lines}</table>')
+
+
+def _sig(v) -> str:
+    """Three significant figures: attribute errors span 1e-5 (a depth in scene units) to
+    degrees."""
+    return "-" if v is None or v != v else f"{v:.3g}"
+
+
+def _where(e: dict) -> str:
+    if not e.get("worst"):
+        return "-"
+    x, y, got, want = e["worst"][0]
+    show = lambda v: "(" + ", ".join("-" if a is None else f"{a:.4g}" for a in v) + ")"
+    return f"{x}, {y}: {show(got)} / {show(want)}"
+
+
+def _clamps_html(r: dict) -> str:
+    """What the formats clamped in the row's CL frame."""
+    from pipegen.proof.clamps import describe
+    from pipegen.runtime.cl.clamps import Clamp
+    shown = [c for c in r.get("clamps") or [] if c.get("warned")]
+    if not shown:
+        return ""
+    items = "".join(f"<li>{_e(describe(Clamp(**{k: v for k, v in c.items() if k != 'warned'})))}"
+                    f"</li>" for c in shown)
+    return f'<div class="clamps"><p>values the formats clamped (CL frame):</p><ul>{items}</ul></div>'
 
 
 # -- the page ---------------------------------------------------------------------------------
@@ -198,7 +241,7 @@ def report_page(result: SweepResult) -> str:
              f" on {result.scene}")
     plot = plot_svg(result.rows, result.backends, result.scene,
                     (result.width, result.height), ref)
-    notes = "".join(f"<li>{_e(n)}</li>" for n in result.notes)
+    notes = "".join(f"<li>{_e(n)}</li>" for n in result.notes + result.warnings)
     cmd = f"<pre>{_e(result.command)}</pre>" if result.command else ""
     cards = "\n".join(_card(n, r, result) for n, r in enumerate(result.rows, 1))
     return _PAGE.format(

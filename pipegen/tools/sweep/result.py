@@ -14,16 +14,21 @@ COLUMNS = ["technique", "params", "backend", "frame_ms", "target_bytes", "rmse_s
            "p99_scene", "max_scene", "flip_scene", "rmse_f64", "p99_f64", "max_f64", "agree"]
 # (frame_ms is the median of the timed frames, frame_ms_q1..frame_ms_q3 their interquartile
 # range; ties: the numbers of the rows on the same backend whose ranges overlap; pareto: on its
-# backend's front; reference: what the *_scene errors are measured against)
+# backend's front; reference: what the *_scene errors are measured against; clamped: values
+# the formats clamped in a CL frame, the output's highlights aside (empty on GL rows: GL never
+# shows them); target_errors: each intermediate attribute's p99 in its own units)
 EXTRA_COLUMNS = ["cpu_ms", "rmse_interior", "max_interior", "file", "width", "height", "notes",
-                 "frame_ms_q1", "frame_ms_q3", "ties", "pareto", "reference"]
+                 "frame_ms_q1", "frame_ms_q3", "ties", "pareto", "reference", "clamped",
+                 "target_errors"]
 # results.json only, per row: where its error map and image are, its worst pixels
 # ([x, y, [got r, g, b], [reference r, g, b]], y from the top, rgba8 codes), the command that
-# reproduces it
-JSON_ONLY = ["error_map", "image", "worst", "command"]
+# reproduces it, its intermediate targets' errors (``jobs.intermediate_errors``) and, on CL
+# rows, the clamps (``runtime.cl.clamps.Clamp`` fields and ``warned``)
+JSON_ONLY = ["error_map", "image", "worst", "command", "targets", "clamps"]
 # the columns that hold numbers (an empty one is NaN in memory, null in results.json)
 NUMERIC = {"frame_ms", "cpu_ms", "rmse_scene", "p99_scene", "max_scene", "flip_scene", "rmse_f64",
-           "p99_f64", "max_f64", "rmse_interior", "max_interior", "frame_ms_q1", "frame_ms_q3"}
+           "p99_f64", "max_f64", "rmse_interior", "max_interior", "frame_ms_q1", "frame_ms_q3",
+           "clamped"}
 
 
 @dataclass
@@ -41,6 +46,10 @@ class SweepResult:
     images: dict = field(default_factory=dict)  # {file name under images/: PNG bytes}
     references: dict = field(default_factory=dict)  # {technique: {label, text, why}}
     command: str = ""                      # the command line that reproduces the sweep
+    warnings: list[str] = field(default_factory=list)   # values the formats clamped
+
+    def targets_table(self) -> str:
+        return format_targets(self.rows)
 
     def table(self) -> str:
         return format_table(self.rows, self.references)
@@ -49,8 +58,11 @@ class SweepResult:
         head = (f"sweep on {self.scene} at {self.width}x{self.height} ({self.lights} lights), "
                 f"{len({r['file'] + r['params'] for r in self.rows})} variants x "
                 f"{len(self.backends)} backends")
-        lines = [head, self.table(), f"renders and error maps: {self.where}", self.timing]
-        lines += [f"note: {n}" for n in self.notes]
+        lines = [head, self.table()]
+        targets = self.targets_table()
+        lines += [targets] if targets else []
+        lines += [f"renders and error maps: {self.where}", self.timing]
+        lines += [f"note: {n}" for n in self.notes] + self.warnings
         return "\n".join(lines) + "\n"
 
 
@@ -124,3 +136,41 @@ def format_table(rows: list[dict], references: Optional[dict] = None) -> str:
                  "not ranked)")
     lines.append(reference_line(rows, references or {}))
     return "\n".join(lines)
+
+
+UNIT_SHORT = {"degrees": "deg", "scene units": "world", "field steps": "steps",
+              "codes": "codes", "value units": "value"}
+
+
+def format_targets(rows: list[dict]) -> str:
+    """The intermediate targets' errors: a line per row, a column per attribute (``p99/max``
+    in the attribute's own units: degrees for a decoded normal, scene units for a depth's
+    world position, field steps, codes or stored units), and what they are against; below,
+    what each column holds and how it was decoded."""
+    columns: dict[str, dict] = {}                   # column -> {units, how}
+    for r in rows:
+        for e in r.get("targets") or []:
+            c = columns.setdefault(e.get("column", e["attribute"]),
+                                   {"units": e["units"], "how": set()})
+            c["how"].add(e["attribute"])
+    if not columns:
+        return ""
+    header = ("#", "backend", *(f"{c} ({UNIT_SHORT.get(v['units'], v['units'])})"
+                                for c, v in columns.items()), "vs")
+    body = []
+    for n, r in enumerate(rows, 1):
+        got = {e.get("column", e["attribute"]): f"{e['p99']:.2g}/{e['max']:.2g}"
+               for e in r.get("targets") or []}
+        vs = ",".join(sorted({e["against"] for e in r.get("targets") or []})) or "-"
+        body.append((str(n), r["backend"], *(got.get(c, "-") for c in columns), vs))
+    table = [header, *body]
+    widths = [max(len(x[i]) for x in table) for i in range(len(header))]
+    left = {1, len(header) - 1}
+    out = ["  ".join(c.ljust(w) if i in left else c.rjust(w)
+                     for i, (c, w) in enumerate(zip(x, widths))).rstrip() for x in table]
+    out.insert(0, "intermediate targets: p99/max of each attribute against the reference's "
+                  "same target (vs f64: the variant's own float64 evaluation, its precision "
+                  "error alone: the scene reference has no targets)")
+    out += [f"  {c}: {', '.join(sorted(v['how']))}" for c, v in columns.items()
+            if v["how"] != {c}]
+    return "\n".join(out)

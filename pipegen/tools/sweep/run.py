@@ -111,14 +111,19 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
                        command=row_command(v.file, v.params, b, spec, (s.width, s.height),
                                            frames, reference, reference_samples))
             row.update({k: m[k] for k in m})
+            row["target_errors"] = target_errors_text(m.get("targets", []))
+            if b == "cl":               # the CL backend counts what the formats clamp
+                row["clamps"] = res.get("clamps", [])
+                row["clamped"] = sum(c["count"] for c in row["clamps"] if c["warned"])
             rows.append(row)
             maps[name] = res["maps"][b]
             images[name] = res["images"][b]
     mark_front_and_ties(rows)
+    warnings = clamp_warnings(rows)
     described = {t: dict(label=r.label, text=r.describe(), why=r.spec.why)
                  for t, r in refs.items()}
     return SweepResult(rows, spec_name(spec, s), s.width, s.height, len(s.lights), backends,
-                       pool.where, how, notes, maps, images, described)
+                       pool.where, how, notes, maps, images, described, warnings=warnings)
 
 
 def plan_references(variants: list, compiled: dict, text: Optional[str], samples: int) -> dict:
@@ -130,3 +135,32 @@ def plan_references(variants: list, compiled: dict, text: Optional[str], samples
         if v.technique not in refs:
             refs[v.technique] = choose_reference(text, compiled[v.index], samples)
     return refs
+
+
+def target_errors_text(errors: list) -> str:
+    """The csv's ``target_errors``: ``attribute p99 units`` per intermediate attribute,
+    ``;``-separated (results.json has the rest: rmse, max, worst pixels, what against)."""
+    return "; ".join(f"{e['attribute']} p99 {e['p99']:.3g} {e['units']}" for e in errors)
+
+
+def clamp_warnings(rows: list[dict]) -> list[str]:
+    """One warning per technique, pass and target whose values a format clamped, in any
+    variant (the CL rows' ``clamps``), with the variants it happened in."""
+    from pipegen.proof.clamps import describe
+    from pipegen.runtime.cl.clamps import Clamp
+    seen: dict = {}
+    for n, r in enumerate(rows, 1):
+        for c in r.get("clamps", []):
+            if c["warned"]:
+                key = (r["technique"], c["pass_name"], c["target"])
+                worst, numbers = seen.get(key, (None, []))
+                if worst is None or c["count"] > worst["count"]:
+                    worst = c
+                seen[key] = (worst, numbers + [n])
+    out = []
+    for (technique, _, _), (c, numbers) in seen.items():
+        clamp = Clamp(**{k: v for k, v in c.items() if k != "warned"})
+        rows_text = ",".join(map(str, numbers[:8])) + ("..." if len(numbers) > 8 else "")
+        out.append(f"warning: {technique}: {describe(clamp)} (rows {rows_text}; the most in "
+                   f"one frame shown; counted on the CL backend)")
+    return out
