@@ -74,6 +74,13 @@ def test_f32_str_examples(x, text):
             assert str(np.float32(x)) == text
 
 
+def test_f32_str_cache_keeps_zeros_and_roundings_apart():
+    # f32_str is cached by float32 bits: 0.0 == -0.0 as floats, and doubles that round to one
+    # float32 share its text
+    assert [f32_str(0.0), f32_str(-0.0), f32_str(0.0)] == ["0.0", "-0.0", "0.0"]
+    assert f32_str(0.1) == f32_str(0.10000000149011612) == "0.1"
+
+
 def test_f32_rounds_as_numpy_casts():
     doubles = [RNG.uniform(-1, 1) * 10.0 ** RNG.randint(-50, 50) for _ in range(20000)]
     flt_max = float(np.finfo(np.float32).max)
