@@ -112,6 +112,12 @@ def test_fragile_formula_fails_where_it_cancels_and_passes_once_stable():
         color = [t for t in r.targets if t.key == "color"]
         assert all(t.worst_ratio > at_least and t.over > 0 for t in color), \
             [(t.backend, t.worst_ratio) for t in color]
+        # why: the case, the target, where, and that the bound there was the stored result's
+        # rounding alone, so the float32 arithmetic of pass shade magnified it
+        why = [w for w in r.why if w.startswith(f"{case} (the scene translated") and
+               ": color (gl) over its bound at (" in w]
+        assert len(why) == 1, r.why
+        assert "float32 arithmetic magnifying rounding" in why[0] and "pass shade" in why[0]
     # the same light with the difference taken first: every case within its bound
     assert all(r.status == "ok" for r in stable.values()), \
         {c: (r.status, r.worst.worst_ratio) for c, r in stable.items()}
@@ -136,6 +142,11 @@ def test_cli_stress_exit_status_table_pngs_and_scene(tmp_path):
     assert any(l.startswith("far_1e4 ") and " FAIL " in l for l in lines)
     assert any(l.startswith("base ") and " ok " in l for l in lines)
     assert (out / "far_1e4_gl_color.png").is_file() and (out / "far_1e4_cl_color.png").is_file()
+    assert "  why: far_1e4 (the scene translated 10^4 units): color (cl) over its bound" in r.stdout
+    from PIL import Image
+    picture = Image.open(out / "far_1e4_gl_color.png")
+    # three panels of 32x24 at 4x side by side, with titles and legends under them
+    assert picture.width >= 3 * 32 * 4 and picture.height > 24 * 4 + 2 * 14
     saved = load_scene(out / "far_1e4.toml")
     assert saved.width == 32 and len(saved.lights) == len(default_scene().lights)
     assert np.max(np.abs(saved.camera.position)) > 5000
@@ -252,3 +263,45 @@ def test_random_search_shrinks_to_a_minimal_failing_scene(monkeypatch):
     monkeypatch.undo()
     scene = C.random_scene(params, 8, 6)
     assert len(scene.lights) == 2 and scene.width == 8
+
+
+FAR_SCENE = """
+width = 48
+height = 32
+ambient = [0.1, 0.1, 0.1]
+[camera]
+position = [1000.0, 1002.0, 1006.0]
+target = [1000.0, 1000.5, 1000.0]
+fov_y_deg = 45
+[[objects]]
+mesh = "plane"
+translate = [1000.0, 1000.0, 1000.0]
+scale = [10, 1, 10]
+material = { albedo = [0.7, 0.7, 0.7], specular = 0.2, shininess = 16 }
+[[lights]]
+position = [1001.0, 1001.5, 1001.0]
+radius = 4.0
+color = [1.0, 1.0, 1.0]
+"""
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_check_precision_says_why_a_bound_broke_and_labels_its_pictures(tmp_path, capsys):
+    """`check --precision f64` of the fragile formula on a floor 10^3 from the origin: per
+    backend a `why:` line (where, error against bound, the bound's terms there, the pass whose
+    arithmetic magnified rounding), and error pictures titled with the worst pixel."""
+    from PIL import Image
+    from pipegen.cli.main import main
+    pipe, scene = tmp_path / "fragile.pipe", tmp_path / "far.toml"
+    pipe.write_text(FRAGILE)
+    scene.write_text(FAR_SCENE)
+    assert main(["check", str(pipe), "--scene", str(scene), "--precision", "f64",
+                 "-o", str(tmp_path / "check")]) == 0
+    out = capsys.readouterr().out
+    why = [l.strip() for l in out.splitlines() if l.strip().startswith("why: color (")]
+    assert [w.split()[2] for w in why] == ["(gl)", "(cl)"], out
+    for w in why:
+        assert "bound terms there: local " in w and "pass shade's float32 arithmetic" in w
+    picture = Image.open(tmp_path / "check" / "error_gl_color.png")
+    assert picture.width >= 48 * 5 and picture.height > 32 * 5 + 2 * 14   # drawn larger

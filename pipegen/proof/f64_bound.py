@@ -119,6 +119,7 @@ class F64Bound:
         self.info = B.plan_targets(compiled)
         self.depth = B.read_depth(self.info)
         self.f64 = f64_pipe or compiled.pipeline("cl", precision="f64")
+        self.part_maps: dict = {}     # the last bounds' terms per pixel: key -> {term: array}
 
     # -- the bound --------------------------------------------------------------------------
     def bounds(self, scene, f64: dict, blends: dict) -> tuple[dict, dict]:
@@ -188,6 +189,9 @@ class F64Bound:
                             prop[k] = prop[k] + change[k]
             reads = {k: B.SAFETY * v for k, v in prop.items()}
             total = {k: local[k] + pos[k] + reads[k] for k in local}
+        # per pixel, for the line that says why a bound broke (``why.why_over``)
+        self.part_maps = {k: {"local": local[k], "position": pos[k], "reads": reads[k],
+                              "total": total[k]} for k in total}
         for k in total:
             parts[k] = {"local": float(np.max(local[k])) if np.size(local[k]) else 0.0,
                         "position": float(np.max(pos[k])) if np.size(pos[k]) else 0.0,

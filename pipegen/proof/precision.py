@@ -100,6 +100,7 @@ class PrecisionResult:
     parts: dict = field(default_factory=dict)  # per target: the bound's terms (largest)
     notes: list[str] = field(default_factory=list)
     outputs: dict = field(default_factory=dict)  # per backend and "f64": output rgba8 codes
+    why: list[str] = field(default_factory=list)  # per target over its bound (proof/why.py)
 
     def discontinuities(self) -> int:
         return max((sum(r.discontinuity_count for r in rows) for rows in self.rows.values()),
@@ -142,7 +143,10 @@ def precision_check(compiled, scene, backends: tuple[str, ...] = F32_BACKENDS,
     from pipegen.proof.accuracy import f64_output_codes, output_codes
     outputs = {b: output_codes(compiled, renders[b]) for b in backends}
     outputs["f64"] = f64_output_codes(compiled, f64)
-    return PrecisionResult(compiled.name, rows, parts, outputs=outputs)
+    from pipegen.proof.why import why_over
+    why = [w for b in backends for w in (why_over(r, model.part_maps, model.info)
+                                         for r in rows[b]) if w]
+    return PrecisionResult(compiled.name, rows, parts, outputs=outputs, why=why)
 
 
 def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
@@ -168,17 +172,19 @@ def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
         for r in rows:
             for d in r.discontinuities:
                 print(f"  {r.key}: discontinuity: {d.describe()}")
+        for w in result.why:
+            if f" ({b}) " in w:
+                print(f"  why: {w}")
     if reference is not None:
         say(f"evaluating the reference ({reference.label})")
         print()
         print("\n".join(reference_lines(result, reference, scene, compiled.technique.output)))
     if out_dir is not None:
         from pipegen.core.outdir import as_output_dir, safe_name
-        from pipegen.views.visualize import save_png
         with as_output_dir(out_dir, "check").staging() as tmp:
             for b, rows in result.rows.items():
                 for r in rows:
-                    save_png(tmp / safe_name(f"error_{b}_{r.key}", ".png"), ratio_image(r))
+                    ratio_png(tmp / safe_name(f"error_{b}_{r.key}", ".png"), r, b)
         print(f"\nerror images: {out_dir}/error_<backend>_<target>.png")
     return 0
 
@@ -204,6 +210,25 @@ def reference_lines(result: PrecisionResult, reference, scene, output: str) -> l
                      f"{reference.label} {want}")
         lines.append(text)
     return lines
+
+
+RATIO_LEGEND = [("within the bound", (180, 180, 180)), ("over", (255, 40, 40)),
+                ("over, a coverage edge", (230, 200, 40)), ("discontinuity", (60, 120, 255))]
+
+
+def ratio_png(path, row: TargetResult, backend: str) -> None:
+    """:func:`ratio_image` titled (backend, target, the worst error against its bound, where)
+    with its legend (``views.visualize.compose``)."""
+    from pipegen.views.visualize import Panel, compose
+    ratio = "inf" if not np.isfinite(row.worst_ratio) else f"{row.worst_ratio:.3g}"
+    x, y = row.worst_xy
+    title = f"{backend}: {row.key} ({row.format}) error / bound"
+    note = ("exact: every code equal" if row.exact and row.passed else
+            f"worst {ratio} at ({x}, {y} from the top); {row.over} over")
+    img = ratio_image(row)
+    zoom = max(1, 256 // max(img.shape[1], 1))         # small targets drawn larger, unblurred
+    box = (img.shape[1] * zoom, img.shape[0] * zoom)
+    compose([Panel(img, title, RATIO_LEGEND, note, categorical=True)], box=box).save(path)
 
 
 def ratio_image(row: TargetResult) -> np.ndarray:

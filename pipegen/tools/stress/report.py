@@ -78,6 +78,7 @@ def notes(results: list[CaseResult]) -> list[str]:
             out.append(f"{r.case}: over the bound on {', '.join(bad)}"
                        + (" (intermediate targets: reported, not failed)"
                           if r.status == "warn" else ""))
+            out += [f"  why: {w}" for w in r.why]
     return out
 
 
@@ -104,8 +105,8 @@ def worst_pixels_png(res: CaseResult, target: TargetResult, path: Path, scale: i
                      count: int = 16) -> None:
     """Three panels, side by side, ``scale`` x nearest: the float32 target (GL), the float64
     evaluation, and error / bound (black 0, white 1, red over the bound); the ``count`` worst
-    pixels boxed in yellow on every panel."""
-    from PIL import Image
+    pixels boxed in yellow on every panel; under each panel its title (the case, the target,
+    the worst ratio) and a note or legend (``views.visualize.compose``)."""
     key = target.key
     fmt = F.get(target.format)
     gl = res.images["gl"][key]
@@ -128,6 +129,14 @@ def worst_pixels_png(res: CaseResult, target: TargetResult, path: Path, scale: i
             big[y0, x0:x0 + scale] = big[y0 + scale - 1, x0:x0 + scale] = (255, 220, 0)
             big[y0:y0 + scale, x0] = big[y0:y0 + scale, x0 + scale - 1] = (255, 220, 0)
         out.append(big)
-    gap = np.full((out[0].shape[0], 4, 3), 64, np.uint8)
-    img = np.concatenate([out[0], gap, out[1], gap, out[2]], axis=1)
-    Image.fromarray(np.ascontiguousarray(img[::-1])).save(path)   # GL rows: bottom first
+    from pipegen.views.visualize import Panel, compose
+    ratio_text = "inf" if not np.isfinite(target.worst_ratio) else f"{target.worst_ratio:.3g}"
+    x, y = target.worst_xy
+    where = f"{res.case}: {key} ({target.format})"
+    panels = [Panel(out[0], f"{where}, float32 (GL)",
+                    note=f"yellow boxes: the {count} worst pixels"),
+              Panel(out[1], "float64 evaluation", note=f"worst at ({x}, {y} from the top)"),
+              Panel(out[2], f"error / bound: worst {ratio_text}",
+                    legend=[("0", (0, 0, 0)), ("1", (255, 255, 255)),
+                            ("over", (255, 40, 40))])]
+    compose(panels).save(path)

@@ -46,6 +46,9 @@ class CaseResult:
     # with a reference (--reference): backend -> the output's figures against it
     # (accuracy.codes_vs_reference), or {"error": why it could not be evaluated}
     vs_reference: dict = field(default_factory=dict)
+    # one line per target over its bound: where, by how much, what the bound was made of
+    # there (``proof.why.why_over``)
+    why: list[str] = field(default_factory=list)
 
     @property
     def worst(self) -> Optional[TargetResult]:
@@ -152,6 +155,10 @@ class Stress:
         bound, parts = self.bounds(scene, f64, blends)
         rows = compare_with_f64(self.compiled, scene, renders, f64, bound, blends)
         res.targets = [row for b in BACKENDS for row in rows[b]]
+        from pipegen.proof.why import why_over
+        said = f"{case.name} ({case.description})" if case.description else case.name
+        res.why = [w for w in (why_over(t, self.bound.part_maps, self.info, said)
+                               for t in res.targets) if w]
         if keep_images:
             res.images = {"gl": renders["gl"], "f64": f64, "bound": bound, "parts": parts}
         if res.mismatches:
