@@ -273,3 +273,25 @@ def test_a_sweep_counts_clamps_per_row_and_warns_once(tmp_path):
     assert "galbedo holds (rgba8: 0 to 1), as high as 82.8" in result.warnings[0]
     assert "(rows 1,2;" in result.warnings[0] and result.warnings[0] in result.summary()
     assert ",clamped," in csv_text(result.rows).splitlines()[0] + ","
+
+
+@pytest.mark.cl
+def test_the_testing_api_counts_and_warns():
+    """pipegen.testing.render on CL: ``Targets.clamped`` per target and pass, and a
+    ClampWarning naming the pass and the target; on GL nothing can be counted: None."""
+    import pipegen.testing as pt
+    scene = parse_scene(HOT_SCENE, "hot.toml")
+    with pytest.warns(pt.ClampWarning, match=r"deferred: pass gbuffer wrote \d+ values outside "
+                                             r"what galbedo holds \(rgba8: 0 to 1\), as high "
+                                             r"as 82\.8"):
+        cl = pt.render(DEFERRED, scene, backend="cl")
+    assert cl.clamped["galbedo"] > 200 and cl.clamped.passes("galbedo") == \
+        {"gbuffer": cl.clamped["galbedo"]}
+    saturated = int(np.sum(cl["galbedo"].values[..., 3] == 255))
+    assert cl.clamped["galbedo"] == saturated
+
+
+@pytest.mark.gl
+def test_the_testing_api_on_gl_has_no_clamp_counts():
+    import pipegen.testing as pt
+    assert pt.render(DEFERRED, parse_scene(HOT_SCENE, "hot.toml"), backend="gl").clamped is None

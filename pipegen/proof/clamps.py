@@ -24,6 +24,11 @@ def _number(x: float) -> str:
     return f"{x:.4g}"
 
 
+class ClampWarning(UserWarning):
+    """A value a format clamped, as ``pipegen.testing.render`` warns about it (once per pass
+    and target, by Python's default warning filter)."""
+
+
 def warned(c: Clamp, output: Optional[str]) -> bool:
     """Whether a clamp is warned about (the module docstring): not the output's highlights."""
     return not (c.target == output and c.lowest is None)

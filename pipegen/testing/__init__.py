@@ -27,5 +27,6 @@ def _api():
 __getattr__, __dir__ = lazy_names(globals(), dict.fromkeys((
     "render", "assert_backends_agree", "assert_close_to_f64", "assert_matches_golden",
     "assert_close_to_reference",
-    "ComparisonFailure", "Targets", "TargetImage", "load_technique", "load_test_scene",
+    "ComparisonFailure", "ClampWarning", "Targets", "TargetImage", "load_technique",
+    "load_test_scene",
     "TEST_SIZE"), _api))

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import shlex
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ import numpy as np
 
 from pipegen.compiler.driver import Compiled, compile_file
 from pipegen.core import formats
+from pipegen.proof.clamps import ClampWarning, Clamped, clamped_values
 from pipegen.scene import Scene, default_scene, load_scene
 from pipegen.testing import records, settings
 
@@ -68,6 +70,9 @@ class Targets(Mapping):
     images: dict[str, TargetImage] = field(repr=False)
     command: str = ""                          # a shell command that renders the same
     blend_counts: dict = field(default_factory=dict, repr=False)   # CL: fragments per pixel
+    # CL: the values each target's format clamped in the frame (``proof.clamps.Clamped``:
+    # ``clamped["galbedo"]``, ``clamped.passes("galbedo")``); None on GL, which never shows them
+    clamped: Optional[Clamped] = field(default=None, repr=False)
 
     def __getitem__(self, name: str) -> TargetImage:
         return self.images[name]
@@ -157,8 +162,14 @@ def render(technique: TechniqueLike, scene: SceneLike = None, backend: str = "gl
         base = key.partition(".")[0]
         images[key] = TargetImage(key, compiled.technique.target(base).format.name, v)
     counts = dict(getattr(pipe, "last_blend_counts", None) or {})
+    clamped = clamped_values(pipe, compiled.technique.output)
+    for line in clamped.warnings() if clamped is not None else ():
+        if line.startswith("warning: "):    # once per pass and target (Python's warning filter)
+            warnings.warn(f"{compiled.name}: {line[len('warning: '):]}", ClampWarning,
+                          stacklevel=2)
     return Targets(compiled.name, backend, s, compiled, images,
-                   _command("run", compiled, scene, s, ("--backend", backend)), counts)
+                   _command("run", compiled, scene, s, ("--backend", backend)), counts,
+                   clamped)
 
 
 # -- messages ----------------------------------------------------------------------------------
