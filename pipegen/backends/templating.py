@@ -121,8 +121,8 @@ def _flat(obj, room: int):
         if any(isinstance(v, str) and _multiline_ok(v) for v in _leaves(obj)):
             return None
         text = repr(obj)
-    elif isinstance(obj, str) and _multiline_ok(obj):
-        return None
+    elif isinstance(obj, str) and (len(obj) > room or _multiline_ok(obj)):
+        return None          # too long however written: no need to scan it (shader source)
     else:
         text = repr(obj)
     return text if len(text) <= room else None
