@@ -90,6 +90,56 @@ def sponza_like(path: Path, scale: int) -> int:
     return tris
 
 
+def subdivide_obj(src: Path, dst: Path) -> int:
+    """Write ``src`` with every triangle (polygons split as fans first) split into four at its
+    edge midpoints, adjacent triangles sharing the midpoint vertex of their common edge (so the
+    surfaces stay connected for smoothing and normal groups).  Every other statement is kept in
+    order; the vertices come first, the new ones after the file's own.  MTL files named by
+    ``mtllib`` are copied next to ``dst``.  For files of ``v`` positions and positive indices
+    (the Dabrovic Sponza); returns the triangle count."""
+    lines = src.read_text().splitlines()
+    v_lines, rest, tris = [], [], []
+    for line in lines:
+        parts = line.split("#", 1)[0].split()
+        if parts[:1] == ["v"]:
+            v_lines.append(line)
+        elif parts[:1] == ["f"]:
+            idx = [int(c.split("/")[0]) - 1 for c in parts[1:]]
+            if min(idx) < 0 or any("/" in c for c in parts[1:]):
+                raise SystemExit(f"{src}: --subdivide takes faces of positive 'v' indices only")
+            rest.append(len(tris))                 # an int: the start of this face's triangles
+            tris += [(idx[0], idx[k], idx[k + 1]) for k in range(1, len(idx) - 1)]
+            rest.append(len(tris))
+        elif parts:
+            rest.append(line)
+            if parts[0] == "mtllib":
+                for lib in parts[1:]:
+                    if (src.parent / lib).exists():
+                        (dst.parent / lib).write_bytes((src.parent / lib).read_bytes())
+    V = np.array([[float(x) for x in v.split()[1:4]] for v in v_lines])
+    T = np.array(tris, dtype=np.int64)
+    edges = np.sort(np.stack([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]], axis=1), axis=2)
+    keys, mid = np.unique(edges.reshape(-1, 2), axis=0, return_inverse=True)
+    mid = len(V) + mid.reshape(-1, 3)              # ids of the midpoints of ab, bc, ca
+    a, b, c = T.T
+    ab, bc, ca = mid.T
+    four = np.stack([np.stack([a, ab, ca], 1), np.stack([b, bc, ab], 1),
+                     np.stack([c, ca, bc], 1), np.stack([ab, bc, ca], 1)], axis=1) + 1
+    M = 0.5 * (V[keys[:, 0]] + V[keys[:, 1]])
+    out = v_lines + [f"v {x:.7f} {y:.7f} {z:.7f}" for x, y, z in M]
+    k = 0
+    while k < len(rest):
+        item = rest[k]
+        if isinstance(item, str):
+            out.append(item)
+            k += 1
+        else:
+            out += [f"f {i} {j} {l}" for i, j, l in four[item:rest[k + 1]].reshape(-1, 3)]
+            k += 2
+    dst.write_text("\n".join(out) + "\n")
+    return 4 * len(T)
+
+
 def scene_for(obj: Path) -> Path:
     toml = obj.with_suffix(".toml")
     toml.write_text(f"""width = 320
@@ -120,6 +170,9 @@ def main() -> int:
     ap.add_argument("--obj", nargs="*", type=Path, help="time these OBJ files instead")
     ap.add_argument("--before", action="store_true", help="also time the loader of commit caa375c")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--subdivide", type=int, choices=(4,),
+                    help="time the --obj files with each triangle split into 4 at its edge "
+                         "midpoints (written to a temporary folder)")
     args = ap.parse_args()
     from pipegen.scene import load_scene, make_object, Material, transform_matrix
 
@@ -132,6 +185,16 @@ def main() -> int:
             p.parent.mkdir()
             sponza_like(p, scale)
             files.append(p)
+    if args.subdivide:
+        if not files:
+            ap.error("--subdivide needs --obj files")
+        subdivided = []
+        for obj in files:
+            dst = work / f"{obj.stem}_x4" / f"{obj.stem}_x4.obj"
+            dst.parent.mkdir()
+            subdivide_obj(obj, dst)
+            subdivided.append(dst)
+        files = subdivided
     before = old_meshes() if args.before else None
     print(f"{'file':<28} {'triangles':>9} {'after: best wall (cpu)':>23} {'before: wall (cpu)':>20} "
           f"{'ratio':>6}")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -39,6 +40,12 @@ def normalize_rows(v: np.ndarray) -> np.ndarray:
     return v / np.where(n > 0, n, 1.0)
 
 
+def take_rows(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``a[index]`` for an array of rows: ``np.take`` along axis 0 copies (N, 3) rows several
+    times faster than fancy indexing does (numpy 2.x), with the same result."""
+    return np.take(a, index, axis=0)
+
+
 def face_normals(positions: np.ndarray) -> np.ndarray:
     """Unit geometric normals (T, 3) of a non-indexed triangle list (ccw = front)."""
     tri = positions.reshape(-1, 3, 3)
@@ -62,11 +69,18 @@ def _expand(vertices, normals, faces, orient: bool = True) -> tuple[np.ndarray, 
     return vertices[idx], normals[idx]
 
 
-def finish_mesh(positions: np.ndarray, normals: np.ndarray) -> Mesh:
+def finish_mesh(positions: np.ndarray, normals: np.ndarray,
+                vertex: Optional[np.ndarray] = None) -> Mesh:
+    """The mesh of a triangle list without its degenerate triangles, with normal groups.
+    ``vertex`` (optional, one index per corner) says which corners share a position (an
+    indexed file's vertex indices): it only makes the welding of :func:`normal_groups`
+    cheaper."""
     keep = _non_degenerate(positions)
     positions = positions.reshape(-1, 3, 3)[keep].reshape(-1, 3)
     normals = normals.reshape(-1, 3, 3)[keep].reshape(-1, 3)
-    return Mesh(positions, normals, normal_groups(positions, normals))
+    if vertex is not None:
+        vertex = vertex.reshape(-1, 3)[keep].reshape(-1)
+    return Mesh(positions, normals, normal_groups(positions, normals, vertex=vertex))
 
 
 def _non_degenerate(positions: np.ndarray) -> np.ndarray:
@@ -186,21 +200,21 @@ def smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> 
     if n == 0:
         return np.zeros((0, 3))
     nv = int(corners.max()) + 1
-    uc = np.repeat(unit, 3, axis=0)
 
-    def per_vertex_sum(values, idx, length):
-        return np.stack([np.bincount(idx, weights=values[:, k], minlength=length)
+    def per_vertex_sum(per_face):
+        """Sum over each vertex's corners of their face's row (in corner order)."""
+        return np.stack([np.bincount(corners, weights=np.repeat(per_face[:, k], 3), minlength=nv)
                          for k in range(3)], axis=1)
 
-    mean = normalize_rows(per_vertex_sum(uc, corners, nv))
-    dev = np.einsum("ij,ij->i", uc, mean[corners])
+    mean = normalize_rows(per_vertex_sum(unit))
+    dev = np.einsum("ij,ij->i", np.repeat(unit, 3, axis=0), take_rows(mean, corners))
     min_cos = np.full(nv, 2.0)
     np.minimum.at(min_cos, corners, dev)
     zero = np.zeros(nv, dtype=bool)
-    zero[corners[~np.any(uc != 0, axis=1)]] = True
+    zero[faces[(unit[:, 0] == 0) & (unit[:, 1] == 0) & (unit[:, 2] == 0)]] = True
     half = math.radians(crease_deg) / 2.0 - 1e-9
     easy = (min_cos >= math.cos(half)) & ~zero & (half > 0)
-    out = normalize_rows(per_vertex_sum(np.repeat(fn_raw, 3, axis=0), corners, nv))[corners]
+    out = take_rows(normalize_rows(per_vertex_sum(fn_raw)), corners)
 
     hard = np.flatnonzero(~easy[corners])        # corners at vertices needing every pair
     if len(hard):
@@ -215,9 +229,12 @@ def smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> 
         i = np.repeat(np.arange(m), r_size)          # pairs (i, j), j over i's run (i too)
         offset = np.arange(len(i)) - np.repeat(np.cumsum(r_size) - r_size, r_size)
         j = np.repeat(r_start, r_size) + offset
-        ti, tj = order[i] // 3, order[j] // 3
-        close = np.einsum("ij,ij->i", unit[ti], unit[tj]) >= cos_crease
-        acc = per_vertex_sum(fn_raw[tj[close]], i[close], m)
+        unit_s, raw_s = take_rows(unit, order // 3), take_rows(fn_raw, order // 3)
+        close = np.einsum("ij,ij->i", np.repeat(unit_s, r_size, axis=0),
+                          take_rows(unit_s, j)) >= cos_crease
+        add = take_rows(raw_s, j[close])
+        acc = np.stack([np.bincount(i[close], weights=add[:, k], minlength=m) for k in range(3)],
+                       axis=1)
         out[order] = normalize_rows(acc)
     return out
 
@@ -225,13 +242,24 @@ def smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> 
 # -- normal groups -----------------------------------------------------------------------------
 
 
-def _weld(positions: np.ndarray, tol: float) -> np.ndarray:
+def _weld(positions: np.ndarray, tol: float, vertex: Optional[np.ndarray] = None) -> np.ndarray:
     """Position id per vertex: positions equal after rounding to ``tol`` times the largest
-    coordinate share an id (ids ordered like ``np.unique(keys, axis=0)``)."""
+    coordinate share an id (ids ordered like ``np.unique(keys, axis=0)``).  With ``vertex``
+    (corners of one index share a position), each distinct index is welded once: the same
+    points, so the same ids, for a fraction of the sorting."""
+    if vertex is not None and len(vertex):
+        used = np.zeros(int(vertex.max()) + 1, dtype=bool)
+        used[vertex] = True
+        rank = np.cumsum(used) - 1                   # index -> its place among the used ones
+        local = rank[vertex]
+        some_corner = np.empty(int(rank[-1]) + 1, dtype=np.int64)
+        some_corner[local] = np.arange(len(vertex))
+        return _weld(take_rows(positions, some_corner), tol)[local]
     scale = max(float(np.abs(positions).max()), 1e-30)
     keys = np.round(positions / (scale * tol)).astype(np.int64)
-    lo = keys.min(axis=0)
-    span = keys.max(axis=0) - lo + 1
+    # per column: a reduction along axis 0 of an (N, 3) array is many times slower
+    lo = np.array([keys[:, k].min() for k in range(3)])
+    span = np.array([keys[:, k].max() for k in range(3)]) - lo + 1
     if float(span[0]) * float(span[1]) * float(span[2]) < 2.0 ** 62:
         flat = ((keys[:, 0] - lo[0]) * span[1] + (keys[:, 1] - lo[1])) * span[2] + (keys[:, 2] - lo[2])
         _, pid = np.unique(flat, return_inverse=True)
@@ -262,19 +290,21 @@ def connected_components(count: int, a: np.ndarray, b: np.ndarray) -> np.ndarray
     return parent
 
 
-def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5) -> np.ndarray:
+def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5,
+                  vertex: Optional[np.ndarray] = None) -> np.ndarray:
     """Group id (0..255) per triangle: connected components of the mesh's dual graph where
     two triangles are adjacent when they share an edge *and* agree on the vertex normals at
     both of its ends, so every normal discontinuity (a crease) separates groups.
 
     Components are numbered in order of their first triangle; past 256 the numbers wrap
     (``% 256``), which keeps the id in 8 bits at the cost of reusing ids far apart in the mesh.
+    ``vertex``: as for :func:`finish_mesh` (the same groups, found faster).
     """
     tri_count = len(positions) // 3
     if tri_count == 0:
         return np.zeros(0, dtype=np.int64)
     # Weld positions so shared edges are found although the list is non-indexed.
-    pid = _weld(positions, tol)
+    pid = _weld(positions, tol, vertex)
 
     corner = np.arange(3 * tri_count).reshape(-1, 3)
     a = corner.reshape(-1)                       # edge k of triangle t: corner k -> corner k+1
@@ -298,12 +328,13 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5)
     unit = normalize_rows(np.asarray(normals, dtype=np.float64))
 
     def agree(c0, c1):
-        return np.einsum("ij,ij->i", unit[c0], unit[c1]) > 1 - tol
+        return np.einsum("ij,ij->i", take_rows(unit, c0), take_rows(unit, c1)) > 1 - tol
 
     smooth = agree(lo[e0], lo[e1]) & agree(hi[e0], hi[e1])
     roots = connected_components(tri_count, e0[smooth] // 3, e1[smooth] // 3)
-    _, inverse = np.unique(roots, return_inverse=True)   # roots are first triangles: in order
-    return (inverse.reshape(-1) % 256).astype(np.int64)
+    # roots are first triangles: a component's number is its root's rank among the roots
+    rank = np.cumsum(roots == np.arange(tri_count)) - 1
+    return (rank[roots] % 256).astype(np.int64)
 
 
 # -- light volumes -----------------------------------------------------------------------------

@@ -122,19 +122,53 @@ def _line_of(data: bytes, key: bytes, k: int) -> int:
     return 0
 
 
-def _numbers(records: list[bytes], width: int, data: bytes, key: bytes) -> np.ndarray:
+@dataclass(frozen=True)
+class _Records:
+    """The records of one statement kind (``v``, ``vn`` or ``f``) in a scanned file: byte
+    offsets of their lines and of the newlines ending them (in ``data``, the normalised text)."""
+
+    data: bytes
+    keyword: bytes
+    starts: np.ndarray
+    ends: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def text(self, sep: bytes) -> bytes:
+        """Every record's text after the keyword, each followed by ``sep``.  Consecutive lines
+        are cut from the file as one slice whose inner keywords become ``sep``, so the work is
+        a few bytes operations per run of records, not per record (a bare keyword line keeps
+        its keyword: the parse then fails and the slow path reports it)."""
+        if not len(self):
+            return b""
+        k = len(self.keyword)
+        breaks = np.flatnonzero(self.starts[1:] != self.ends[:-1] + 1)
+        begin = self.starts[np.r_[0, breaks + 1]] + k
+        end = self.ends[np.r_[breaks, len(self) - 1]]
+        inner = b"\n" + self.keyword + b" "
+        runs = [self.data[a:b].replace(inner, sep) for a, b in zip(begin.tolist(), end.tolist())]
+        return sep.join(runs) + sep
+
+    def bodies(self) -> list[bytes]:
+        """Each record's text after the keyword, one bytes object per record (slow paths)."""
+        k = len(self.keyword)
+        return [self.data[s + k: e] for s, e in zip(self.starts.tolist(), self.ends.tolist())]
+
+
+def _numbers(records: _Records, width: int, data: bytes) -> np.ndarray:
     """(len(records), width) float64 from records of at least ``width`` numbers each."""
-    if not records:
+    key = records.keyword
+    if not len(records):
         return np.zeros((0, width))
-    joined = b" ".join(records)
     try:
-        flat = np.fromstring(joined, dtype=np.float64, sep=" ")   # C parser; text mode is kept
+        flat = np.fromstring(records.text(b" "), dtype=np.float64, sep=" ")   # C parser
     except ValueError:
         flat = None
     if flat is not None and flat.size == width * len(records):
         return flat.reshape(-1, width)
     out = np.empty((len(records), width))
-    for k, rec in enumerate(records):     # slow path: extra components (w, colours) or an error
+    for k, rec in enumerate(records.bodies()):   # slow path: extra components (w) or an error
         parts = rec.split()
         try:
             if len(parts) < width:
@@ -152,26 +186,33 @@ def _numbers(records: list[bytes], width: int, data: bytes, key: bytes) -> np.nd
 _SENTINEL = 9_999_999_999_999          # ends each face in the joined index text (13 digits)
 
 
-def _corner_indices(faces: list[bytes], data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _token_count(text: bytes) -> int:
+    """Whitespace-separated tokens in ``text`` (spaces and newlines only, as scanned)."""
+    t = np.frombuffer(text, dtype=np.uint8)
+    blank = (t == 32) | (t == 10)
+    return int(np.count_nonzero(~blank[1:] & blank[:-1])) + int(len(t) > 0 and not blank[0])
+
+
+def _corner_indices(faces: _Records, data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per corner: vertex index and normal index as written (0 = none), and corners per face.
 
     Fast path: every corner of the file in one format (``v``, ``v/vt``, ``v//vn`` or
     ``v/vt/vn``: every corner's slashes alike and a number in each slot but an empty ``vt``),
     parsed as one integer array with a sentinel after each face.  Anything else (mixed
     formats, an error to locate) takes a per-corner loop."""
-    joined = b" ".join(faces)
-    tokens = joined.split()
-    first = tokens[0] if tokens else b""
-    cols = first.count(b"/") + 1
-    skeleton = set(joined.translate(None, b"0123456789-").split())
+    text = faces.text(b" 9999999999999 ")
+    first = text.split(None, 1)[:1]
+    cols = first[0].count(b"/") + 1 if first else 1
+    slashes = text.translate(None, b"0123456789-")
+    skeleton = set(slashes.split()) if b"/" in slashes else set()
     if cols <= 3 and skeleton <= {b"/" * (cols - 1)} and (cols > 1 or not skeleton):
-        text = b" 9999999999999 ".join(faces) + b" 9999999999999"
         try:
             flat = np.fromstring(text.replace(b"//", b"/0/").replace(b"/", b" "), dtype=np.int64,
                                  sep=" ")
         except ValueError:
             flat = None
-        if flat is not None and flat.size == cols * len(tokens) + len(faces):
+        corners = _token_count(text) - len(faces)
+        if flat is not None and flat.size == cols * corners + len(faces):
             ends = np.flatnonzero(flat == _SENTINEL)
             if len(ends) == len(faces) and not np.any(np.abs(flat[flat != _SENTINEL]) >= 10**12):
                 counts = (np.diff(np.r_[-1, ends]) - 1) // cols
@@ -182,7 +223,8 @@ def _corner_indices(faces: list[bytes], data: bytes) -> tuple[np.ndarray, np.nda
                 idx = flat[flat != _SENTINEL].reshape(-1, cols)
                 vn = idx[:, 2] if cols == 3 else np.zeros(len(idx), np.int64)
                 return idx[:, 0], vn, counts
-    counts = np.fromiter((len(f.split()) for f in faces), dtype=np.int64, count=len(faces))
+    bodies = faces.bodies()
+    counts = np.fromiter((len(f.split()) for f in bodies), dtype=np.int64, count=len(bodies))
     small = np.flatnonzero(counts < 3)
     if len(small):
         raise ObjError("a face needs at least three vertices", _line_of(data, b"f", int(small[0])))
@@ -190,7 +232,7 @@ def _corner_indices(faces: list[bytes], data: bytes) -> tuple[np.ndarray, np.nda
     v = np.zeros(n, np.int64)                  # slow path: mixed corner formats or an error
     vn = np.zeros(n, np.int64)
     k = 0
-    for fi, f in enumerate(faces):
+    for fi, f in enumerate(bodies):
         for corner in f.split():
             c = corner.split(b"/")
             try:
@@ -221,36 +263,41 @@ def _resolve(idx: np.ndarray, before: np.ndarray, total: int, what: str, counts:
 
 
 def _scan(data: bytes):
-    """The file's statements by kind: ``v``, ``vn`` and ``f`` records (their text after the
-    keyword), per face the ``v``/``vn`` records before it (for relative, negative, indices)
-    and its material (index into the material names, 0 = none), the ``mtllib`` names and a
-    count of every other statement.  Lines are classified by their first bytes with numpy;
-    Python touches only the lines it keeps."""
+    """The file's statements by kind: ``v``, ``vn`` and ``f`` records (:class:`_Records`), per
+    face the ``v``/``vn`` records before it (for relative, negative, indices) and its material
+    (index into the material names, 0 = none), the ``mtllib`` names and a count of every other
+    statement.  Lines are classified by their first bytes with numpy; Python touches only the
+    lines of other statements (``vt`` lines are counted without it)."""
     if b"\r" in data:
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     if b"#" in data:
         data = re.sub(rb"#[^\n]*", b"", data)
     if b"\t" in data:
         data = data.replace(b"\t", b" ")
-    if data[:1] == b" " or b"\n " in data:
-        data = re.sub(rb"(?m)^ +", b"", data)
-    lines = data.split(b"\n")
     arr = np.frombuffer(data + b"\n\n\n", dtype=np.uint8)
-    starts = np.r_[0, np.flatnonzero(arr[: len(data)] == 10) + 1]
+    ends = np.flatnonzero(arr[: len(data) + 1] == 10)        # the newline ending each line
+    starts = np.r_[0, ends[:-1] + 1]
+    if np.any(arr[starts] == 32):
+        data = re.sub(rb"(?m)^ +", b"", data)
+        arr = np.frombuffer(data + b"\n\n\n", dtype=np.uint8)
+        ends = np.flatnonzero(arr[: len(data) + 1] == 10)
+        starts = np.r_[0, ends[:-1] + 1]
     c0, c1, c2 = arr[starts], arr[starts + 1], arr[starts + 2]
     end1, end2 = (c1 == 32) | (c1 == 10), (c2 == 32) | (c2 == 10)
     is_v = (c0 == ord("v")) & end1
     is_vn = (c0 == ord("v")) & (c1 == ord("n")) & end2
+    is_vt = (c0 == ord("v")) & (c1 == ord("t")) & end2
     is_f = (c0 == ord("f")) & end1
     vi, vni, fi = np.flatnonzero(is_v), np.flatnonzero(is_vn), np.flatnonzero(is_f)
-    v_rec = [lines[i][1:] for i in vi.tolist()]
-    vn_rec = [lines[i][2:] for i in vni.tolist()]
-    f_rec = [lines[i][1:] for i in fi.tolist()]
-    rest = np.flatnonzero(~(is_v | is_vn | is_f) & (c0 != 10))
+    records = [_Records(data, b, starts[i], ends[i]) for b, i in ((b"v", vi), (b"vn", vni),
+                                                                  (b"f", fi))]
+    rest = np.flatnonzero(~(is_v | is_vn | is_vt | is_f) & (c0 != 10))
     mi, libs, ignored = [], [], Counter()
+    if is_vt.any():
+        ignored["vt"] = int(np.count_nonzero(is_vt))
     names: list[str] = []
     for i in rest.tolist():
-        key, _, tail = lines[i].partition(b" ")
+        key, _, tail = data[starts[i]: ends[i]].partition(b" ")
         if key == b"usemtl":
             mi.append(i)
             names.append(tail.decode(errors="replace").strip())
@@ -270,7 +317,7 @@ def _scan(data: bytes):
     f_mat = np.r_[0, np.asarray(of_stmt, dtype=np.int64)][run]
     f_v = np.searchsorted(vi, fi)
     f_vn = np.searchsorted(vni, fi)
-    return v_rec, vn_rec, f_rec, f_v, f_vn, f_mat, mat_names, libs, ignored
+    return (*records, f_v, f_vn, f_mat, mat_names, libs, ignored)
 
 
 def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
@@ -280,17 +327,18 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     v_rec, vn_rec, f_rec, f_v, f_vn, f_mat, mat_names, libs, ignored = _scan(data)
-    if not f_rec:
+    if not len(f_rec):
         raise ObjError("no faces")
 
-    V = _numbers(v_rec, 3, data, b"v")
+    V = _numbers(v_rec, 3, data)
     bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
     if len(bad):
         k = int(bad[0])
-        raise ObjError(f"vertex {k + 1} is not finite: 'v {v_rec[k].decode(errors='replace').strip()}'"
+        raise ObjError(f"vertex {k + 1} is not finite: "
+                       f"'v {v_rec.bodies()[k].decode(errors='replace').strip()}'"
                        + (f" ({len(bad)} such vertices)" if len(bad) > 1 else ""),
                        _line_of(data, b"v", k))
-    N = _numbers(vn_rec, 3, data, b"vn")
+    N = _numbers(vn_rec, 3, data)
 
     vi, ni, counts = _corner_indices(f_rec, data)
     def per_corner(before, total):
@@ -341,7 +389,7 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
             missing.append(f"'{name}' (no MTL defines it)")
         pos = positions.reshape(-1, 3, 3)[sel].reshape(-1, 3)
         nrm = normals.reshape(-1, 3, 3)[sel].reshape(-1, 3)
-        mesh = meshes.finish_mesh(pos, nrm)
+        mesh = meshes.finish_mesh(pos, nrm, F[sel])
         parts.append(ObjPart(mat, mesh, len(sel) - mesh.triangle_count))
         dropped_total += len(sel) - mesh.triangle_count
     if missing:
