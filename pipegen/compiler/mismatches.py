@@ -3,18 +3,20 @@ technique will not render of the scene, in words ("2 spot lights are lit as poin
 ..."); ``run``, ``check`` and the API report them, ``--strict`` makes them an error.  A
 silently wrong image is the worst bug.
 
-Two of its questions rasterise the scene in float64 (``reference/``), so they are asked only
-when a technique's capabilities make them matter:
+Two of its questions look at the scene's visible surface in float64 (``reference/``), so
+they are asked only when a technique's capabilities make them matter:
 
-- ``lights_per_pixel_bound(scene)`` bounds the lights whose volumes a light-index packing
-  must hold at one pixel;
+- whether a light-index packing holds the lights at every pixel (``reference.light_bound``:
+  a tile bound first, which needs no rasterisation; "lights will be dropped" only when more
+  lights than it holds reach a shaded surface point, "may be dropped" when only the
+  conservative count of light volumes exceeds it); ``lights_per_pixel_bound(scene)`` is that
+  conservative count's maximum;
 - ``translucent_missed_lights(scene, lights)``: the lights a back-face light index misses at
   the translucent surfaces they reach.
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Optional
 
@@ -71,26 +73,30 @@ def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]
     return sorted(missed), objects
 
 
+def _packed_lights(scene, types: Optional[set], residue: Optional[tuple[int, int]]) -> list:
+    """The scene's lights of ``types`` (None: all) whose index in its table is k modulo n for
+    ``residue`` (n, k) (an index bank; None: every index)."""
+    return [l for i, l in enumerate(scene.lights) if (types is None or l.type in types)
+            and (residue is None or i % residue[0] == residue[1])]
+
+
 def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
                            faces: str = "back", residue: Optional[tuple[int, int]] = None) -> int:
     """The most lights (of ``types``; None: all) whose volumes a light-index pass may write
     at one pixel: lights whose circumscribing volume has a back face at or behind the visible
     surface (or the sky) along the pixel's ray, directional lights everywhere
-    (``reference.lighting.lights_per_pixel``, conservative, at the scene's resolution;
-    ``gbuffer``: its rasterisation, when the caller has one).  ``faces="front"``: volumes
-    meeting the ray in front of the surface (a pass drawing front faces, ``depth lequal``),
-    on sky pixels too when the scene has translucent objects.  ``residue (n, k)``: only the
-    lights whose index in the scene's table is k modulo n (an index bank)."""
-    from pipegen.reference.lighting import lights_per_pixel
-    from pipegen.reference.raster import rasterize
-    lights = tuple(l for i, l in enumerate(scene.lights) if (types is None or l.type in types)
-                   and (residue is None or i % residue[0] == residue[1]))
+    (``reference.lighting.lights_per_pixel``'s conservative count, at the scene's resolution,
+    evaluated per pixel only where a tile bound allows more than found so far;
+    ``gbuffer``: the scene's rasterisation, when the caller has one).  ``faces="front"``:
+    volumes meeting the ray in front of the surface (a pass drawing front faces, ``depth
+    lequal``), on sky pixels too when the scene has translucent objects.  ``residue (n, k)``:
+    only the lights whose index in the scene's table is k modulo n (an index bank)."""
+    from pipegen.reference.light_bound import Surfaces, volume_bound
+    lights = _packed_lights(scene, types, residue)
     if not lights:
         return 0
-    counts = lights_per_pixel(gbuffer if gbuffer is not None else rasterize(scene),
-                              dataclasses.replace(scene, lights=lights), conservative=True,
-                              faces=faces, sky=faces == "front" and scene.has_translucent)
-    return int(counts.max()) if counts.size else 0
+    return volume_bound(scene, lights, Surfaces(scene, gbuffer).full(), faces,
+                        faces == "front" and scene.has_translucent)
 
 
 @dataclass(frozen=True)
@@ -103,11 +109,34 @@ def _n(count: int, noun: str) -> str:
     return f"{count} {noun}" + ("" if count == 1 else "s")
 
 
+def _capacity_message(load, pack: str, scheme: str, capacity: int, types, faces: str,
+                      bank: Optional[tuple[int, int]]) -> Optional[str]:
+    """What a light-index packing does not hold, worded as surely as the count allows:
+    "will be dropped" from lights that reach a shaded surface point, "may be dropped" from
+    the conservative count of light volumes (None: it holds them all)."""
+    verdict = load.verdict(capacity)
+    if verdict == "fits":
+        return None
+    kinds = "/".join(t for t in LIGHT_TYPES if t in types)
+    which = f" with index % {bank[0]} == {bank[1]}" if bank else ""
+    holds = f"the packing `{pack}` ({scheme}) holds {capacity}"
+    if verdict == "will":
+        return (f"{load.reaching} {kinds} lights{which} reach the surface seen at one pixel, "
+                f"{holds}: lights will be dropped")
+    volumes = (f"up to {load.volumes} {kinds} light volumes{which} lie along a pixel's view "
+               f"ray in front of its surface (light-volume front faces)" if faces == "front"
+               else f"up to {load.volumes} {kinds} light volumes{which} cover a pixel")
+    reach = (f"; at most {load.reaching} of them reach the surface it shows" if load.exact
+             else "")
+    return f"{holds}: lights may be dropped (a conservative bound: {volumes}{reach})"
+
+
 def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = None,
                per_pixel: Optional[int] = None) -> list[Mismatch]:
     """What ``tech`` will not render of ``scene`` (empty: it renders everything).
-    ``per_pixel`` overrides the lights-per-pixel bound (computed only when the technique
-    has a per-pixel light-index capacity)."""
+    ``per_pixel``: the most lights that reach the surface at one pixel, given instead of
+    counted (they are counted only when the technique has a per-pixel light-index
+    capacity, and from the scene's visible surface only when a tile bound exceeds it)."""
     f = features or scene_features(scene)
     cap = capabilities(tech)
     out: list[Mismatch] = []
@@ -121,25 +150,22 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
         out.append(Mismatch("translucent", f"{_n(n, 'translucent object')} "
                                            f"{'is' if n == 1 else 'are'} not drawn "
                                            f"(no pass draws scene.translucent)"))
-    gbuffer = None
     rules = {r[0]: r[1:] for r in cap.index_rules}
+    surfaces = None
     for pack, scheme, capacity, types in cap.index_packings:
         if not any(f.count(t) for t in types):
             continue
-        if per_pixel is None and gbuffer is None:
-            from pipegen.reference.raster import rasterize
-            gbuffer = rasterize(scene)
         faces, bank = rules.get(pack, ("back", None))
-        bound = (lights_per_pixel_bound(scene, types, gbuffer, faces, bank) if per_pixel is None
-                 else per_pixel)
-        if bound > capacity:
-            kinds = "/".join(t for t in LIGHT_TYPES if t in types)
-            which = f" with index % {bank[0]} == {bank[1]}" if bank else ""
-            what = (f"up to {bound} {kinds} light volumes{which} lie along a pixel's view ray "
-                    f"in front of its surface (light-volume front faces)" if faces == "front"
-                    else f"up to {bound} {kinds} lights{which} reach a pixel")
-            out.append(Mismatch("capacity", f"{what}, the packing `{pack}` ({scheme}) holds "
-                                            f"{capacity}: lights will be dropped"))
+        from pipegen.reference.light_bound import Load, Surfaces, load as packing_load
+        if per_pixel is not None:
+            load = Load(None, per_pixel, True)
+        else:
+            surfaces = surfaces or Surfaces(scene)
+            load = packing_load(scene, _packed_lights(scene, types, bank), capacity, surfaces,
+                                faces, faces == "front" and scene.has_translucent)
+        message = _capacity_message(load, pack, scheme, capacity, types, faces, bank)
+        if message:
+            out.append(Mismatch("capacity", message))
     if f.translucent_objects and cap.translucent_back_reads:
         readers: dict[str, list] = {}
         for pass_name, pack, types in cap.translucent_back_reads:

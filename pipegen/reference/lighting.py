@@ -167,11 +167,7 @@ def lights_per_pixel(gbuffer: GBuffer, scene: Scene, conservative: bool = False,
             L = centre - P
             count += np.einsum("ij,ij->i", L, L) < r * r
             continue
-        hit, t_near, t_far = ray_volume_span(light, cam, u, grow)
-        if front:
-            count += hit & (t_far >= 0) & (t_near <= t_surface)
-        else:
-            count += hit & (t_far >= t_surface)
+        count += volume_marks(light, cam, u, t_surface, front, grow)
     out = np.zeros(cov.shape, dtype=np.int64)
     out[where] = count
     return out
@@ -181,6 +177,19 @@ def volume_grow() -> float:
     """How far the sphere mesh a light pass draws reaches, in radii (it circumscribes the
     light's sphere)."""
     return float(np.linalg.norm(light_volume("sphere").astype(np.float64), axis=1).max())
+
+
+def volume_marks(light: Light, cam: np.ndarray, u: np.ndarray, t_surface: np.ndarray,
+                 front: bool, grow: float) -> np.ndarray:
+    """Which of the rays from ``cam`` along the unit directions ``u`` (N, 3), ending at the
+    surface ``t_surface`` away (inf: the sky), a light-volume pass marks for ``light``:
+    ``front=False`` (back faces, ``depth gequal``): its circumscribing volume has a back face
+    at or behind the surface; ``front=True`` (front faces, ``depth lequal``, ``inside
+    always``): the volume meets the ray between the eye and the surface.  (N,) bool."""
+    hit, t_near, t_far = ray_volume_span(light, cam, u, grow)
+    if front:
+        return hit & (t_far >= 0) & (t_near <= t_surface)
+    return hit & (t_far >= t_surface)
 
 
 def ray_volume_span(light: Light, cam: np.ndarray, u: np.ndarray, grow: float):
