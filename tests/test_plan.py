@@ -103,3 +103,16 @@ def test_cull_auto_inside_a_repeat_group_agrees_across_backends(tmp_path):
     assert result.passed, "\n" + result.table() + f"\n{result.first_divergence}"
     acc = next(r for r in result.rows if r.name == "acc")
     assert acc.max_error <= 1
+
+
+def test_included_replaces_the_first_whole_prelude_as_str_replace_would():
+    # ``included`` finds a long prelude by its first 80 characters and compares the rest
+    # there: a kernel holding the head alone first, then the whole prelude, and one holding
+    # it nowhere, are written as str.replace(prelude, include line, 1) writes them
+    prelude = "// prelude\n" + "float pg_f(float x) { return x; }\n" * 40
+    near = prelude[:100] + "different tail\n"
+    for kernel in ("// header\n" + prelude + "kernel void k() {}\n",
+                   near + prelude + "kernel void k() {}\n" + prelude,
+                   near + "kernel void k() {}\n"):
+        code = CLPassCode(kernel, None, prelude=("prelude.cl", prelude))
+        assert code.included == kernel.replace(prelude, '#include "prelude.cl"\n', 1)
