@@ -277,9 +277,9 @@ def test_dask_local_cluster_gives_the_local_pool_results():
 @pytest.mark.cl
 def test_the_sweep_reports_each_intermediate_attribute_in_its_own_units(tmp_path):
     """The user's question (issue 25): which G-buffer layout keeps normals best?  Against
-    ``self`` (inferred at lbuffer_scale 1, normals in rg16, the L-buffer in rgba32f; the
-    reference evaluated where its G-buffer has this one's size) each row gives the decoded
-    normal's error in degrees, within the encoding's measured bound, and the reference."""
+    ``self`` (inferred at lbuffer_scale 1, its targets unquantised as in every float64
+    evaluation; the reference evaluated where its G-buffer has this one's size) each row gives
+    the decoded normal's error in degrees, within the encoding's measured bound."""
     from pipegen.packing.error_tables import NORMAL_ERRORS
     out = tmp_path / "layouts"
     r = pipegen("sweep", INFERRED, "--scene", ROOT / "examples/scenes/edges.toml",

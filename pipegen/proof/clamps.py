@@ -29,6 +29,16 @@ class ClampWarning(UserWarning):
     and target, by Python's default warning filter)."""
 
 
+def record(c: Clamp, output: Optional[str]) -> dict:
+    """A clamp as plain data (a sweep's job result, results.json), ``warned`` added."""
+    return dict(vars(c), warned=warned(c, output))
+
+
+def from_record(data: dict) -> Clamp:
+    """:func:`record` read back."""
+    return Clamp(**{k: v for k, v in data.items() if k != "warned"})
+
+
 def warned(c: Clamp, output: Optional[str]) -> bool:
     """Whether a clamp is warned about (the module docstring): not the output's highlights."""
     return not (c.target == output and c.lowest is None)

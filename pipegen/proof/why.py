@@ -19,11 +19,12 @@ from pipegen.proof.f64_compare import TargetResult
 
 # what exceeding a bound made mostly of each term says about where the error came from
 CAUSES = {
-    "local": "the bound there is the rounding of the stored result; an error {ratio} "
-             "came from pass {writers}'s float32 arithmetic magnifying rounding (a cancellation, or "
-             "a large intermediate such as |p|^2 far from the origin)",
+    "local": "the bound there is the rounding of the stored result; an error {ratio} came "
+             "from pass {writers}'s float32 arithmetic magnifying rounding (a cancellation, "
+             "or a large intermediate such as |p|^2 far from the origin)",
     "position": "the bound there is mostly the image's sensitivity to a one-ulp move of the "
-                "geometry (a grazing or distant surface magnifies it); the error exceeds even that",
+                "geometry (a grazing or distant surface magnifies it); the error exceeds even "
+                "that",
     "reads": "the bound there is mostly errors read from {reads}{magnified}; the error exceeds "
              "even that: pass {writers} magnifies what it reads more than the bound measured",
 }

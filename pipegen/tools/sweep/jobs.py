@@ -179,10 +179,10 @@ def render_job(job: dict) -> dict:
         maps[b] = accuracy.png_bytes(accuracy.error_map_rgb(codes, ref_rgb))
         images[b] = accuracy.png_bytes(to_top_down(codes)[..., :3])
     notes += list(dict.fromkeys(target_notes)) if renders else []
-    from pipegen.proof.clamps import warned
+    from pipegen.proof.clamps import record
     output = compiled.technique.output
     return dict(metrics=metrics, agree=agree, disagree=disagree, maps=maps, images=images,
-                notes=notes, clamps=[dict(vars(c), warned=warned(c, output)) for c in clamps])
+                notes=notes, clamps=[record(c, output) for c in clamps])
 
 
 def intermediate_errors(compiled, targets: dict, ref, scene, f64_values) -> tuple[list, list]:

@@ -221,14 +221,13 @@ def _where(e: dict) -> str:
 
 def _clamps_html(r: dict) -> str:
     """What the formats clamped in the row's CL frame."""
-    from pipegen.proof.clamps import describe
-    from pipegen.runtime.cl.clamps import Clamp
+    from pipegen.proof.clamps import describe, from_record
     shown = [c for c in r.get("clamps") or [] if c.get("warned")]
     if not shown:
         return ""
-    items = "".join(f"<li>{_e(describe(Clamp(**{k: v for k, v in c.items() if k != 'warned'})))}"
-                    f"</li>" for c in shown)
-    return f'<div class="clamps"><p>values the formats clamped (CL frame):</p><ul>{items}</ul></div>'
+    items = "".join(f"<li>{_e(describe(from_record(c)))}</li>" for c in shown)
+    return ('<div class="clamps"><p>values the formats clamped (CL frame):</p>'
+            f'<ul>{items}</ul></div>')
 
 
 # -- the page ---------------------------------------------------------------------------------

@@ -146,8 +146,7 @@ def target_errors_text(errors: list) -> str:
 def clamp_warnings(rows: list[dict]) -> list[str]:
     """One warning per technique, pass and target whose values a format clamped, in any
     variant (the CL rows' ``clamps``), with the variants it happened in."""
-    from pipegen.proof.clamps import describe
-    from pipegen.runtime.cl.clamps import Clamp
+    from pipegen.proof.clamps import describe, from_record
     seen: dict = {}
     for n, r in enumerate(rows, 1):
         for c in r.get("clamps", []):
@@ -159,7 +158,7 @@ def clamp_warnings(rows: list[dict]) -> list[str]:
                 seen[key] = (worst, numbers + [n])
     out = []
     for (technique, _, _), (c, numbers) in seen.items():
-        clamp = Clamp(**{k: v for k, v in c.items() if k != "warned"})
+        clamp = from_record(c)
         rows_text = ",".join(map(str, numbers[:8])) + ("..." if len(numbers) > 8 else "")
         out.append(f"warning: {technique}: {describe(clamp)} (rows {rows_text}; the most in "
                    f"one frame shown; counted on the CL backend)")
