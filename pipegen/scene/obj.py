@@ -50,7 +50,7 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.scene import meshes
+from pipegen.scene import decimals, meshes
 from pipegen.scene.meshes import Mesh, ObjError
 
 #: Statements of an OBJ file the reader uses; every other one is counted and reported.
@@ -161,10 +161,13 @@ def _numbers(records: _Records, width: int, data: bytes) -> np.ndarray:
     key = records.keyword
     if not len(records):
         return np.zeros((0, width))
-    try:
-        flat = np.fromstring(records.text(b" "), dtype=np.float64, sep=" ")   # C parser
-    except ValueError:
-        flat = None
+    text = records.text(b" ")
+    flat = decimals.parse_floats(text)          # plain decimals: numpy, bit-identical
+    if flat is None:
+        try:
+            flat = np.fromstring(text, dtype=np.float64, sep=" ")   # C strtod
+        except ValueError:
+            flat = None
     if flat is not None and flat.size == width * len(records):
         return flat.reshape(-1, width)
     out = np.empty((len(records), width))
@@ -183,26 +186,16 @@ def _numbers(records: _Records, width: int, data: bytes) -> np.ndarray:
     return out
 
 
-_SENTINEL = 9_999_999_999_999          # ends each face in the joined index text (13 digits)
-
-
-def _token_count(text: bytes) -> int:
-    """Whitespace-separated tokens in ``text`` (spaces and newlines only, as scanned)."""
-    t = np.frombuffer(text, dtype=np.uint8)
-    blank = (t == 32) | (t == 10)
-    return int(np.count_nonzero(~blank[1:] & blank[:-1])) + int(len(t) > 0 and not blank[0])
-
-
 def _corner_indices(faces: _Records, data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per corner: vertex index and normal index as written (0 = none), and corners per face.
 
     Fast path: every corner of the file in one format (``v``, ``v/vt``, ``v//vn`` or
     ``v/vt/vn``: every corner's slashes alike and a number in each slot but an empty ``vt``),
-    parsed as one integer array with a sentinel after each face.  Anything else (mixed
-    formats, an error to locate) takes a per-corner loop."""
-    text = faces.text(b" 9999999999999 ")
-    first = text.split(None, 1)[:1]
-    cols = first[0].count(b"/") + 1 if first else 1
+    parsed as one integer array; a face's corners are the tokens of its line.  Anything else
+    (mixed formats, an error to locate) takes a per-corner loop."""
+    text = faces.text(b"\n")
+    t, starts, ends = decimals.tokens(text)
+    cols = text[starts[0]: ends[0]].count(b"/") + 1 if len(starts) else 1
     slashes = text.translate(None, b"0123456789-")
     skeleton = set(slashes.split()) if b"/" in slashes else set()
     if cols <= 3 and skeleton <= {b"/" * (cols - 1)} and (cols > 1 or not skeleton):
@@ -211,18 +204,16 @@ def _corner_indices(faces: _Records, data: bytes) -> tuple[np.ndarray, np.ndarra
                                  sep=" ")
         except ValueError:
             flat = None
-        corners = _token_count(text) - len(faces)
-        if flat is not None and flat.size == cols * corners + len(faces):
-            ends = np.flatnonzero(flat == _SENTINEL)
-            if len(ends) == len(faces) and not np.any(np.abs(flat[flat != _SENTINEL]) >= 10**12):
-                counts = (np.diff(np.r_[-1, ends]) - 1) // cols
-                small = np.flatnonzero(counts < 3)
-                if len(small):
-                    raise ObjError("a face needs at least three vertices",
-                                   _line_of(data, b"f", int(small[0])))
-                idx = flat[flat != _SENTINEL].reshape(-1, cols)
-                vn = idx[:, 2] if cols == 3 else np.zeros(len(idx), np.int64)
-                return idx[:, 0], vn, counts
+        if flat is not None and flat.size == cols * len(starts):
+            line_ends = np.flatnonzero(t == 10)                   # one per face
+            counts = np.diff(np.r_[0, np.searchsorted(starts, line_ends)])
+            small = np.flatnonzero(counts < 3)
+            if len(small):
+                raise ObjError("a face needs at least three vertices",
+                               _line_of(data, b"f", int(small[0])))
+            idx = flat.reshape(-1, cols)
+            vn = idx[:, 2] if cols == 3 else np.zeros(len(idx), np.int64)
+            return idx[:, 0], vn, counts
     bodies = faces.bodies()
     counts = np.fromiter((len(f.split()) for f in bodies), dtype=np.int64, count=len(bodies))
     small = np.flatnonzero(counts < 3)
