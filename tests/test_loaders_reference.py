@@ -3,7 +3,8 @@ them gave, on every shipped mesh: the procedural primitives, the OBJ files in
 examples/models/, the OBJ meshes the scene tests write, and a Sponza-shaped generated file.
 
 ``_reference_*`` below are the functions of pipegen/scene/meshes.py at commit caa375c, verbatim but
-for names: a Python loop over vertices for smoothing and a union-find loop for groups."""
+for names: a Python loop over vertices for smoothing and a union-find loop for groups; they
+normalise with ``np.linalg.norm`` (``_unit``), independent of the loader's ``row_norms``."""
 
 from __future__ import annotations
 
@@ -22,8 +23,20 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "examples" / "models"
 
 
+def _unit(v):
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _reference_non_degenerate(positions):
+    tri = positions.reshape(-1, 3, 3)
+    area2 = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    scale = np.abs(tri).max(initial=1.0)
+    return area2 > 1e-12 * scale * scale
+
+
 def _reference_smooth_normals(faces, fn_raw, crease_deg):
-    unit = meshes.normalize_rows(fn_raw)
+    unit = _unit(fn_raw)
     cos_crease = math.cos(math.radians(crease_deg))
     corners = faces.reshape(-1)
     out = np.repeat(unit, 3, axis=0)
@@ -32,7 +45,7 @@ def _reference_smooth_normals(faces, fn_raw, crease_deg):
     for group in np.split(order, bounds):
         tris = group // 3
         close = unit[tris] @ unit[tris].T >= cos_crease
-        out[group] = meshes.normalize_rows(close.astype(np.float64) @ fn_raw[tris])
+        out[group] = _unit(close.astype(np.float64) @ fn_raw[tris])
     return out
 
 
@@ -62,8 +75,7 @@ def _reference_normal_groups(positions, normals, tol=1e-5):
         e1 = np.concatenate([e1, [p[1] for p in extra]])
 
     def agree(c0, c1):
-        return np.einsum("ij,ij->i", meshes.normalize_rows(normals[c0]),
-                         meshes.normalize_rows(normals[c1])) > 1 - tol
+        return np.einsum("ij,ij->i", _unit(normals[c0]), _unit(normals[c1])) > 1 - tol
 
     smooth = agree(lo[e0], lo[e1]) & agree(hi[e0], hi[e1])
     parent = np.arange(tri_count)
@@ -115,8 +127,8 @@ def _reference_obj(path, crease_deg=45.0):
     N = np.array(vnormals, dtype=np.float64) if vnormals else np.zeros((0, 3))
     for t, ni in enumerate(tri_n):
         if ni is not None:
-            normals[3 * t: 3 * t + 3] = meshes.normalize_rows(N[list(ni)])
-    keep = meshes._non_degenerate(positions)
+            normals[3 * t: 3 * t + 3] = _unit(N[list(ni)])
+    keep = _reference_non_degenerate(positions)
     positions = positions.reshape(-1, 3, 3)[keep].reshape(-1, 3)
     normals = normals.reshape(-1, 3, 3)[keep].reshape(-1, 3)
     return positions, normals, _reference_normal_groups(positions, normals)
