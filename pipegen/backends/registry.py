@@ -44,6 +44,11 @@ class Backend:
     # the arithmetic precisions its emitter and runtime offer: "f32" (what the backend runs),
     # "f64" (the float64 evaluation of the technique, docs/internals.md)
     precisions: tuple[str, ...] = ("f32",)
+    # "module:function" -> one line naming the device it renders on (renderer, how chosen)
+    device: str = ""
+
+    def describe_device(self) -> str:
+        return _resolve(self.device)() if self.device else self.title
 
     @property
     def module_name(self) -> str:
@@ -86,11 +91,13 @@ def _resolve(path: str):
 BACKENDS: dict[str, Backend] = {b.name: b for b in (
     Backend("gl", "GL (llvmpipe)", "moderngl on the system's OpenGL (Mesa llvmpipe without a GPU)",
             "pipegen.backends.glsl:emit_gl",
-            "pipegen.runtime.gl.pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files),
+            "pipegen.runtime.gl.pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files,
+            device="pipegen.runtime.gl.context:describe"),
     Backend("cl", "CL (PoCL)", "the OpenCL software reference on PoCL's CPU device",
             "pipegen.backends.opencl.emit:emit_cl",
             "pipegen.runtime.cl.pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files,
-            plan_files=cl_preludes, precisions=("f32", "f64")),
+            plan_files=cl_preludes, precisions=("f32", "f64"),
+            device="pipegen.runtime.cl.context:describe"),
 )}
 
 

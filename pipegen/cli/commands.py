@@ -13,7 +13,8 @@ from pipegen.backends import registry
 from pipegen.core.defaults import DEFAULT_SIZE
 from pipegen.core.diagnostics import PipegenError
 from pipegen.cli.scene_args import load_scene_arg, mismatch_error, report_mismatches, scene_label
-from pipegen.cli.technique_args import compile_from_args, dump_watch, specialise_from_args
+from pipegen.cli.technique_args import (compile_from_args, dump_watch, rendered_build,
+                                        specialise_from_args)
 
 
 def cmd_compile(args) -> int:
@@ -39,13 +40,13 @@ def cmd_run(args) -> int:
     out = OutputDir(args.out, "run", args.force)              # before any work
     compiled = compile_from_args(args)
     scene = load_scene_arg(args)
-    if args.specialise:
-        compiled = specialise_from_args(args, compiled, scene, say_variant=True)
+    compiled = rendered_build(args, compiled, scene, cuts=True)
     report_mismatches(compiled, scene, args.strict, scene_label(args))
     from pipegen.views.outputs import file_name, write_render
     pipeline = compiled.pipeline(args.backend, precision=args.precision)
     print(f"rendering {compiled.name} on {args.backend} at {scene.width}x{scene.height} "
           f"({len(scene.objects)} objects, {len(scene.lights)} lights)", file=sys.stderr)
+    print(f"  device: {registry.get(args.backend).describe_device()}", file=sys.stderr)
     targets = _counting_clamps(compiled, lambda: pipeline.render(scene))
     if args.precision != "f32":      # float64 values: written as the codes they quantise to
         from pipegen.proof.precision import quantize_targets
@@ -74,8 +75,7 @@ def cmd_check(args) -> int:
     scene = load_scene_arg(args)
     if out is None:
         out = OutputDir(Path("build/check") / compiled.name, "check", args.force)
-    if args.specialise:
-        compiled = specialise_from_args(args, compiled, scene, say_variant=True)
+    compiled = rendered_build(args, compiled, scene)
     found = report_mismatches(compiled, scene, args.strict, scene_label(args))
     if args.precision != "f32":      # the float32 backends against the float64 evaluation
         from pipegen.proof.precision import main_precision_check

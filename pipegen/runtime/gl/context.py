@@ -14,6 +14,13 @@ mismatches.  ``get_context()`` creates it on first use; it stays current on the 
 ``gl_limits()`` reports what the machine offers; ``describe()`` is a one-line summary (renderer,
 version, sub-pixel bits) for reports.
 
+Device choice (EGL, headless): ``$PIPEGEN_GL_DEVICE`` is an EGL device index (``0``, ``1``,
+...), a substring of the renderer's name (``NVIDIA``, ``llvmpipe``), or ``auto`` (the default):
+the first device whose renderer is not a software rasteriser (llvmpipe, softpipe,
+SwiftShader), else device 0.  EGL lists a machine's GPUs and Mesa's software device side by
+side; ``auto`` probes them in order with a context each (a few milliseconds apiece) and keeps
+the one chosen.  ``device()`` says which was chosen and why.
+
 Error checking.  PyOpenGL calls ``glGetError`` after every call by default, which doubles the
 cost of the runtime's many small state calls; this module switches that off
 (``OpenGL.ERROR_CHECKING = False``, which only takes effect before ``OpenGL.GL`` is first
@@ -33,6 +40,8 @@ os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 import sys  # noqa: E402
 
+from pipegen.core.diagnostics import PipegenError  # noqa: E402
+
 import moderngl  # noqa: E402
 import OpenGL  # noqa: E402
 
@@ -49,11 +58,70 @@ def debug_enabled() -> bool:
     return os.environ.get("PIPEGEN_GL_DEBUG", "") not in ("", "0")
 
 
-__all__ = ["GL", "get_context", "gl_limits", "describe", "check_error", "clear_stale_errors",
-           "debug_enabled", "ERROR_CHECKING"]
+__all__ = ["GL", "get_context", "gl_limits", "describe", "device", "check_error",
+           "clear_stale_errors", "debug_enabled", "ERROR_CHECKING"]
 
 _lock = threading.Lock()
 _ctx: moderngl.Context | None = None
+_device: dict = {}                   # index, renderer, why: how the context's device was chosen
+DEVICE_ENV = "PIPEGEN_GL_DEVICE"
+SOFTWARE = ("llvmpipe", "softpipe", "swiftshader", "software rasterizer")
+MAX_DEVICES = 16
+_HINT = (f"{DEVICE_ENV} is an EGL device index, a part of a renderer's name, or auto (the "
+         f"first hardware device); unset it for auto")
+
+
+def is_software(renderer: str) -> bool:
+    return any(s in renderer.lower() for s in SOFTWARE)
+
+
+def _create(index: int) -> moderngl.Context:
+    return moderngl.create_standalone_context(require=330, backend="egl", device_index=index)
+
+
+def _choose_device(choice: str) -> tuple[moderngl.Context, dict]:
+    """A context on the device ``choice`` names (the module docstring), and how it was chosen."""
+    if choice.isdigit():
+        index = int(choice)
+        try:
+            ctx = _create(index)
+        except Exception as e:         # glcontext: "requested device index 5, but found 1 devices"
+            raise PipegenError(None, f"{DEVICE_ENV}={choice}: no such EGL device ({e})",
+                               hint=_HINT) from None
+        return ctx, dict(index=index, renderer=ctx.info["GL_RENDERER"],
+                         why=f"{DEVICE_ENV}={choice}")
+    seen = []
+    for index in range(MAX_DEVICES):
+        try:
+            ctx = _create(index)
+        except Exception:              # past the last device (or one EGL cannot open)
+            break
+        renderer = ctx.info["GL_RENDERER"]
+        wanted = (not is_software(renderer)) if choice == "auto" else \
+            choice.lower() in renderer.lower()
+        if wanted:
+            for other, _ in seen:
+                other.release()
+            why = (f"{DEVICE_ENV}={choice}" if choice != "auto" else
+                   "the first hardware device EGL lists")
+            return ctx, dict(index=index, renderer=renderer, why=why)
+        seen.append((ctx, renderer))
+    names = ", ".join(f"{i}: {r}" for i, (_, r) in enumerate(seen)) or "none"
+    if choice != "auto" or not seen:
+        for other, _ in seen:
+            other.release()
+        raise PipegenError(None, f"{DEVICE_ENV}={choice}: no EGL device's renderer matches "
+                                 f"(devices: {names})", hint=_HINT)
+    for other, _ in seen[1:]:
+        other.release()
+    return seen[0][0], dict(index=0, renderer=seen[0][1],
+                            why=f"no hardware device: EGL lists {names}")
+
+
+def device() -> dict:
+    """How the context's EGL device was chosen: ``index``, ``renderer``, ``why``."""
+    get_context()
+    return dict(_device)
 
 
 def get_context() -> moderngl.Context:
@@ -65,7 +133,9 @@ def get_context() -> moderngl.Context:
                 raise RuntimeError(
                     "pipegen's GL runtime needs PYOPENGL_PLATFORM=egl (set before OpenGL is "
                     f"imported); found {os.environ.get('PYOPENGL_PLATFORM')!r}")
-            _ctx = moderngl.create_standalone_context(require=330, backend="egl")
+            choice = os.environ.get(DEVICE_ENV, "").strip() or "auto"
+            _ctx, chosen = _choose_device(choice)
+            _device.update(chosen)
             # Byte-exact transfers for every width (r8 rows of odd length, ...).
             GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
             GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
@@ -88,7 +158,8 @@ def describe() -> str:
     ctx = get_context()
     info = ctx.info
     return (f"{info['GL_RENDERER']} / {info['GL_VERSION']} "
-            f"(subpixel bits {info['GL_SUBPIXEL_BITS']})")
+            f"(subpixel bits {info['GL_SUBPIXEL_BITS']}; EGL device {_device.get('index')}: "
+            f"{_device.get('why')})")
 
 
 _NAMES = {0x0500: "GL_INVALID_ENUM", 0x0501: "GL_INVALID_VALUE", 0x0502: "GL_INVALID_OPERATION",
