@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -165,20 +167,54 @@ def old_meshes():
     return mod
 
 
+_TIME_LOADS = """
+import json, sys, time, warnings
+from pipegen.scene import load_scene
+wall, cpu = [], []
+for _ in range(int(sys.argv[2])):
+    t0, c0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        load_scene(sys.argv[1])
+    wall.append(time.perf_counter() - t0)
+    cpu.append(time.process_time() - c0)
+print(json.dumps([min(wall), min(cpu)]))
+"""
+
+
+def baseline_times(commit: str, toml: Path, repeat: int, folder: Path) -> tuple[float, float]:
+    """Best wall and CPU seconds of ``load_scene(toml)`` with the ``pipegen`` package of
+    ``commit`` (extracted with ``git archive``), in a child process."""
+    if not (folder / "pipegen").exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        tar = subprocess.run(["git", "-C", str(ROOT), "archive", commit, "pipegen"], check=True,
+                             capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(folder)], input=tar, check=True)
+    out = subprocess.run([sys.executable, "-c", _TIME_LOADS, str(toml), str(repeat)], cwd=folder,
+                         env={**os.environ, "PYTHONPATH": str(folder)}, check=True,
+                         capture_output=True, text=True).stdout
+    wall, cpu = json.loads(out.splitlines()[-1])
+    return wall, cpu
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--obj", nargs="*", type=Path, help="time these OBJ files instead")
     ap.add_argument("--before", action="store_true", help="also time the loader of commit caa375c")
+    ap.add_argument("--baseline", metavar="COMMIT",
+                    help="also time load_scene as of COMMIT (its pipegen/, in a child process)")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--subdivide", type=int, choices=(4,),
-                    help="time the --obj files with each triangle split into 4 at its edge "
-                         "midpoints (written to a temporary folder)")
+                    help="also time each --obj file with each triangle split into 4 at its "
+                         "edge midpoints (written to a temporary folder)")
     args = ap.parse_args()
     from pipegen.scene import load_scene, make_object, Material, transform_matrix
 
     work = Path(tempfile.mkdtemp())
     files = args.obj
     if not files:
+        if args.subdivide:
+            ap.error("--subdivide needs --obj files")
         files = []
         for scale in (1, 2):
             p = work / f"sponza_like_{scale}" / "sponza_like.obj"
@@ -186,18 +222,15 @@ def main() -> int:
             sponza_like(p, scale)
             files.append(p)
     if args.subdivide:
-        if not files:
-            ap.error("--subdivide needs --obj files")
-        subdivided = []
-        for obj in files:
+        for obj in list(files):
             dst = work / f"{obj.stem}_x4" / f"{obj.stem}_x4.obj"
             dst.parent.mkdir()
             subdivide_obj(obj, dst)
-            subdivided.append(dst)
-        files = subdivided
+            files.append(dst)
     before = old_meshes() if args.before else None
-    print(f"{'file':<28} {'triangles':>9} {'after: best wall (cpu)':>23} {'before: wall (cpu)':>20} "
-          f"{'ratio':>6}")
+    print(f"{'file':<28} {'triangles':>9} {'best wall (cpu)':>22} {'caa375c: wall (cpu)':>20} "
+          f"{'ratio':>6}" + (f" {args.baseline + ': wall (cpu)':>24} {'cpu ratio':>9}"
+                             if args.baseline else ""))
     for obj in files:
         toml = scene_for(obj)
         times, cpu = [], []
@@ -217,9 +250,14 @@ def main() -> int:
             make_object("obj", 1, str(obj), mesh, Material((0.8, 0.8, 0.8)), transform_matrix())
             b, bc = time.perf_counter() - t0, time.process_time() - c0
             b_text, r_text = f"{b:.2f} s ({bc:.2f} cpu)", f"{b / after:.0f}x"
+        base_text = ""
+        if args.baseline:
+            bw, bc = baseline_times(args.baseline, toml, args.repeat, work / "baseline")
+            base_text = f" {f'{bw:.3f} s ({bc:.3f} cpu)':>24} {min(cpu) / bc:>9.2f}"
         name = f"{obj.parent.name}/{obj.name}"[-28:]
-        print(f"{name:<28} {tris:>9} {after:>11.3f} s ({min(cpu):.3f} cpu) {b_text:>20} {r_text:>6}"
-              f"   ({len(scene.objects)} objects; {1e6 * after / max(tris, 1):.1f} µs/triangle)")
+        print(f"{name:<28} {tris:>9} {after:>10.3f} s ({min(cpu):.3f} cpu) {b_text:>20} {r_text:>6}"
+              f"{base_text}   ({len(scene.objects)} objects; "
+              f"{1e6 * min(cpu) / max(tris, 1):.1f} µs cpu/triangle)")
     return 0
 
 

@@ -337,7 +337,8 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
 
     vi = _resolve(vi, per_corner(f_v, len(V)), len(V), "vertex", counts, data)
     has_vn = ni != 0
-    ni = _resolve(ni, per_corner(f_vn, len(N)), len(N), "normal", counts, data, used=has_vn)
+    if has_vn.any():
+        ni = _resolve(ni, per_corner(f_vn, len(N)), len(N), "normal", counts, data, used=has_vn)
 
     # fans: triangle (0, k, k+1) of each face, k = 1 .. count-2
     starts = np.cumsum(counts) - counts
@@ -350,8 +351,9 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     face_has_n = np.minimum.reduceat(has_vn.astype(np.int8), starts).astype(bool)
     tri_has_n = face_has_n[face_of_tri]
 
-    positions = V[F].reshape(-1, 3)
-    fn_raw = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])   # length = 2 * area
+    positions = meshes.take_rows(V, F.reshape(-1))
+    tri = positions.reshape(-1, 3, 3)
+    fn_raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])   # length = 2 * area
     normals = meshes.smooth_normals(F, fn_raw, crease_deg)
     if tri_has_n.any():
         given = meshes.normalize_rows(N[ni[corner[tri_has_n]].reshape(-1)])
@@ -378,9 +380,9 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
         else:
             mat = MtlMaterial(name)
             missing.append(f"'{name}' (no MTL defines it)")
-        pos = positions.reshape(-1, 3, 3)[sel].reshape(-1, 3)
-        nrm = normals.reshape(-1, 3, 3)[sel].reshape(-1, 3)
-        mesh = meshes.finish_mesh(pos, nrm, F[sel])
+        pos = np.take(tri, sel, axis=0).reshape(-1, 3)
+        nrm = np.take(normals.reshape(-1, 3, 3), sel, axis=0).reshape(-1, 3)
+        mesh = meshes.finish_mesh(pos, nrm, np.take(F, sel, axis=0))
         parts.append(ObjPart(mat, mesh, len(sel) - mesh.triangle_count))
         dropped_total += len(sel) - mesh.triangle_count
     if missing:
