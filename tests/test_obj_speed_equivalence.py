@@ -54,11 +54,16 @@ def test_parse_floats_leaves_other_tokens_to_strtod(text):
     assert decimals.parse_floats(b"1.25 " + text + b" 2") is None
 
 
-def test_row_norms_are_linalg_norm_bit_for_bit():
+@pytest.mark.parametrize("shape", [(200_000, 3), (3,), (1, 3), (500, 4, 3), (100, 4)])
+def test_row_norms_are_linalg_norm_bit_for_bit(shape):
     rng = np.random.default_rng(5)
-    v = rng.standard_normal((200_000, 3)) * np.exp(rng.uniform(-30, 30, (200_000, 1)))
-    v[:10] = 0.0
-    np.testing.assert_array_equal(meshes.row_norms(v), np.linalg.norm(v, axis=1))
+    v = rng.standard_normal(shape) * np.exp(rng.uniform(-30, 30, shape[:-1] + (1,)))
+    v.reshape(-1, shape[-1])[:10] = 0.0
+    np.testing.assert_array_equal(meshes.row_norms(v), np.linalg.norm(v, axis=-1))
+    unit = meshes.normalize_rows(v)
+    assert unit.shape == v.shape
+    np.testing.assert_allclose(np.linalg.norm(unit.reshape(-1, shape[-1])[10:], axis=-1), 1.0,
+                               rtol=0, atol=4e-16)
 
 
 def _ring_and_box(crlf: bool = False, exponents: bool = False) -> str:
@@ -75,7 +80,8 @@ def _ring_and_box(crlf: bool = False, exponents: bool = False) -> str:
     lines += ["usemtl ring", "s 1"]
     for k in range(segments):
         a, b = 2 + 2 * k, 2 + 2 * ((k + 1) % segments)   # 1-based: vertex 1 is the unused one
-        lines.append(f"f {a} {a + 1} {b + 1} {b}" if k % 2 else f"f {a} {a + 1} {b + 1}\nf {a} {b + 1} {b}")
+        quad, pair = f"f {a} {a + 1} {b + 1} {b}", f"f {a} {a + 1} {b + 1}\nf {a} {b + 1} {b}"
+        lines.append(quad if k % 2 else pair)
     lines += ["o box", "usemtl box"]
     box = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1),
            (-1, -1, 1), (1, -1, 1), (1, 1, 1), (-1, 1, 1)]
