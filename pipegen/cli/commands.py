@@ -24,6 +24,8 @@ def cmd_compile(args) -> int:
     watch = dump_watch(args)
     out = OutputDir(args.out, "compile", args.force)          # before any work
     compiled = compile_from_args(args, watch)
+    for warning in compiled.warnings():
+        print(warning, file=sys.stderr)
     if args.scene:
         scene = load_scene_arg(args, size=False)
         compiled = specialise_from_args(args, compiled, scene, watch=watch)

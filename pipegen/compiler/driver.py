@@ -78,6 +78,15 @@ class Compiled:
         from pipegen.views.report import render_report
         return render_report(self, output_size)
 
+    def warnings(self) -> list[str]:
+        """What compiling found suspicious in the technique itself, each located in its
+        source (``file:line:col: warning: ...``, the line, a caret, a hint): passes whose
+        image depends on the order of the objects they draw (``blend_order.py``)."""
+        from pipegen.compiler.blend_order import HINT, describe, order_dependent_blends
+        from pipegen.core.diagnostics import warning_text
+        return [warning_text(p.span, describe(p, target, what), HINT)
+                for p, target, what in order_dependent_blends(self.technique)]
+
     def mismatches(self, scene) -> list:
         """What this technique will not render of ``scene`` (``features.Mismatch`` list:
         light types it cannot draw, translucent objects, light-index capacity)."""

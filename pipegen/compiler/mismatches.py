@@ -101,7 +101,7 @@ def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
 
 @dataclass(frozen=True)
 class Mismatch:
-    kind: str          # "light_type", "translucent", "capacity", "table"
+    kind: str          # "light_type", "translucent", "capacity", "table", "order"
     message: str
 
 
@@ -186,6 +186,11 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                     f"{'it' if objects == 1 else 'them'} but not the opaque surface behind "
                     f"{'is' if len(missed) == 1 else 'are'} missed (lights "
                     f"{', '.join(map(str, missed))})"))
+    if f.translucent_objects >= 2:
+        from pipegen.compiler.blend_order import describe, order_dependent_blends
+        for p, target, what in order_dependent_blends(tech):
+            out.append(Mismatch("order", f"{describe(p, target, what)} "
+                                         f"({f.translucent_objects} translucent objects)"))
     for pack, slots, types in cap.slot_packings:
         from pipegen.packing.light_index import sort_lights_into_slots
         members = [i for i, l in enumerate(scene.lights) if l.type in types]

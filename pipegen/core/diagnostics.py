@@ -56,13 +56,15 @@ class PipegenError(Exception):
         self.message = message
         self.hint = hint
 
-    def render(self) -> str:
+    def render(self, kind: str = "error") -> str:
+        """``file:line:col: error: message``, the line, a caret, the hint; ``kind``
+        "warning" for a located warning (``warning_text``)."""
         out = []
         if self.span is None:
-            out.append(f"error: {self.message}")
+            out.append(f"{kind}: {self.message}")
         else:
             s = self.span
-            out.append(f"{s.file}:{s.line}:{s.column}: error: {self.message}")
+            out.append(f"{s.file}:{s.line}:{s.column}: {kind}: {self.message}")
             line = _printable(s.source_line)
             if line:
                 width = 1
@@ -79,6 +81,11 @@ class PipegenError(Exception):
 
     def __str__(self) -> str:
         return self.render()
+
+
+def warning_text(span: Optional[Span], message: str, hint: str = "") -> str:
+    """A warning located in the source, laid out as an error is."""
+    return PipegenError(span, message, hint).render("warning")
 
 
 def _printable(line: str) -> str:

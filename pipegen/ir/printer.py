@@ -201,7 +201,8 @@ def _stencil(f: ir.StencilFace) -> str:
             f"fail {f.fail.value} zfail {f.zfail.value} pass {f.zpass.value}")
 
 
-def _equation(e: ir.BlendEquation) -> str:
+def blend_equation(e: ir.BlendEquation) -> str:
+    """A blend equation as the language spells it: ``add(src_alpha, one_minus_src_alpha)``."""
     if e.op in (ir.BlendOp.MIN, ir.BlendOp.MAX):
         return e.op.value
     return f"{e.op.value}({e.src.value}, {e.dst.value})"
@@ -211,9 +212,9 @@ def _blend(name: str, b: ir.TargetBlend) -> list[str]:
     out = []
     if b.enabled:
         if b.rgb == b.alpha:
-            out.append(f"blend {name} {_equation(b.rgb)}")
+            out.append(f"blend {name} {blend_equation(b.rgb)}")
         else:
-            out.append(f"blend {name} rgb {_equation(b.rgb)} alpha {_equation(b.alpha)}")
+            out.append(f"blend {name} rgb {blend_equation(b.rgb)} alpha {blend_equation(b.alpha)}")
     if b.write_mask != (True, True, True, True):
         channels = "".join(c for c, on in zip("rgba", b.write_mask) if on)
         out.append(f"mask {name} {channels or 'none'}")
