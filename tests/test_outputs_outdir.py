@@ -85,12 +85,18 @@ def test_user_file_with_an_output_name_is_not_overwritten_without_force(tmp_path
     assert (out / "b.txt").read_text() == "2"
 
 
-def test_changed_own_file_that_is_no_longer_written_is_kept(tmp_path):
+def test_an_edited_output_is_refused_before_any_work_and_kept_with_force(tmp_path):
+    """An output the user edited is refused when the folder is checked (before any work, not
+    after rendering: issue 29); with --force, pipegen replaces only what it writes again and
+    keeps the edited file it no longer writes."""
     out = tmp_path / "out"
     write(OutputDir(out, "test"), {"a.txt": "1", "b.txt": "1"})
     (out / "b.txt").write_text("edited")
-    write(OutputDir(out, "test"), {"a.txt": "2"})
-    assert (out / "b.txt").read_text() == "edited"
+    with pytest.raises(PipegenError, match=r"files pipegen wrote there were changed since "
+                                           r"\(b\.txt\); a new run would overwrite them"):
+        OutputDir(out, "test")
+    write(OutputDir(out, "test", force=True), {"a.txt": "2"})
+    assert (out / "b.txt").read_text() == "edited" and (out / "a.txt").read_text() == "2"
     assert sorted(read_manifest(out)) == ["a.txt"]
 
 

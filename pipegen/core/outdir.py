@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Iterator, Optional, Union
 
 from pipegen.core.diagnostics import PipegenError
+from pipegen.core.folder_lock import FolderLock
 
 MANIFEST = ".pipegen-manifest.json"
 STAGE_MARK = ".pipegen-stage-"     # staging folders and temporary manifests carry this
@@ -69,7 +70,14 @@ class OutputDir:
         self.path = Path(path)
         self.command = command
         self.force = force
+        self.lock: Optional[FolderLock] = None
         self.check()
+        self.lock = FolderLock(self.path, command)   # one writer at a time (folder_lock.py)
+
+    def release(self) -> None:
+        """Let another process write into the folder (done once the outputs are in place)."""
+        if self.lock is not None:
+            self.lock.release()
 
     def __fspath__(self) -> str:
         return os.fspath(self.path)
@@ -92,8 +100,17 @@ class OutputDir:
             if not p.is_dir():
                 raise _error(f"output path '{p}' is a file, not a folder",
                              "pass a folder with -o (it is created if missing)")
-            foreign = [] if read_manifest(p) is not None else \
+            owned = read_manifest(p)
+            foreign = [] if owned is not None else \
                 foreign_entries(p, limit=_FOREIGN_SHOWN + 1)
+            edited = [] if owned is None or self.force else edited_outputs(p, owned)
+            if edited:
+                raise _error(f"output folder '{p}': files pipegen wrote there were changed "
+                             f"since ({', '.join(edited[:_FOREIGN_SHOWN])}"
+                             f"{', ...' if len(edited) > _FOREIGN_SHOWN else ''}); a new run "
+                             f"would overwrite them",
+                             "move them away, pass another folder, or add --force (pipegen "
+                             "then replaces only the files it writes again)")
             if foreign and not self.force:
                 shown = ", ".join(foreign[:_FOREIGN_SHOWN]) + \
                     (", ..." if len(foreign) > _FOREIGN_SHOWN else "")
@@ -121,6 +138,8 @@ class OutputDir:
         exception its files replace the previous outputs (``commit``), otherwise it is removed
         and the folder is left exactly as it was."""
         self.check()
+        if self.lock is None or not self.lock.held:       # released by an earlier staging
+            self.lock = FolderLock(self.path, self.command)
         if self.path.is_dir():
             stage = Path(tempfile.mkdtemp(prefix=STAGE_MARK, dir=self.path))
         else:
@@ -136,6 +155,7 @@ class OutputDir:
             self._commit(stage)
         finally:
             shutil.rmtree(stage, ignore_errors=True)
+            self.release()
 
     def _commit(self, stage: Path) -> None:
         files = sorted(f.relative_to(stage).as_posix() for f in stage.rglob("*")
@@ -211,6 +231,12 @@ def read_manifest(folder: Path) -> Optional[dict[str, str]]:
     except (OSError, ValueError, KeyError, TypeError):
         pass
     return None
+
+
+def edited_outputs(folder: Path, owned: dict[str, str]) -> list[str]:
+    """The files the manifest lists whose content is no longer what pipegen wrote (sorted)."""
+    return sorted(rel for rel, digest in owned.items()
+                  if (Path(folder) / rel).is_file() and _sha256(Path(folder) / rel) != digest)
 
 
 def foreign_entries(folder: Path, limit: Optional[int] = None) -> list[str]:
