@@ -7,7 +7,7 @@ Without ``--obj`` it writes two generated OBJ files shaped like the Dabrovic Spo
 measured (no normals, 18 materials, about 2/3 of the faces quads, creased and smooth
 surfaces): 56k triangles, and the same surfaces at twice the resolution, 224k triangles.
 ``--obj`` times your own files instead (the Sponza itself, say).  ``--before`` also times the
-loader as it was before (``pipegen/scene/meshes.py`` at commit caa375c, read with ``git show``: its
+loader as it was before (``pipegen/meshes.py`` at commit caa375c, read with ``git show``: its
 ``load_obj`` plus the scene's transform, which is all that loading an OBJ object did), once
 per file: it takes about 40 µs per triangle.
 
@@ -157,7 +157,7 @@ obj = "{obj.resolve().as_posix()}"
 
 
 def old_meshes():
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{BEFORE_COMMIT}:pipegen/scene/meshes.py"],
+    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{BEFORE_COMMIT}:pipegen/meshes.py"],
                          check=True, capture_output=True, text=True).stdout
     path = Path(tempfile.mkdtemp()) / "meshes_before.py"
     path.write_text(src)
