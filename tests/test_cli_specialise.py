@@ -1,6 +1,6 @@
 """Scene specialisation on the command line (issue 9, docs/specialise.md): mismatches as
 warnings or, with ``--strict``, an error; ``compile --scene`` and its report; ``run``/``check
---specialise`` and whether the variant was reused; ``pipegen specialise [--verify]``;
+[--general]`` (the variant by default) and whether it was reused; ``pipegen specialise [--verify]``;
 ``pipegen graph`` (SVG/PNG with Graphviz's dot, DOT text without it)."""
 
 from __future__ import annotations
@@ -128,30 +128,49 @@ def test_compile_strict_refuses_before_writing(capsys, tmp_path):
 
 
 @pytest.mark.gl
-def test_run_specialise_says_whether_the_variant_was_reused(capsys, tmp_path, fresh_cache):
-    argv = ["run", tech("deferred"), "--scene", scene("small"), "--size", "32x18",
-            "--specialise", "-o"]
+def test_run_renders_the_variant_by_default_and_says_what_it_cut(capsys, tmp_path, fresh_cache):
+    """run specialises by default (issue 26): it says whether the variant was compiled or
+    reused and lists each cut with its reason; --specialise is the default kept as a no-op;
+    --general renders the general build, with no variant."""
+    argv = ["run", tech("deferred_calver"), "--scene", scene("small"), "--size", "32x18", "-o"]
     assert main(argv + [str(tmp_path / "a")]) == 0
     first = capsys.readouterr().err
     assert "variant: compiled (specialised for point; at most 4 lights; nothing translucent;" \
         in first
-    assert main(argv + [str(tmp_path / "b")]) == 0
+    assert "  pass `spot_lights` culled: it draws lights as cone spot and the scene has no " \
+        "spot lights" in first
+    assert "  table `lights` shrunk: 128 -> 4 entries" in first
+    assert main(argv[:-1] + ["--specialise", "-o", str(tmp_path / "b")]) == 0
     assert "variant: reused (" in capsys.readouterr().err
-    # without --specialise: the general technique, no variant
-    assert main(argv[:-2] + ["-o", str(tmp_path / "c")]) == 0
-    assert "variant" not in capsys.readouterr().err
+    assert main(argv[:-1] + ["--general", "-o", str(tmp_path / "c")]) == 0
+    assert "variant: " not in capsys.readouterr().err
+    written = {p.name for p in (tmp_path / "a").iterdir()}
+    general = {p.name for p in (tmp_path / "c").iterdir()}
+    assert "spot_lut.png" not in written and "spot_lut.png" in general
+
+
+def test_general_and_specialise_exclude_each_other(capsys, tmp_path):
+    with pytest.raises(SystemExit) as e:
+        main(["run", tech("deferred"), "--general", "--specialise", "-o", str(tmp_path)])
+    assert e.value.code == 2
+    assert "not allowed with argument --general" in capsys.readouterr().err
 
 
 @pytest.mark.gl
 @pytest.mark.cl
-def test_check_specialise_compares_the_variant(capsys, tmp_path, fresh_cache):
+def test_check_compares_the_variant_by_default(capsys, tmp_path, fresh_cache):
     assert main(["check", tech("deferred_calver"), "--scene", scene("small"), "--size", "32x18",
-                 "--specialise", "-o", str(tmp_path / "c")]) == 0
+                 "-o", str(tmp_path / "c")]) == 0
     captured = capsys.readouterr()
-    assert "variant: compiled (" in captured.err and "passes 11 -> 7)" in captured.err
+    assert "variant: compiled (" in captured.err and "passes 11 -> 7;" in captured.err
     rows = {l.split()[0] for l in captured.out.splitlines()[2:] if l.strip()}
     assert "spot_lut" not in rows and "accum" in rows        # the variant's targets only
     assert "all targets agree" in captured.out
+    assert main(["check", tech("deferred_calver"), "--scene", scene("small"), "--size", "32x18",
+                 "--general", "-o", str(tmp_path / "g")]) == 0
+    captured = capsys.readouterr()
+    rows = {l.split()[0] for l in captured.out.splitlines()[2:] if l.strip()}
+    assert "variant: " not in captured.err and "spot_lut" in rows
 
 
 # ---- pipegen specialise ------------------------------------------------------------------------
@@ -313,7 +332,8 @@ def test_help_shows_the_examples(capsys, command):
 
 def test_general_build_says_what_unused_shadow_maps_cost():
     """forward.pipe's general build clears its atlas and runs the (untaken) shadow lookup on
-    a scene where no light casts shadows: run and check print a note pointing at --specialise;
+    a scene where no light casts shadows: run and check --general print a note saying the
+    variant removes both;
     none where lights cast shadows, none for the specialised variant (compile --scene), none
     for a technique without shadow maps."""
     from pipegen import compile_file, load_scene
@@ -321,7 +341,7 @@ def test_general_build_says_what_unused_shadow_maps_cost():
     small, shadows = load_scene(scene("small")), load_scene(scene("shadows"))
     forward = compile_file(tech("forward"))
     note = unused_cost_note(forward, small)
-    assert note.startswith("no light in this scene casts shadows") and "--specialise" in note
+    assert note.startswith("no light in this scene casts shadows") and "--general" in note
     assert unused_cost_note(forward, shadows) is None
     assert unused_cost_note(forward.specialise(small), small) is None
     assert unused_cost_note(compile_file(tech("deferred")), small) is None
@@ -330,8 +350,11 @@ def test_general_build_says_what_unused_shadow_maps_cost():
 @pytest.mark.gl
 def test_run_prints_the_unused_shadow_note(capsys, tmp_path):
     assert main(["run", tech("forward"), "--scene", scene("small"), "--size", "16x9",
-                 "-o", str(tmp_path / "r")]) == 0
+                 "--general", "-o", str(tmp_path / "r")]) == 0
     assert "note: no light in this scene casts shadows" in capsys.readouterr().err
+    assert main(["run", tech("forward"), "--scene", scene("small"), "--size", "16x9",
+                 "-o", str(tmp_path / "s")]) == 0
+    assert "note: no light" not in capsys.readouterr().err
 
 
 def test_docs_specialise_md_shows_what_the_command_prints(capsys, monkeypatch):

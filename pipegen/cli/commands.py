@@ -42,8 +42,9 @@ def cmd_run(args) -> int:
     out = OutputDir(args.out, "run", args.force)              # before any work
     compiled = compile_from_args(args)
     scene = load_scene_arg(args)
-    compiled = rendered_build(args, compiled, scene, cuts=True)
-    report_mismatches(compiled, scene, args.strict, scene_label(args))
+    general = compiled
+    report_mismatches(general, scene, args.strict, scene_label(args), note=args.general)
+    compiled = rendered_build(args, general, scene, cuts=True)
     from pipegen.views.outputs import file_name, write_render
     pipeline = compiled.pipeline(args.backend, precision=args.precision)
     print(f"rendering {compiled.name} on {args.backend} at {scene.width}x{scene.height} "
@@ -77,8 +78,9 @@ def cmd_check(args) -> int:
     scene = load_scene_arg(args)
     if out is None:
         out = OutputDir(Path("build/check") / compiled.name, "check", args.force)
+    found = report_mismatches(compiled, scene, args.strict, scene_label(args),
+                              note=args.general)
     compiled = rendered_build(args, compiled, scene)
-    found = report_mismatches(compiled, scene, args.strict, scene_label(args))
     if args.precision != "f32":      # the float32 backends against the float64 evaluation
         from pipegen.proof.precision import main_precision_check
         if args.reference is not None or args.reference_samples != 1:

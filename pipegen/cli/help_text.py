@@ -22,16 +22,16 @@ EXAMPLES = {
   pipegen run pipelines/inferred.pipe -p lbuffer_scale=0.5 -o out/inferred
   pipegen run pipelines/lidr_bitplanes.pipe --scene examples/scenes/mixed_lights.toml --strict -o out/lidr
       exit 1, listing what the technique will not render of this scene (a warning without --strict)
-  pipegen run pipelines/deferred_calver.pipe --scene examples/scenes/small.toml --specialise -o out/calver
-      render the variant specialised for the scene (culled passes and targets never run)
+  pipegen run pipelines/deferred_calver.pipe --scene examples/scenes/small.toml --general -o out/calver
+      render the general build: every pass and target, not the variant compiled for the scene
 """,
     "check": """\
   pipegen check pipelines/lidr_bitplanes.pipe
       GL vs CL on the built-in scene, one row per target; error images in build/check/lidr_bitplanes/
   pipegen check pipelines/lidr_max_stencil.pipe --scene examples/scenes/stress_overlap.toml
       exit 1 and the first divergent pass on disagreement
-  pipegen check pipelines/inferred.pipe --scene examples/scenes/small.toml --specialise
-      GL vs CL on the variant specialised for the scene
+  pipegen check pipelines/inferred.pipe --scene examples/scenes/small.toml --general
+      GL vs CL on the general build instead of the variant compiled for the scene
 """,
     "info": """\
   pipegen info pipelines/inferred.pipe

@@ -233,10 +233,12 @@ def add_strict(p: argparse.ArgumentParser, needs_scene: bool = False) -> None:
 
 
 def add_specialise_flag(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--specialise", action="store_true",
-                   help="render the variant compiled for this scene's features (culled "
-                        "passes and targets never run; see pipegen specialise) "
-                        "(default: the general technique)")
+    """``--general`` (the general build) and ``--specialise``, the default kept as a no-op for
+    the command lines written before it was one (run, check)."""
+    from pipegen.compiler.driver import GENERAL_HELP, SPECIALISE_HELP
+    build = p.add_mutually_exclusive_group()
+    build.add_argument("--general", action="store_true", help=GENERAL_HELP)
+    build.add_argument("--specialise", action="store_true", help=SPECIALISE_HELP)
 
 
 def add_force(p: argparse.ArgumentParser) -> None:

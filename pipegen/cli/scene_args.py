@@ -39,25 +39,28 @@ def mismatch_error(compiled, found, label: str) -> PipegenError:
                              "anyway; or choose a technique that renders what the scene has")
 
 
-def report_mismatches(compiled, scene, strict: bool, label: str) -> list:
+def report_mismatches(compiled, scene, strict: bool, label: str, note: bool = True) -> list:
     """What ``compiled`` will not render of ``scene``: a warning line each on stderr, or with
-    ``strict`` a ``PipegenError`` listing them all (never a silently wrong image)."""
+    ``strict`` a ``PipegenError`` listing them all (never a silently wrong image).  Asked of
+    the general technique (a variant's culled passes would change the wording).  ``note``:
+    also say what ``compiled`` computes that the scene does not call for (when it renders:
+    ``--general``)."""
     found = compiled.mismatches(scene)
     if found and strict:
         raise mismatch_error(compiled, found, label)
     for m in found:
         print(f"warning: part of {label} will not be rendered: {m.message}", file=sys.stderr)
-    note = unused_cost_note(compiled, scene)
-    if note:
-        print(f"note: {note}", file=sys.stderr)
+    said = unused_cost_note(compiled, scene) if note else None
+    if said:
+        print(f"note: {said}", file=sys.stderr)
     return found
 
 
 def unused_cost_note(compiled, scene) -> str | None:
     """What the general build computes that ``scene`` does not call for, when it costs frame
     time: shadow-map passes and lookups with no shadow-casting light (llvmpipe runs the
-    untaken lookup under a mask: forward on many_lights 1.6x slower).  None when specialised
-    or when there is nothing to say."""
+    untaken lookup under a mask: forward on many_lights 1.6x slower): said only of a general
+    build (``--general``).  None when specialised or when there is nothing to say."""
     if compiled.specialisation is not None:
         return None
     if not any(p.draw.shadow for p in compiled.technique.passes):
@@ -66,5 +69,5 @@ def unused_cost_note(compiled, scene) -> str | None:
     if shadow_lights(scene.lights):
         return None
     return ("no light in this scene casts shadows, but this build still clears the shadow "
-            "atlas and runs the shadow lookup for every light; --specialise removes both "
-            "(docs/specialise.md)")
+            "atlas and runs the shadow lookup for every light; without --general the "
+            "variant compiled for the scene removes both (docs/specialise.md)")

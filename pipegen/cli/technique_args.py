@@ -33,18 +33,37 @@ def compile_from_args(args, watch=None):
     return compile_technique(args.file, args.param, watch=watch)
 
 
-def specialise_from_args(args, compiled, scene, say_variant: bool = False, watch=None):
+def specialise_from_args(args, compiled, scene, watch=None):
     """``compiled`` specialised for ``scene`` (the light table recompiled smaller, as
-    ``compile_file(..., scene=)`` does); with ``say_variant``, whether the variant was compiled
-    or reused from this process's cache, on stderr.  ``watch``: what to show of the passes."""
+    ``compile_file(..., scene=)`` does).  ``watch``: what to show of the passes."""
     from pipegen.compiler.driver import compile_file
     from pipegen.compiler.specialise import specialise
-    special = specialise(compiled, scene, watch=watch,
-                         recompile=lambda ps: compile_file(args.file, ps, watch=watch))
-    if say_variant:
-        spec = special.specialisation
-        print(f"variant: {'reused' if spec.reused else 'compiled'} (specialised for "
-              f"{spec.facts.describe()}; {len(spec.cuts)} cuts, passes "
-              f"{len(spec.general.passes)} -> {len(special.technique.passes)})",
-              file=sys.stderr)
+    return specialise(compiled, scene, watch=watch,
+                      recompile=lambda ps: compile_file(args.file, ps, watch=watch))
+
+
+def rendered_build(args, compiled, scene, cuts: bool = False):
+    """What ``run`` and ``check`` render: the variant compiled for ``scene`` (the light table
+    shrunk), or with ``--general`` the general build.  On stderr, whether the variant was
+    compiled or reused from this process's cache, and with ``cuts`` what the scene let it cut,
+    one line per cut with its reason."""
+    from pipegen.compiler.driver import for_scene
+    special = for_scene(compiled, scene, args.general, args.file)
+    spec = special.specialisation
+    if spec is None:
+        return special
+    print(f"variant: {'reused' if spec.reused else 'compiled'} (specialised for "
+          f"{spec.facts.describe()}; {len(spec.cuts)} cuts, passes "
+          f"{len(spec.general.passes)} -> {len(special.technique.passes)}; --general renders "
+          f"the general build)", file=sys.stderr)
+    if cuts:
+        for line in cut_lines(spec):
+            print(line, file=sys.stderr)
     return special
+
+
+def cut_lines(spec) -> list[str]:
+    """What the scene let the variant cut, one indented line per cut (its reason), or a line
+    saying nothing was."""
+    return [f"  {c.describe()}" for c in spec.cuts] or \
+        ["  nothing cut: the scene calls for every pass, target and branch"]

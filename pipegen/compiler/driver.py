@@ -146,6 +146,29 @@ def compile_file(path: str | os.PathLike, params: Optional[dict] = None,
                       recompile=lambda ps: compile_source(text, str(p), ps, verify_each, watch))
 
 
+def for_scene(compiled: Compiled, scene, general: bool = False,
+              path: Optional[str | os.PathLike] = None) -> Compiled:
+    """What ``run``, ``check``, ``sweep``, ``stress``, ``tune`` and ``pipegen.testing`` render
+    of ``scene``: the variant compiled for it (``specialise.py``; cached per process by
+    technique, parameters and facts), or with ``general`` (``--general``) ``compiled`` itself.
+    ``path``: the ``.pipe`` file ``compiled`` came from, when known, so that the light table
+    shrinks as ``compile_file(path, scene=)`` shrinks it (without it the table keeps its size).
+    A technique already specialised is returned as it is: its guards refuse a scene that
+    breaks its facts."""
+    if general or compiled.specialisation is not None:
+        return compiled
+    from pipegen.compiler.specialise import specialise
+    recompile = None if path is None else (lambda ps: compile_file(path, ps))
+    return specialise(compiled, scene, recompile=recompile)
+
+
+GENERAL_HELP = ("render the general build, compiled for every scene, instead of the variant "
+                "compiled for this scene's features (default: the variant: passes, targets "
+                "and branches the scene does not call for are cut; docs/specialise.md)")
+SPECIALISE_HELP = "the default: render the variant compiled for the scene (kept for " \
+                  "compatibility; --general renders the general build)"
+
+
 _UNWATCHED = Watch()
 
 

@@ -111,6 +111,29 @@ def load_technique(technique: TechniqueLike, params: Optional[dict] = None) -> C
     return _COMPILED[key]
 
 
+_VARIANTS: dict[tuple, tuple[Compiled, Compiled]] = {}
+
+
+def for_scene(compiled: Compiled, scene: Scene, general: Optional[bool] = None) -> Compiled:
+    """What the functions here render of ``scene``: the variant of ``compiled`` compiled for it
+    (as ``pipegen run`` renders; its light table shrunk when the technique was given as a
+    path), or the general build with ``general`` (None: ``settings.general``, set by ``pytest
+    --pipegen-general``).  One variant object per technique and facts, so that its pipelines
+    are built once."""
+    from pipegen.compiler.driver import for_scene as variant
+    from pipegen.scene.features import scene_features
+    general = settings.general if general is None else general
+    if general or compiled.specialisation is not None:
+        return compiled
+    key = (id(compiled), scene_features(scene).facts())
+    if key not in _VARIANTS:          # the base is kept with it: its id stays its own
+        special = variant(compiled, scene, path=_SOURCES.get(id(compiled)))
+        _VARIANTS[key] = (compiled, special)
+        if id(compiled) in _SOURCES:
+            _SOURCES[id(special)] = _SOURCES[id(compiled)]
+    return _VARIANTS[key][1]
+
+
 def load_test_scene(scene: SceneLike = None, size: Optional[tuple[int, int]] = None) -> Scene:
     """The scene a test renders: a path (``.toml``, ``.gltf``/``.glb``), a ``Scene``, or None
     for the built-in default scene at ``TEST_SIZE``; ``size`` overrides its size."""
@@ -131,6 +154,8 @@ def _command(verb: str, compiled: Compiled, scene_arg: SceneLike, scene: Scene,
     words += ["--size", f"{scene.width}x{scene.height}"]
     for k, v in sorted(compiled.params.items()):
         words += ["-p", f"{k}={v}"]
+    if compiled.specialisation is None:       # the commands render the variant without it
+        words += ["--general"]
     return " ".join(shlex.quote(w) if not w.startswith("<") else w for w in words + list(extra))
 
 
@@ -150,11 +175,13 @@ def _pipeline(compiled: Compiled, backend: str, precision: str = "f32"):
 
 
 def render(technique: TechniqueLike, scene: SceneLike = None, backend: str = "gl",
-           size: Optional[tuple[int, int]] = None, params: Optional[dict] = None) -> Targets:
+           size: Optional[tuple[int, int]] = None, params: Optional[dict] = None,
+           general: Optional[bool] = None) -> Targets:
     """Render ``technique`` on ``scene`` with ``backend`` ("gl", "cl"): its targets by name,
-    with their formats."""
-    compiled = load_technique(technique, params)
+    with their formats.  The variant compiled for the scene, or with ``general`` the general
+    build (``for_scene``)."""
     s = load_test_scene(scene, size)
+    compiled = for_scene(load_technique(technique, params), s, general)
     pipe = _pipeline(compiled, backend)
     values = pipe.render(s)
     images = {}
@@ -218,13 +245,14 @@ def _fail(what: str, failed: list[records.Comparison], every: list[records.Compa
 def assert_backends_agree(technique: TechniqueLike, scene: SceneLike = None,
                           size: Optional[tuple[int, int]] = None,
                           params: Optional[dict] = None, max_discontinuities: int = 0,
-                          only: Optional[set] = None):
+                          only: Optional[set] = None, general: Optional[bool] = None):
     """GL and CL render every target (``only``: these) within the tolerance model's limits;
     at most ``max_discontinuities`` pixels where they took different sides of a step of the
-    technique's code.  Returns the ``proof.check.CheckResult``."""
+    technique's code (the variant compiled for the scene, or with ``general`` the general
+    build).  Returns the ``proof.check.CheckResult``."""
     from pipegen.proof.check import check, error_image
-    compiled = load_technique(technique, params)
     s = load_test_scene(scene, size)
+    compiled = for_scene(load_technique(technique, params), s, general)
     result = check(compiled, s, max_discontinuities=max_discontinuities if only is None
                    else 1 << 62)          # counted below, over the targets asked for
     command = _command("check", compiled, scene, s)
@@ -274,14 +302,15 @@ def assert_backends_agree(technique: TechniqueLike, scene: SceneLike = None,
 def assert_close_to_f64(technique: TechniqueLike, scene: SceneLike = None,
                         size: Optional[tuple[int, int]] = None, params: Optional[dict] = None,
                         backends: tuple[str, ...] = ("gl", "cl"), max_discontinuities: int = 0,
-                        only: Optional[set] = None):
+                        only: Optional[set] = None, general: Optional[bool] = None):
     """Every target (``only``: these) of each float32 backend within the tolerance model's
     bound of the technique's own float64 evaluation (what ``pipegen stress`` holds every case
     to); at most ``max_discontinuities`` pixels (per backend) on the other side of a step of
-    the technique's code.  Returns the ``proof.precision.PrecisionResult``."""
+    the technique's code (the variant compiled for the scene, or with ``general`` the general
+    build).  Returns the ``proof.precision.PrecisionResult``."""
     from pipegen.proof.precision import precision_check, ratio_image
-    compiled = load_technique(technique, params)
     s = load_test_scene(scene, size)
+    compiled = for_scene(load_technique(technique, params), s, general)
     result = precision_check(compiled, s, backends)
     command = _command("check", compiled, scene, s, ("--precision", "f64"))
     made, failed, disc = [], [], []
@@ -338,21 +367,24 @@ def assert_close_to_reference(technique: TechniqueLike, scene: SceneLike = None,
                               p99: Optional[float] = None, max: Optional[float] = None,
                               rmse: Optional[float] = None,
                               size: Optional[tuple[int, int]] = None,
-                              params: Optional[dict] = None, backend: str = "cl") -> dict:
+                              params: Optional[dict] = None, backend: str = "cl",
+                              general: Optional[bool] = None) -> dict:
     """The output of ``technique`` on ``backend`` within limits of a reference, in rgba8
     codes: ``reference`` "self" (the technique at its most accurate parameter values, in
     float64), "scene" (the float64 scene evaluation), "FILE.pipe[:name=value,...]" or None
     (``references.default_reference``), evaluated at ``samples`` x ``samples`` per pixel.
-    ``p99``, ``max``, ``rmse``: the limits checked (those given; at least one).  Returns
-    ``accuracy.codes_vs_reference``'s figures (rmse, p99, max, interior, worst pixels)."""
+    ``p99``, ``max``, ``rmse``: the limits checked (those given; at least one); ``general``
+    as ``render``'s.  Returns ``accuracy.codes_vs_reference``'s figures (rmse, p99, max,
+    interior, worst pixels)."""
     from pipegen.proof.accuracy import codes_vs_reference, error_map_rgb, output_codes
     from pipegen.proof.references import choose_reference
     limits = {k: v for k, v in (("p99", p99), ("max", max), ("rmse", rmse)) if v is not None}
     if not limits:
         raise ValueError("give a limit: p99=, max= or rmse= (rgba8 codes)")
-    compiled = load_technique(technique, params)
     s = load_test_scene(scene, size)
-    ref = choose_reference(reference, compiled, samples)
+    base = load_technique(technique, params)
+    compiled = for_scene(base, s, general)
+    ref = choose_reference(reference, base, samples)     # the technique's, not the variant's
     targets = render(compiled, s, backend)
     codes = output_codes(compiled, {k: t.values for k, t in targets.items()})
     e = codes_vs_reference(codes, ref, s)

@@ -13,6 +13,11 @@ tolerance model as a test written in Python (docs/tolerances.md):
   (not explained, explained by a step of the technique's code);
 - ``expect lights_dropped OP N``, ``expect mismatches OP N``: counts, without rendering.
 
+An expectation on a target renders what ``pipegen run`` renders: the variant compiled for the
+scene (``api.for_scene``; the general build with ``pytest --pipegen-general``), or the
+general build when the variant culled the target (the scene does not call for it, but the
+file asks about it).  Counts are of the general build.
+
 Each check records a ``records.Comparison(kind="expect")`` (beside the ones the functions
 record) for the plugin's report.  The scene is the built-in default scene at 64x36
 (``api.TEST_SIZE``) unless the line says ``on "scene"`` and/or ``at WxH``.
@@ -82,7 +87,7 @@ def check_file(path, params: Optional[dict] = None) -> Iterator[Outcome]:
 def check(compiled, e: ir.Expectation) -> Outcome:
     """``e`` checked on ``compiled``.  A scene that cannot be loaded or rendered fails this
     expectation with pipegen's message (the others are still checked)."""
-    from pipegen.testing.api import load_test_scene
+    from pipegen.testing.api import for_scene, load_test_scene
     try:
         scene = load_test_scene(e.scene, e.size)     # None: the built-in scene at TEST_SIZE
         if e.check == "count":
@@ -90,10 +95,10 @@ def check(compiled, e: ir.Expectation) -> Outcome:
         elif not _rendered(compiled, e.subject):
             outcome = Outcome(e, False, f"target '{e.subject}' is not rendered: compiling "
                                         f"removed it (does a pass write it?)")
-        elif e.statistic is None:
-            outcome = _verdict(compiled, e, scene)
         else:
-            outcome = _statistic(compiled, e, scene)
+            variant = for_scene(compiled, scene)
+            build = variant if _rendered(variant, e.subject) else compiled
+            outcome = (_verdict if e.statistic is None else _statistic)(build, e, scene)
     except PipegenError as err:      # the scene cannot be loaded or rendered: this one fails
         s = err.span
         where = (f"{s.file}:{s.line}:{s.column}: " if s is not None else
@@ -148,7 +153,8 @@ def _compare(compiled, e: ir.Expectation, scene):
     before = len(records.RECORDED)
     result, failures = None, []
     try:
-        result = compare(compiled, scene, only={e.subject}, max_discontinuities=_ANY)
+        result = compare(compiled, scene, only={e.subject}, max_discontinuities=_ANY,
+                         general=True)                  # ``compiled``: the build chosen
     except ComparisonFailure as failure:
         failures = [c.message or c.summary for c in failure.comparisons if not c.passed]
     made = [c for c in records.RECORDED[before:] if _target_of(c) == e.subject]
@@ -239,7 +245,7 @@ def statistic(name: str, err) -> float:
 def _errors(compiled, e: ir.Expectation, scene) -> Iterator[tuple[str, object]]:
     """(what was compared, |a - b| per pixel in the target's units), for each comparison."""
     from pipegen.testing.api import render
-    f32 = {b: render(compiled, scene, backend=b) for b in _against(e)}
+    f32 = {b: render(compiled, scene, backend=b, general=True) for b in _against(e)}
     keys = [k for k in f32[_against(e)[0]] if k.partition(".")[0] == e.subject]
     fmt = compiled.technique.target(e.subject).format
     if e.check == "agrees":

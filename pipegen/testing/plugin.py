@@ -4,8 +4,9 @@ It loads in every pytest run where pipegen is installed, so importing it costs n
 numpy, moderngl, pyopencl or compiler until a fixture or a ``pipegen.testing`` function is used.
 
 - Options: ``--pipegen-update-goldens`` (write or refresh the goldens that
-  ``assert_matches_golden`` is given, instead of comparing) and ``--pipegen-report=DIR`` (keep
-  every comparison's pictures and write ``DIR/index.html`` at the end of the session).
+  ``assert_matches_golden`` is given, instead of comparing), ``--pipegen-report=DIR`` (keep
+  every comparison's pictures and write ``DIR/index.html`` at the end of the session) and
+  ``--pipegen-general`` (render general builds, not the variants compiled for each scene).
 - Fixtures: ``pipegen_scene`` (the built-in default scene at 64x36; parametrise it indirectly
   with a scene path, relative to the test file), ``pipegen_backend`` (each test that asks for
   it runs once per backend, ids ``gl`` and ``cl``; skipped where the backend is unavailable),
@@ -80,6 +81,10 @@ def pytest_addoption(parser):
     group.addoption("--pipegen-report", metavar="DIR", default=None,
                     help="write an HTML summary of every comparison to DIR/index.html "
                          "(golden, actual, difference, FLIP map, numbers, the command)")
+    group.addoption("--pipegen-general", action="store_true", default=False,
+                    help="render the general build of each technique instead of the variant "
+                         "compiled for each scene (the default, as pipegen run; also "
+                         "PIPEGEN_GENERAL=1; a function's general= argument wins)")
 
 
 def pytest_configure(config):
@@ -91,6 +96,8 @@ def pytest_configure(config):
                                   worker=hasattr(config, "workerinput"))
     if config.getoption("pipegen_update_goldens", False):
         settings.update_goldens = True
+    if config.getoption("pipegen_general", False):
+        settings.general = True
     if report:
         settings.keep_images = True
         if not hasattr(config, "workerinput"):
@@ -130,7 +137,8 @@ class _State:
         # what the session found, restored after it; a folder set by the user (e.g. in a
         # conftest.py) holds the per-test folders of error images instead of pytest's
         self.settings = {name: getattr(settings, name) for name in
-                         ("update_goldens", "keep_images", "artifacts_dir", "current_test")}
+                         ("update_goldens", "keep_images", "artifacts_dir", "current_test",
+                          "general")}
 
 
 _STATE = pytest.StashKey[_State]()

@@ -13,6 +13,9 @@ any test runs, and ``pipegen.testing``'s functions read them when they compare.
 - ``artifacts_dir``: where error images go (a folder per test when the plugin runs; else a
   ``pipegen-testing`` folder in the system's temporary folder).
 - ``current_test``: the running test's id (pytest's node id), named in records and messages.
+- ``general``: render the general build instead of the variant compiled for each scene (the
+  default, as ``pipegen run``), wherever a function is not told (``general=``): ``pytest
+  --pipegen-general``, or the environment variable ``PIPEGEN_GENERAL=1``.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ update_goldens: bool = os.environ.get("PIPEGEN_UPDATE_GOLDENS", "") not in ("", 
 keep_images: bool = False
 artifacts_dir: Optional[Path] = None
 current_test: str = ""
+general: bool = os.environ.get("PIPEGEN_GENERAL", "") not in ("", "0")
 
 
 def artifacts() -> Path:
