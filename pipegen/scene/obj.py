@@ -1,10 +1,14 @@
 """Wavefront OBJ and MTL files: geometry, per-``usemtl`` parts and their materials.
 
-The reader is vectorised: numpy classifies the lines by their first bytes, parses the
-numbers and indices of all ``v``, ``vn`` and ``f`` records in one call each, triangulates
-polygons as fans and smooths normals (:func:`pipegen.scene.meshes.smooth_normals`); Python only
-touches the lines it keeps.  A 224k-triangle file loads in about 0.55 s of CPU time against
-4.6 s for the line-by-line loader it replaced (``benchmarks/load_scene.py --before``).
+The reader is vectorised: numpy classifies the lines by their first bytes; the records of
+each kind are cut from the file a run of consecutive lines at a time (not one bytes object
+per line), their numbers and indices parsed in one call each (plain decimals by
+:mod:`pipegen.scene.decimals`, bit-identical to ``strtod``), polygons triangulated as fans
+and normals smoothed (:func:`pipegen.scene.meshes.smooth_normals`); the parts' normal
+groups weld each OBJ vertex once.  Python only touches the lines of other statements.  The
+real Dabrovic Sponza split 4x (224k triangles) loads in 0.4-0.5 s of CPU time, about half
+of what it took before issue 26 and a seventeenth of the line-by-line loader of issue 13
+(``benchmarks/load_scene.py``; its docstring has the figures and the commands).
 
 Why not a mesh library: trimesh (the candidate; its OBJ reader, 5.2.0, was tried on the files
 the tests use) merges vertices by (v, vt, vn), so smoothing over the file's vertices would
@@ -101,11 +105,12 @@ class ObjModel:
     notes: list[str] = field(default_factory=list)
     triangles_read: int = 0
     dropped: int = 0
+    vertex: Optional[np.ndarray] = None     # (3T,) each corner's OBJ vertex (0-based)
 
     @functools.cached_property
     def mesh(self) -> Mesh:
         """All faces as one mesh (normal groups over the whole file), made on first use."""
-        return meshes.finish_mesh(self.positions, self.normals)
+        return meshes.finish_mesh(self.positions, self.normals, self.vertex)
 
 
 # -- OBJ ---------------------------------------------------------------------------------------
@@ -391,7 +396,7 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     if dropped_total:
         notes.append(f"{path.name}: dropped {dropped_total} degenerate (zero-area) triangles of "
                      f"{len(F)}")
-    return ObjModel(path, parts, positions, normals, notes, len(F), dropped_total)
+    return ObjModel(path, parts, positions, normals, notes, len(F), dropped_total, F.reshape(-1))
 
 
 # -- MTL ---------------------------------------------------------------------------------------
