@@ -149,3 +149,21 @@ def test_installed_pipegen_compiles_a_technique_outside_the_repo(installed, tmp_
     assert "mine.pipe:3:1: error: cannot read included file 'extra.pipe'" in proc.stderr
     assert "searched extra.pipe (next to the including file))" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.slow
+def test_an_installed_sweep_run_from_the_source_tree_imports_the_installed_pipegen(installed,
+                                                                                  tmp_path):
+    """Issue 29: run from the repository root (a source tree whose pipegen/ is not the
+    installed one), the sweep's render workers and its timing process import the pipegen the
+    parent runs, not ./pipegen: the sweep finishes, rows timed."""
+    env = _clean_env(tmp_path)
+    out = tmp_path / "sweep"
+    proc = subprocess.run([*_pipegen(installed), "sweep", "pipelines/forward.pipe",
+                           "--size", "32x18", "-p", "pcf_taps=1,4", "--frames", "1",
+                           "--backend", "gl", "--no-progress", "-o", str(out)],
+                          env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    rows = (out / "results.csv").read_text().splitlines()
+    assert len(rows) == 3 and all(",gl," in r for r in rows[1:])

@@ -235,3 +235,18 @@ def test_a_toon_technique_swept_against_itself_another_technique_and_the_scene(t
     assert all(float(r["rmse_scene"]) > 10.0 for r in rows.values())
     assert {r["reference"] for r in rows.values()} == {"scene"}
     assert "reference: scene: pipegen's float64 scene evaluation" in stdout
+
+
+def test_a_failing_timing_process_is_a_clear_error():
+    """The timing process ends with one `error:` line, which the parent reports as a
+    PipegenError naming it: no traceback from either (issue 29)."""
+    from pipegen.core.diagnostics import PipegenError
+    from pipegen.tools.sweep.jobs import scene_spec, time_job
+    job = dict(variants=[dict(file="/nonexistent/technique.pipe", params={})],
+               scene=scene_spec(None, (16, 9)), backends=["gl"], frames=1, threads=1,
+               progress=False)
+    with pytest.raises(PipegenError) as e:
+        time_job(job)
+    assert e.value.message.startswith("the timing process failed (exit 1): ")
+    assert "/nonexistent/technique.pipe" in e.value.message and "Traceback" not in str(e.value)
+    assert "--frames 0 skips the timing" in e.value.hint

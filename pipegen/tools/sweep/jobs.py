@@ -26,7 +26,7 @@ from typing import Optional
 
 from pipegen.tools.sweep.progress import progress_bar
 from pipegen.tools.timing import interleave
-from pipegen.tools.sweep.worker import child_env
+from pipegen.tools.sweep.worker import child_env, python_command
 
 # -- scenes (loaded where the job runs: a job carries a path and a size, or a pickled Scene) -----
 
@@ -225,11 +225,48 @@ def time_job(job: dict) -> dict:
                     POCL_MAX_PTHREAD_COUNT=str(job["threads"]))
     # the package, not this module, as __main__ (tools/sweep/__main__.py calls timing_main):
     # run as a script, jobs.py would be loaded twice, once as __main__ and once by name
-    proc = subprocess.run([sys.executable, "-m", "pipegen.tools.sweep"], input=json.dumps(job),
-                          capture_output=False, stdout=subprocess.PIPE, text=True, env=env)
+    proc = subprocess.Popen(python_command("pipegen.tools.sweep"), stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    tail = forward_stderr(proc.stderr)          # its progress bar shows; its last lines kept
+    out, _ = proc.communicate(json.dumps(job).encode())
+    tail.join()
+    out = out.decode()
     if proc.returncode != 0:
-        raise RuntimeError(f"the timing process failed (exit {proc.returncode})")
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+        from pipegen.core.diagnostics import PipegenError
+        said = next((line for line in reversed(tail.lines) if line.startswith("error:")),
+                    tail.lines[-1] if tail.lines else "")
+        raise PipegenError(None, f"the timing process failed (exit {proc.returncode})"
+                                 + (f": {said.removeprefix('error: ')}" if said else ""),
+                           hint="the renders finished; --frames 0 skips the timing")
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def forward_stderr(stream, keep: int = 20):
+    """A thread copying a child's stderr (a binary pipe) to ours as it comes (progress bars
+    included), with ``.lines``: its last ``keep`` lines."""
+    import collections
+    import threading
+
+    class Tail(threading.Thread):
+        def __init__(self):
+            super().__init__(daemon=True)
+            self.lines: collections.deque = collections.deque(maxlen=keep)
+
+        def run(self):
+            pending = ""
+            # chunks, not lines: a progress bar redraws with "\r" and no newline
+            for chunk in iter(lambda: os.read(stream.fileno(), 4096), b""):
+                text = chunk.decode(errors="replace")
+                sys.stderr.write(text)
+                sys.stderr.flush()
+                *done, pending = (pending + text).replace("\r", "\n").split("\n")
+                self.lines.extend(line for line in done if line.strip())
+            if pending.strip():
+                self.lines.append(pending)
+
+    t = Tail()
+    t.start()
+    return t
 
 
 def quartiles(xs: list) -> tuple[float, float, float]:

@@ -12,7 +12,7 @@ import threading
 
 from pipegen.core.diagnostics import PipegenError
 from pipegen.tools.sweep.jobs import RENDER_ENV
-from pipegen.tools.sweep.worker import child_env, receive, reply_error, send
+from pipegen.tools.sweep.worker import child_env, python_command, receive, reply_error, send
 
 
 class LocalPool:
@@ -32,7 +32,7 @@ class LocalPool:
         env = child_env(**RENDER_ENV)
         while len(self.procs) < n:
             self.procs.append(subprocess.Popen(
-                [sys.executable, "-m", "pipegen.tools.sweep.worker"], stdin=subprocess.PIPE,
+                python_command("pipegen.tools.sweep.worker"), stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE, env=env))
 
     def map_unordered(self, fn, items):

@@ -30,6 +30,14 @@ HEADER = struct.Struct("<Q")
 PACKAGE_ROOT = str(Path(__file__).resolve().parents[3])
 
 
+def python_command(module: str) -> list[str]:
+    """``python -P -m MODULE`` with this interpreter: ``-P`` keeps the current folder off the
+    child's sys.path, so that a source checkout in the folder a user runs from (the repository
+    root, say, where ``pipegen/`` has no built grammar) cannot stand in for the pipegen the
+    parent imported; ``child_env`` puts that one first."""
+    return [sys.executable, "-P", "-m", module]
+
+
 def child_env(**extra: str) -> dict:
     """The environment of a child Python process that imports this pipegen (the render
     workers, the timing process)."""
