@@ -11,11 +11,18 @@ when the pass draws no triangle (bins may still hold no tile: the raster launch 
 ``use_scene()`` drops the scene's attribute buffers.  The geometry sees the pipeline only
 through what it is given: the ``device.Device`` it runs on, the plan, the tile size and each
 frame's ``FrameState`` (so it does not import the pipeline, which imports it).
+
+``$PIPEGEN_CL_SHARE_SETUP=0`` (read when a pipeline is made; ``DrawGeometry.share``) turns the
+sharing off, for comparisons: every pass execution then runs its own vertex kernel, set-up
+and binning, of its own varyings only (a light draw still sets up its light list at once), and
+nothing is kept from one execution or frame to the next.  Sharing changes no value:
+``tests/test_cl_setup_reuse.py`` renders every shipped technique both ways.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
 import time
 from typing import Optional
 
@@ -210,6 +217,10 @@ class DrawGeometry:
         self.pool = cl_context.FramePool(device.ctx)
         self.device_setup = cl_setup_device.DeviceSetup(device.ctx, device.queue, self.pool)
         self.binner = cl_bin.DeviceBinner(device.ctx, device.queue)
+        # share set-ups and bins between pass executions (the module docstring)
+        self.share = os.environ.get("PIPEGEN_CL_SHARE_SETUP", "1") != "0"
+        self.only: Optional[int] = None    # unshared: the pass whose set-up is being made
+        self.holds: list = []          # per frame: host arrays non-blocking writes still read
 
     def begin_frame(self, state: FrameState) -> None:
         """A new frame, ``state``: the last frame's set-ups and bins are dropped and their
@@ -217,6 +228,7 @@ class DrawGeometry:
         self.frame_state = state
         self.frame = {}
         self.pending = {}
+        self.holds = []
         self.pool.recycle()
 
     def use_scene(self) -> None:
@@ -265,7 +277,10 @@ class DrawGeometry:
         order), keeping the faces its cull mode keeps: inside a repeat group one set-up
         serves all lights and every pass of the group with the same raster state.  Bins are
         per pass (cached per frame too) and index the shared triangles; for light draws they
-        are cut from the (triangle, tile) pairs of all their lights, found once."""
+        are cut from the (triangle, tile) pairs of all their lights, found once.  Unshared
+        (``share`` off), the execution starts from empty caches and draws only its own."""
+        if not self.share:
+            self.frame, self.only = {}, k
         if p.draw.kind is ir.DrawKind.LIGHTS:
             return self._light_triangles(k, p, width, height, timing, lights)
         if shadow is not None:     # one light's tile of a shadow map: set up on its own
@@ -277,8 +292,8 @@ class DrawGeometry:
         geo = self._geometry(k, p, width, height, timing, None)
         if geo is None:
             return None
-        cache = self.frame if p.draw.kind is ir.DrawKind.SCENE else self.static
-        return self._bins(geo, cache, width, height, timing)
+        kept = p.draw.kind is not ir.DrawKind.SCENE and self.share   # the full-screen draw's
+        return self._bins(geo, self.static if kept else self.frame, width, height, timing)
 
     def _light_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
                          lights: list):
@@ -448,7 +463,7 @@ class DrawGeometry:
         for k, q in enumerate(self.plan.passes):
             if q.draw.kind is not ir.DrawKind.SCENE:
                 continue
-            if self._raster_key(q, *sizes[k]) != key:
+            if self._raster_key(q, *sizes[k]) != key or self.only not in (None, k):
                 continue
             members.append((k, cl_abi.varying_slots(q), "frag_coord" in q.code.inputs))
         union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
@@ -473,7 +488,7 @@ class DrawGeometry:
         if got is None:
             sizes = self.frame_state.pass_sizes
             modes = {q.state.cull for k, q in enumerate(self.plan.passes)
-                     if q.draw.kind is ir.DrawKind.LIGHTS
+                     if q.draw.kind is ir.DrawKind.LIGHTS and self.only in (None, k)
                      and self._raster_key(q, *sizes[k]) == key}
             mode = modes.pop() if len(modes) == 1 else None
             got = mode.value if mode in (ir.CullMode.BACK, ir.CullMode.FRONT,
@@ -512,7 +527,7 @@ class DrawGeometry:
             return geo
         if key in self.frame:
             return self.frame[key]
-        if kind is ir.DrawKind.LIGHTS:
+        if kind is ir.DrawKind.LIGHTS or not self.share:
             return self._set_up(k, p, width, height, timing, key, lights)
         # the full-screen triangle depends on nothing of the frame: kept across frames, in
         # buffers of its own (never recycled)
@@ -570,7 +585,10 @@ class DrawGeometry:
         queue a pass's vertex read-back would otherwise wait behind the raster kernels of
         the passes before it, and the host would sit idle while the device rasterises
         (deferred_calver at 640x360: 14 ms of a 73 ms frame).  Full-screen draws are kept
-        across frames and need none."""
+        across frames and need none; nor does an unshared pass (``share`` off), which queues
+        its own when it runs."""
+        if not self.share:
+            return
         kind = p.draw.kind
         key = self._raster_key(p, width, height)
         if kind is ir.DrawKind.LIGHTS:
@@ -786,7 +804,7 @@ class DrawGeometry:
                             src_offset=k * nverts * 16, dst_offset=k * total * 16)
             cl.enqueue_copy(queue, grown, new[k], dst_offset=(k * total + nverts) * 16,
                             is_blocking=False)
-        self.frame.setdefault("_hold", []).append(new)   # read by the non-blocking writes
+        self.holds.append(new)          # read by the non-blocking writes
         return grown
 
     def _upload(self, tris, vary_buf) -> Geo:

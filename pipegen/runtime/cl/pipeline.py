@@ -156,7 +156,7 @@ def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
 class CLPipeline:
     def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None,
                  cache_dir: Optional[str] = None, dynamic_state: bool = False,
-                 tile: int = cl_abi.TILE):
+                 tile: int = cl_abi.TILE, alias: bool = False):
         plan = plan_from_dict(plan)
         assert plan.backend in ("cl", ""), "CLPipeline needs a plan from emit_cl"
         # a pass without code (a plan written by hand) has no fragment function
@@ -171,7 +171,7 @@ class CLPipeline:
         self.ctx, self.queue = cl_context.get_context(
             cache_dir, key=f"{plan.technique}:{plan.source}")
         self.targets_spec = {t.name: t for t in plan.targets}
-        self.store = TargetStore(self.ctx, self.queue, plan)
+        self.store = TargetStore(self.ctx, self.queue, plan, alias)
         self.last_timings: list[dict] = []
         self._blend_counts: Optional[dict[str, np.ndarray]] = {}
         self._blend_count_bufs: dict = {}
@@ -221,6 +221,16 @@ class CLPipeline:
     def _targets(self) -> dict:
         return self.store.targets
 
+    @property
+    def alias(self) -> bool:
+        """Targets with disjoint lifetimes share device memory (``TargetStore``; docs/memory.md):
+        ``render`` then leaves out the targets a later one overwrote (``store.memory.aliased``)."""
+        return self.store.alias
+
+    @alias.setter
+    def alias(self, on: bool) -> None:
+        self.store.alias = bool(on)
+
     def preset(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None) -> None:
         """Start the next renders with target ``name`` holding ``codes`` (GL row order, like
         the arrays ``render`` returns) instead of its clear value; ``stencil`` for d24s8.  In
@@ -230,7 +240,7 @@ class CLPipeline:
     def prepare(self, scene) -> None:
         """Allocate and clear every target for a frame of ``scene``."""
         self._out = self.output_size(scene)
-        self.store.prepare(*self._out)
+        self.store.prepare(*self._out, pinned=self._presets)
         for name, (codes, stencil) in self._presets.items():
             self.store.write(name, codes, stencil)
 
@@ -292,6 +302,7 @@ class CLPipeline:
         else:       # pass by pass: drained around each (profile), or read after each
             for k, light in runs:
                 self._run_pass_observed(k, light, captures if capture_passes else None)
+        self.store.end_frame()
         result = self.store.read_all()
         self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
         self._clamps = None
@@ -389,6 +400,7 @@ class CLPipeline:
             drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow)
 
         def launch() -> None:
+            self.store.begin_pass(k)        # targets sharing storage start here (alias)
             for name, c in p.clears:
                 self.store.clear_for_pass(name, c)
             if drawn is not None:

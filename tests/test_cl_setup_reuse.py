@@ -1,0 +1,158 @@
+"""Set-up once, rasterise many: the CL runtime's shared set-ups and bins change no value.
+
+``$PIPEGEN_CL_SHARE_SETUP=0`` makes every pass execution run its own vertex kernel, set-up and
+binning (``runtime/cl/geometry.py``).  Every shipped technique renders the same targets and
+blend counts, bit for bit, with sharing on and off, on scenes with every light type, shadows,
+translucent layers and many lights; and the sharing key keeps apart what changes a set-up:
+the cull mode, the view (a moved camera, each light's shadow view) and the viewport size.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.cl
+pytest.importorskip("pyopencl")
+
+ROOT = Path(__file__).resolve().parents[1]
+TECHNIQUES = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
+SCENES = ("mixed_lights", "shadows", "many_lights")
+SIZE = (72, 40)
+
+
+@functools.lru_cache(maxsize=None)
+def _compiled(technique: str):
+    from pipegen import compile_file
+    return compile_file(ROOT / "pipelines" / f"{technique}.pipe")
+
+
+@functools.lru_cache(maxsize=None)
+def _scene(name: str):
+    from pipegen import load_scene
+    return load_scene(ROOT / "examples" / "scenes" / f"{name}.toml")
+
+
+def _frame(compiled, scene, share: bool, monkeypatch, frames: int = 1):
+    """The last of ``frames`` renders of a fresh pipeline, its blend counts and the number of
+    pass executions that set up triangles (a ``vertex`` timing), sharing on or off."""
+    monkeypatch.setenv("PIPEGEN_CL_SHARE_SETUP", "1" if share else "0")
+    pipe = compiled.pipeline("cl", SIZE)
+    assert pipe.geometry.share is share
+    for _ in range(frames):
+        out = pipe.render(scene)
+    set_up = sum("vertex" in t for t in pipe.last_timings)
+    return out, pipe.last_blend_counts, set_up
+
+
+def _assert_same(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for name in a:
+        assert a[name].dtype == b[name].dtype, name
+        assert np.array_equal(a[name].view(np.uint8), b[name].view(np.uint8)), name
+
+
+def test_every_technique_names_a_shipped_pipeline():
+    assert len(TECHNIQUES) == 10 and "forward_multipass" in TECHNIQUES
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+def test_shared_set_up_renders_what_unshared_renders(technique, monkeypatch):
+    compiled = _compiled(technique)
+    shared_setups = unshared_setups = 0
+    for name in SCENES:
+        scene = _scene(name)
+        # two frames: what a frame keeps for the next (the full-screen triangle, buffers)
+        shared, shared_counts, n_shared = _frame(compiled, scene, True, monkeypatch, frames=2)
+        alone, alone_counts, n_alone = _frame(compiled, scene, False, monkeypatch)
+        _assert_same(shared, alone)
+        _assert_same(shared_counts, alone_counts)
+        shared_setups += n_shared
+        unshared_setups += n_alone
+    # the comparison means something: unshared, more executions set up their own triangles
+    # (all but forward: one scene pass, and shadow views per light; inferred: its geometry
+    # pass at the L-buffer's size, its material pass at the output's, a volume per light type)
+    assert (unshared_setups > shared_setups) == (technique not in ("forward", "inferred"))
+    assert unshared_setups >= shared_setups
+
+
+CULL_PIPE = """
+technique cull_pair "Two passes drawing the scene from one view, culling different faces"
+target color : rgba8 clear (0, 0, 0, 1)
+target ds    : d24s8 clear depth 1.0 stencil 0
+output color
+
+pass backs {
+  draw scene.opaque
+  writes color
+  depth ds less write
+  cull back
+  fragment { color = vec4(albedo, 1.0); }
+}
+
+pass fronts {
+  draw scene.opaque
+  writes color
+  cull front
+  blend color rgb add(one, one) alpha add(zero, one)
+  fragment { color = vec4(0.25 * albedo, 0.0); }
+}
+
+pass backs_again {
+  draw scene.opaque
+  writes color
+  depth ds lequal nowrite
+  cull back
+  blend color rgb add(one, one) alpha add(zero, one)
+  fragment { color = vec4(0.125, 0.0, 0.0, 0.0); }
+}
+"""
+
+
+def test_a_different_cull_mode_sets_up_its_own():
+    from pipegen.compiler.driver import compile_source
+    pipe = compile_source(CULL_PIPE, "cull_pair.pipe").pipeline("cl", SIZE)
+    pipe.render(_scene("mixed_lights"))
+    set_up = {t["pass"]: "vertex" in t for t in pipe.last_timings}
+    # backs and backs_again share one set-up (same draw, view, cull and size); fronts not
+    assert set_up == {"backs": True, "fronts": True, "backs_again": False}
+    drawn = {t["pass"]: t["triangles"] for t in pipe.last_timings}
+    assert drawn["fronts"] != drawn["backs"] == drawn["backs_again"]
+
+
+def test_a_moved_camera_is_set_up_again(monkeypatch):
+    """A frame's set-ups are the frame's: after the camera moves, a pipeline that rendered the
+    old view renders what a fresh one renders."""
+    import dataclasses
+    compiled = _compiled("forward_multipass")
+    scene = _scene("mixed_lights")
+    cam = scene.camera
+    moved = dataclasses.replace(scene, camera=dataclasses.replace(
+        cam, position=tuple(np.asarray(cam.position, float) + (0.7, 0.3, -0.4))))
+    pipe = compiled.pipeline("cl", SIZE)
+    before = pipe.render(scene)
+    after = pipe.render(moved)
+    fresh = compiled.pipeline("cl", SIZE).render(moved)
+    _assert_same(after, fresh)
+    assert not np.array_equal(after["color"], before["color"])
+
+
+def test_each_shadow_view_and_viewport_size_set_up_on_its_own():
+    """Each light's shadow-map tile (its view) and each target size has its own set-up: the
+    shadow passes of forward set up once per shadowed light, and inferred's L-buffer at
+    another size than its G-buffer sets the scene up again."""
+    scene = _scene("shadows")
+    pipe = _compiled("forward").pipeline("cl", SIZE)
+    pipe.render(scene)
+    shadow = [t for t in pipe.last_timings if t["pass"] == "shadow_maps" and t.get("triangles")]
+    assert len(shadow) > 1 and all("vertex" in t for t in shadow)
+    assert len({t["light"] for t in shadow}) == len(shadow)
+    from pipegen import compile_file
+    inferred = compile_file(ROOT / "pipelines" / "inferred.pipe",
+                            params={"lbuffer_scale": "0.5"}).pipeline("cl", SIZE)
+    inferred.render(scene)
+    scene_passes = [t for t in inferred.last_timings if "vertex" in t]
+    assert len(scene_passes) >= 2
