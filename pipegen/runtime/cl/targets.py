@@ -3,8 +3,14 @@ back and preset through their ``formats.Format`` (which says how codes are store
 per channel, or channels packed into one word).
 
 ``TargetStore(ctx, queue, plan).prepare(out_w, out_h)`` allocates (or reuses) and clears
-every target for a frame; ``targets[name]`` is a ``Target``.  Multisampled targets keep one
-plane per sample and a resolved plane that reads and read-back see (``resolve``).
+every target for a frame; ``targets[name]`` is a ``Target``.  ``TargetStore(..., alias=True)``
+shares storage between targets whose lifetimes are disjoint (``ir.lifetimes``, true aliasing:
+one device buffer per slot, sized for its largest target, and each target's buffers views into
+it); a target whose storage it shares with an earlier one is cleared where its lifetime starts
+(``begin_pass``, ``end_frame``: ``runtime/aliasing.py``), and ``read_all`` reads the
+targets their storage holds (after ``end_frame``: all but ``memory.aliased``).  Multisampled
+targets keep one plane per sample and a resolved plane that reads and read-back see
+(``resolve``).
 ``blend_count(t)`` is the per-pixel count of fragments blended into a colour target this
 frame, which ``pipegen check`` turns into a per-pixel tolerance.
 
@@ -23,6 +29,8 @@ import numpy as np
 
 from pipegen.core import formats as F
 from pipegen.backends.plan import Plan, TargetPlan
+from pipegen.ir.lifetimes import MemoryPlan, Sharing, memory_plan
+from pipegen.runtime.aliasing import FrameClears
 from pipegen.runtime.cl import context as cl_context
 
 
@@ -59,6 +67,14 @@ def d24_resolve(codes: np.ndarray) -> np.ndarray:
     return np.rint((v * f32(16777215.0)).astype(f32)).astype(np.uint32)
 
 
+def _resolved_default(bufs: list) -> tuple:
+    """(buf, stencil, res, res_stencil) with a single-sample target's resolved planes its
+    own."""
+    buf, stencil, res, res_stencil = bufs
+    return (buf, stencil, buf if res is None else res,
+            stencil if res_stencil is None else res_stencil)
+
+
 class Target:
     def __init__(self, spec: TargetPlan, width: int, height: int):
         self.spec = spec
@@ -78,51 +94,99 @@ class Target:
 
 
 class TargetStore:
-    def __init__(self, ctx, queue, plan: Plan):
+    def __init__(self, ctx, queue, plan: Plan, alias: bool = False):
         self.ctx, self.queue = ctx, queue
+        self.plan = plan
+        self.alias = alias
         self.device_resolve = True      # False: every resolve in numpy (tests compare both)
         self._resolvers: dict = {}
         self.specs = {t.name: t for t in plan.targets}
         self.f64 = plan.precision == "f64"
         self.targets: dict[str, Target] = {}
+        self.memory: Optional[MemoryPlan] = None    # the last frame's lifetimes and slots
+        self._clears: Optional[FrameClears] = None
+        self._storage: tuple = ((), {})     # (layout key, {target: its buffers})
         self.blend_counts: dict = {}        # target name -> this frame's count buffer
         self._count_pool: dict = {}         # count buffers, reused every frame
         self._clear_patterns: dict = {}     # (format, clear value) -> the bytes to fill with
 
     # -- a frame ------------------------------------------------------------------------------
-    def prepare(self, out_w: int, out_h: int) -> None:
-        """Allocate (or reuse the last frame's buffers) and clear every target."""
-        last = self.targets
+    def prepare(self, out_w: int, out_h: int, pinned=()) -> None:
+        """Allocate (or reuse the last frame's buffers) and clear every target, or with
+        ``alias`` the first of each slot (``pinned``: targets given contents before the frame,
+        live from its start)."""
+        sharing = Sharing.BYTES if self.alias else Sharing.NONE
+        key = (out_w, out_h, sharing, frozenset(pinned))
+        if self.memory is None or self._storage[0] != key:
+            p = self.plan
+            self.memory = memory_plan(p.passes, p.targets, p.output, out_w, out_h, sharing,
+                                      pinned)
         self.targets = {}
         self.blend_counts = {}
         for name, spec in self.specs.items():
-            w, h = spec.resolve(out_w, out_h)
-            t = Target(spec, w, h)
-            old = last.get(name)
-            if old is not None and (old.width, old.height) == (w, h):
-                # the last frame's buffers (its results were read back): cleared below
-                t.buf, t.stencil = old.buf, old.stencil
-                t.res, t.res_stencil = old.res, old.res_stencil
-            else:
-                t.buf = t.res = self._alloc(t, t.samples)
-                if t.fmt.kind is F.Kind.DEPTH_STENCIL:
-                    t.stencil = t.res_stencil = device_buffer(
-                        self.ctx, np.zeros(w * h * t.samples, np.uint8))
-                if t.samples > 1:
-                    t.res = self._alloc(t, 1)
-                    if t.stencil is not None:
-                        t.res_stencil = device_buffer(self.ctx, np.zeros(w * h, np.uint8))
-            self.targets[name] = t
-            self.clear(t, spec.clear.color, spec.clear.depth, spec.clear.stencil)
+            self.targets[name] = Target(spec, *spec.resolve(out_w, out_h))
+        if self._storage[0] != key:
+            self._storage = ((), {})            # the last layout's buffers go first
+            self._storage = (key, self._allocate())
+        for name, bufs in self._storage[1].items():
+            t = self.targets[name]
+            t.buf, t.stencil, t.res, t.res_stencil = bufs
+        self._clears = FrameClears(self.memory)
+        self._clear_targets(self._clears.start())
 
-    def _alloc(self, t: Target, planes: int):
-        import pyopencl as cl
+    def begin_pass(self, k: int) -> None:
+        """Before an execution of pass ``k``: clear the targets whose lifetime starts there
+        (storage shared with an earlier target; nothing to do without ``alias``)."""
+        self._clear_targets(self._clears.before_pass(k))
+
+    def end_frame(self) -> None:
+        """After a frame's last pass: clear the targets no pass execution reached."""
+        self._clear_targets(self._clears.finish())
+
+    def _clear_targets(self, names) -> None:
+        for name in names:
+            c = self.specs[name].clear
+            self.clear(self.targets[name], c.color, c.depth, c.stencil)
+
+    def _parts(self, t: Target) -> tuple[int, int, int, int]:
+        """Bytes of a target's buffers: (codes, stencil, resolved codes, resolved stencil);
+        0 where it has none (a single-sample target reads its codes as resolved)."""
         fmt = t.fmt
-        nbytes = fmt.element_dtype.itemsize * fmt.elements     # stencil: a buffer apart
+        per_pixel = fmt.element_dtype.itemsize * fmt.elements     # stencil: a buffer apart
         if self._doubles(fmt):
-            nbytes = 8 * (1 if fmt.has_depth else fmt.channels)
-        return cl.Buffer(self.ctx, cl.mem_flags.READ_WRITE,
-                         size=max(16, t.pixels * nbytes * planes))
+            per_pixel = 8 * (1 if fmt.has_depth else fmt.channels)
+        ds = fmt.kind is F.Kind.DEPTH_STENCIL
+        multi = t.samples > 1
+        return (t.pixels * per_pixel * t.samples, t.pixels * t.samples if ds else 0,
+                t.pixels * per_pixel if multi else 0, t.pixels if ds and multi else 0)
+
+    def _allocate(self) -> dict[str, tuple]:
+        """{target: (buf, stencil, res, res_stencil)}: without ``alias`` a buffer each; with
+        it one buffer per slot of ``memory`` and views into it (sub-buffers at offsets of the
+        device's base address alignment)."""
+        import pyopencl as cl
+        rw = cl.mem_flags.READ_WRITE
+        out = {}
+        if not self.alias:
+            for name, t in self.targets.items():
+                bufs = [cl.Buffer(self.ctx, rw, size=max(16, n)) if n else None
+                        for n in self._parts(t)]
+                out[name] = _resolved_default(bufs)
+            return out
+        align = max(16, self.ctx.devices[0].mem_base_addr_align // 8)
+        for slot in self.memory.slots:
+            layouts = {}
+            for name in slot.targets:
+                offsets, at = [], 0
+                for n in self._parts(self.targets[name]):
+                    offsets.append((at, max(16, n)) if n else None)
+                    at += -(-max(16, n) // align) * align if n else 0
+                layouts[name] = (offsets, at)
+            whole = cl.Buffer(self.ctx, rw, size=max(at for _, at in layouts.values()))
+            for name, (offsets, _) in layouts.items():
+                out[name] = _resolved_default([whole.get_sub_region(*o) if o else None
+                                               for o in offsets])
+        return out
 
     # -- clears -------------------------------------------------------------------------------
     def clear(self, t: Target, color=None, depth=None, stencil=None,
@@ -308,9 +372,13 @@ class TargetStore:
         return out
 
     def read_all(self) -> dict:
+        """Every target's codes; with ``alias``, those of the targets their storage holds
+        now (``FrameClears.holding``)."""
+        holding = set(self._clears.holding()) if self._clears else set(self.targets)
         out = {}
-        for t in self.targets.values():
-            out.update(self.read(t))
+        for name, t in self.targets.items():
+            if name in holding:
+                out.update(self.read(t))
         return out
 
     def write(self, name: str, codes: np.ndarray, stencil: Optional[np.ndarray] = None):

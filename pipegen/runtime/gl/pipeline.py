@@ -32,6 +32,13 @@ Results are in GL row order (row 0 = window y 0, the bottom row), as codes (``gl
 d24s8 target ``ds`` yields ``"ds"`` (uint32 24-bit depth codes) and ``"ds.stencil"`` (uint8).
 ``render(..., capture_passes=True)`` returns ``(targets, captures)`` with one entry
 ``{"pass", "light", "targets"}`` after every executed pass (per light inside repeat groups).
+
+``GLPipeline(..., alias=True)`` (or ``pipe.alias = True``) hands a texture on from a target
+whose lifetime is over to a later target of the same format, size and samples (slot reuse,
+``ir.lifetimes``; textures cannot alias memory): the later target is cleared where its
+lifetime starts (``runtime/aliasing.py``) instead of at the start of the frame, and ``render``
+leaves out the targets whose texture a later one took over (``memory.aliased``); captures hold
+the targets the textures hold after each pass.
 """
 
 from __future__ import annotations
@@ -46,7 +53,9 @@ import numpy as np
 from pipegen.core import formats as F
 from pipegen.ir import nodes as ir
 from pipegen.backends.plan import PassPlan, Plan, TargetPlan, plan_from_dict
+from pipegen.ir.lifetimes import MemoryPlan, Sharing, memory_plan
 from pipegen.runtime import draws
+from pipegen.runtime.aliasing import FrameClears
 from pipegen.runtime.gl import formats as GF
 from pipegen.runtime.gl import state as GS
 from pipegen.runtime.gl import transitions as GT
@@ -67,19 +76,28 @@ FRAME_UNIFORMS = ("u_view", "u_proj", "u_inv_view", "u_inv_proj", "u_prev_view",
 
 
 class _Target:
-    def __init__(self, spec: TargetPlan, size: tuple[int, int]):
+    def __init__(self, spec: TargetPlan, size: tuple[int, int],
+                 share: Optional["_Target"] = None):
+        """``share``: an earlier target of the same format, size and samples whose textures
+        this one takes over (slot reuse: their lifetimes are disjoint)."""
         self.name = spec.name
         self.spec = spec
         self.fmt = spec.format
         self.format = spec.format.name
         self.size = size
         self.samples = spec.samples
-        self.tex = GF.create_texture(self.format, *size, samples=self.samples)
-        self.resolved = self.tex
+        self.owner = share is None       # the textures are this target's to delete
         self.dirty = False           # multisampled contents newer than ``resolved``
-        self.fbo_ms = self.fbo_resolved = self.fbo_clear = None
+        self.fbo_clear = None
         self._clear_words: dict[tuple, Any] = {}     # clear value -> GL words, quantised once
         self._gl = GF.gl_format(self.format)
+        if share is not None:
+            self.tex, self.resolved = share.tex, share.resolved
+            self.fbo_ms, self.fbo_resolved = share.fbo_ms, share.fbo_resolved
+            return
+        self.tex = GF.create_texture(self.format, *size, samples=self.samples)
+        self.resolved = self.tex
+        self.fbo_ms = self.fbo_resolved = None
         if self.samples > 1:
             self.resolved = GF.create_texture(self.format, *size)
             self.fbo_ms = _framebuffer([(self._attachment(0), self.tex)])
@@ -158,9 +176,11 @@ class _Target:
         return {self.name: data}
 
     def release(self) -> None:
-        GF.delete_texture(self.tex)
         if self.fbo_clear is not None:
             GL.glDeleteFramebuffers(1, np.array([self.fbo_clear], np.uint32))
+        if not self.owner:
+            return
+        GF.delete_texture(self.tex)
         if self.samples > 1:
             GF.delete_texture(self.resolved)
             GL.glDeleteFramebuffers(2, np.array([self.fbo_ms, self.fbo_resolved], np.uint32))
@@ -255,11 +275,11 @@ class GLPipeline:
     """A PLAN ready to render with OpenGL (see the module docstring)."""
 
     def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None, *,
-                 transitions: bool = True, debug: Optional[bool] = None):
+                 transitions: bool = True, debug: Optional[bool] = None, alias: bool = False):
         """``transitions=False`` sets all state before every pass (``gl_state.apply_state``)
         instead of the differences (``gl_transitions``): the reference the tests compare with.
         ``debug`` (default: ``PIPEGEN_GL_DEBUG`` set) checks GL errors after every pass
-        instead of once per frame."""
+        instead of once per frame.  ``alias``: slot reuse of textures (module docstring)."""
         self.plan = plan = plan_from_dict(plan)
         self.ctx = get_context()
         clear_stale_errors()
@@ -282,6 +302,9 @@ class GLPipeline:
         GT.TRACKER.prime([p.vector for p in self.passes])
         self.targets: dict[str, _Target] = {}
         self._built_size: Optional[tuple[int, int]] = None
+        self._alias = bool(alias)
+        self.memory: Optional[MemoryPlan] = None     # lifetimes and slots at the built size
+        self._clears: Optional[FrameClears] = None
         self.capacity = max(1, plan.lights.capacity)
         self.fields = list(plan.lights.fields)
         self.light_tex = GF.create_texture("rgba32f", max(1, len(self.fields)), self.capacity)
@@ -308,13 +331,35 @@ class GLPipeline:
         GL.glSamplerParameteri(s, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_NONE)
         return s
 
+    @property
+    def alias(self) -> bool:
+        """Slot reuse of same-descriptor textures between targets with disjoint lifetimes
+        (module docstring; docs/memory.md); changing it rebuilds the targets."""
+        return self._alias
+
+    @alias.setter
+    def alias(self, on: bool) -> None:
+        if bool(on) != self._alias:
+            self._alias = bool(on)
+            self._built_size = None
+
     def _build(self, size: tuple[int, int]) -> None:
         """Targets and per-pass framebuffers for output ``size``."""
         for t in self.targets.values():
             t.release()
         self.targets = {}
-        for spec in self.plan.targets:
-            self.targets[spec.name] = _Target(spec, spec.resolve(*size))
+        plan = self.plan
+        self.memory = memory_plan(plan.passes, plan.targets, plan.output, *size,
+                                  Sharing.DESCRIPTOR if self._alias else Sharing.NONE)
+        first = {n: s.targets[0] for s in self.memory.slots for n in s.targets}
+        for spec in plan.targets:       # a slot's first target in plan order creates it
+            if first[spec.name] == spec.name:
+                self.targets[spec.name] = _Target(spec, spec.resolve(*size))
+        for spec in plan.targets:
+            if first[spec.name] != spec.name:
+                self.targets[spec.name] = _Target(spec, spec.resolve(*size),
+                                                  share=self.targets[first[spec.name]])
+        self.targets = {spec.name: self.targets[spec.name] for spec in plan.targets}
         for p in self.passes:
             if p.fbo is not None:
                 GL.glDeleteFramebuffers(1, np.array([p.fbo], np.uint32))
@@ -487,20 +532,26 @@ class GLPipeline:
         self._auto_cull: dict = {}      # this frame's cull auto choices (``_light_runs``)
         check_error("uploading the scene")
         GT.TRACKER.invalidate()       # the shared context: a frame starts from unknown state
-        for t in self.targets.values():
-            c = t.spec.clear
-            t.clear(c.color, c.depth, c.stencil)
+        self._clears = FrameClears(self.memory)
+        self._clear_targets(self._clears.start())
         captures: list[dict] = []
         for k, light in self._selection.schedule():
             p = self.passes[k]
+            self._clear_targets(self._clears.before_pass(k))    # lifetimes starting (alias)
             self._run_pass(p, light)
             if self.debug:
                 check_error(f"in pass '{p.name}'" + ("" if light is None else f" light {light}"),
                             hint=False)
             if capture_passes:
                 captures.append({"pass": p.name, "light": light, "targets": self._read_all()})
+        self._clear_targets(self._clears.finish())
         check_error("rendering a frame")
         return captures
+
+    def _clear_targets(self, names) -> None:
+        for name in names:
+            c = self.plan.target(name).clear
+            self.targets[name].clear(c.color, c.depth, c.stencil)
 
     def _frame_uniforms(self, scene, size) -> None:
         """The frame's uniforms, computed once and written only to the programs that declare
@@ -662,8 +713,12 @@ class GLPipeline:
         vao.render(moderngl.TRIANGLES, instances=len(indices))
 
     def _read_all(self) -> dict[str, np.ndarray]:
+        """Every target's codes; with ``alias``, those of the targets the textures hold now
+        (``FrameClears.holding``)."""
+        holding = set(self._clears.holding())
         out: dict[str, np.ndarray] = {}
-        for t in self.targets.values():
-            out.update(t.read())
+        for name, t in self.targets.items():
+            if name in holding:
+                out.update(t.read())
         return out
 
