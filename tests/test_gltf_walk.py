@@ -91,11 +91,12 @@ def test_tree_check_and_id_limit(tmp_path):
     prims = [{"attributes": {"POSITION": 0}, "indices": 2, "mode": 6}]
     twice = _write(tmp_path / "t.gltf", prims, nodes=[{"mesh": 0, "children": [1]}, {"mesh": 0}],
                    roots=[0, 1])
-    with pytest.raises(GltfError, match=r"^node 1 is reached twice \(the node hierarchy must be a tree\)$"):
+    with pytest.raises(GltfError, match=r"^scenes\[0\]\.nodes\[1\]: node 1 is reached twice \(the node hierarchy must "
+                                         r"be a tree\)$"):
         load_gltf(twice)
     many = _write(tmp_path / "m.gltf", prims * 128)
     assert load_gltf(many, first_id=128).objects[-1].id == 255
-    with pytest.raises(GltfError, match=r"^more than 255 mesh primitives: object ids are 8-bit"):
+    with pytest.raises(GltfError, match=r"^meshes\[0\]\.primitives\[127\]: more than 255 mesh primitives: object ids are 8-bit"):
         load_gltf(many, first_id=129)
 
 
@@ -113,7 +114,7 @@ def test_orthographic_camera_is_ignored_with_a_note(tmp_path):
     (lambda d: d["meshes"][0]["primitives"][0].update(material=99),
      "mesh 0 primitive 0 refers to material 99, which does not exist (the file has 4)"),
     (lambda d: d["meshes"][0]["primitives"][0].update(material=-1),
-     "mesh 0 primitive 0 refers to material -1, which does not exist"),
+     "meshes[0].primitives[0].material: -1 is less than the minimum of 0"),   # the schema
     (lambda d: d["nodes"][0].update(mesh=99), "node 0 refers to mesh 99, which does not exist"),
     (lambda d: d.update(scene=5), "the file's `scene` refers to scene 5, which does not exist"),
 ])

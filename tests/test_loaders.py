@@ -522,7 +522,7 @@ def test_gltf_sparse_normalized_and_data_uri_media_types(tmp_path):
     assert any("default (white, metallic 1, roughness 1)" in n for n in imp.notes)
     doc["bufferViews"][0]["byteLength"] = 30                                     # too short
     (tmp_path / "bad.gltf").write_text(json.dumps(doc))
-    with pytest.raises(GltfError, match="accessor 0 reads past the end of bufferView 0"):
+    with pytest.raises(GltfError, match=r"^accessors\[0\]: reads past the end of bufferView 0"):
         load_gltf(tmp_path / "bad.gltf")
 
 

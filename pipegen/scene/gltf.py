@@ -30,13 +30,10 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.scene import meshes
+from pipegen.scene import gltf_input, limits, meshes
+from pipegen.scene.gltf_input import GltfError
 from pipegen.scene.model import (
     Camera, Light, Material, Scene, SceneObject, assign_layers, make_object, report_notes)
-
-
-class GltfError(ValueError):
-    """A glTF file pipegen cannot use (malformed, or needing an unsupported extension)."""
 
 
 #: Minimum GGX roughness before squaring (keeps the Blinn-Phong exponent finite).
@@ -162,64 +159,44 @@ def framing_camera(objects, fov_y_deg: float = 45.0) -> Camera:
 
 
 class _Doc:
+    """The document and its buffers, read on first use, and the accessors decoded with every
+    range checked against what holds it (:mod:`pipegen.scene.gltf_input` read the file)."""
+
     def __init__(self, path: Path):
-        import pygltflib
         self.path = path
-        try:
-            self.g = pygltflib.GLTF2().load(str(path))
-        except (ValueError, KeyError, TypeError) as e:
-            raise GltfError(f"cannot read the glTF document: {e}") from None
-        if self.g is None:
-            raise GltfError("cannot read the glTF document")
+        self.g, self._binary = gltf_input.load_document(path)
         self._buffers: dict[int, bytes] = {}
 
-    def buffer(self, i: int) -> bytes:
+    def buffer(self, i: int, ref: str) -> bytes:
         if i not in self._buffers:
-            buf = self.g.buffers[i]
-            uri = buf.uri
-            if uri is None:
-                data = self.g.binary_blob()
-                if data is None:
-                    raise GltfError(f"buffer {i} has no uri and the file has no binary chunk")
-            elif uri.startswith("data:"):          # any media type (pygltflib knows one)
-                import base64
-                from urllib.parse import unquote_to_bytes
-                header, _, payload = uri.partition(",")
-                data = (base64.b64decode(payload) if header.endswith(";base64")
-                        else unquote_to_bytes(payload))
-            else:
-                from urllib.parse import unquote
-                data = (self.path.parent / unquote(uri)).read_bytes()
-            if len(data) < buf.byteLength:
-                raise GltfError(f"buffer {i} holds {len(data)} bytes, fewer than its byteLength "
-                                f"{buf.byteLength}")
-            self._buffers[i] = bytes(data)
+            buf = _item(self.g.buffers, i, "buffer", ref)
+            self._buffers[i] = gltf_input.buffer_bytes(buf.uri, buf.byteLength, self.path.parent,
+                                                       self._binary if i == 0 else None,
+                                                       f"buffers[{i}]")
         return self._buffers[i]
 
-    def accessor(self, i: int) -> np.ndarray:
-        """float64 (count, width) for float or normalised data, int64 otherwise."""
-        if not 0 <= i < len(self.g.accessors):
-            raise GltfError(f"accessor {i} does not exist")
-        a = self.g.accessors[i]
-        if a.componentType not in _COMPONENT or a.type not in _WIDTH:
-            raise GltfError(f"accessor {i}: unsupported componentType {a.componentType} / type {a.type}")
+    def accessor(self, i: int, ref: str, semantic: str = "") -> np.ndarray:
+        """float64 (count, width) for float or normalised data, int64 otherwise.  ``ref`` is
+        the JSON path that names accessor ``i``; ``semantic`` ``POSITION``/``NORMAL`` (VEC3)
+        or ``indices`` (unsigned SCALAR), as the specification requires of them."""
+        a = _item(self.g.accessors, i, "accessor", ref)
+        where = f"accessors[{i}]"
+        if a.count > limits.max_elements():
+            raise GltfError(f"count {a.count} is more than the limit of {limits.max_elements()} "
+                            "(PIPEGEN_SCENE_MAX_ELEMENTS raises it)", where + ".count")
+        if semantic in ("POSITION", "NORMAL") and a.type != "VEC3":
+            raise GltfError(f"{semantic} must be VEC3, not {a.type}", where + ".type")
+        if semantic == "indices" and (a.type != "SCALAR" or a.componentType not in (5121, 5123, 5125)):
+            raise GltfError("indices must be unsigned SCALAR (componentType 5121, 5123 or 5125)",
+                            where)
         dt = np.dtype(_COMPONENT[a.componentType]).newbyteorder("<")
         width = _WIDTH[a.type]
-        if a.bufferView is None:
+        if a.bufferView is None:                 # zeros (count bounded above), sparse values
             out = np.zeros((a.count, width), dtype=dt)
         else:
-            out = self._view(a.bufferView, a.byteOffset or 0, a.count, dt, width, f"accessor {i}")
-        if a.sparse is not None and a.sparse.count:
-            s = a.sparse
-            idt = np.dtype(_COMPONENT[s.indices.componentType]).newbyteorder("<")
-            idx = self._view(s.indices.bufferView, s.indices.byteOffset or 0, s.count, idt, 1,
-                             f"accessor {i} sparse indices")[:, 0].astype(np.int64)
-            vals = self._view(s.values.bufferView, s.values.byteOffset or 0, s.count, dt, width,
-                              f"accessor {i} sparse values")
-            if idx.size and (idx.min() < 0 or idx.max() >= a.count):
-                raise GltfError(f"accessor {i}: sparse index out of range")
-            out = out.copy()
-            out[idx] = vals
+            out = self._view(a.bufferView, a.byteOffset or 0, a.count, dt, width, where)
+        if a.sparse is not None:
+            out = self._sparse(a, out, dt, width, where + ".sparse")
         if dt.kind == "f":
             return out.astype(np.float64)
         if a.normalized:
@@ -227,21 +204,44 @@ class _Doc:
             return np.maximum(out.astype(np.float64) / info.max, -1.0)
         return out.astype(np.int64)
 
+    def _sparse(self, a, out: np.ndarray, dt: np.dtype, width: int, where: str) -> np.ndarray:
+        s = a.sparse
+        if s.count > a.count:
+            raise GltfError(f"count {s.count} is more than the accessor's {a.count}",
+                            where + ".count")
+        idt = np.dtype(_COMPONENT[s.indices.componentType]).newbyteorder("<")
+        idx = self._view(s.indices.bufferView, s.indices.byteOffset or 0, s.count, idt, 1,
+                         where + ".indices")[:, 0].astype(np.int64)
+        vals = self._view(s.values.bufferView, s.values.byteOffset or 0, s.count, dt, width,
+                          where + ".values")
+        if idx.max() >= a.count:
+            k = int(np.argmax(idx >= a.count))
+            raise GltfError(f"index {int(idx[k])} (entry {k}) is out of range: the accessor "
+                            f"has {a.count} elements", where + ".indices")
+        out = out.copy()
+        out[idx] = vals
+        return out
+
     def _view(self, view: int, offset: int, count: int, dt: np.dtype, width: int,
-              what: str) -> np.ndarray:
-        if not 0 <= view < len(self.g.bufferViews):
-            raise GltfError(f"{what}: bufferView {view} does not exist")
-        bv = self.g.bufferViews[view]
-        data = self.buffer(bv.buffer)
-        start = (bv.byteOffset or 0) + offset
+              where: str) -> np.ndarray:
+        bv = _item(self.g.bufferViews, view, "bufferView", where + ".bufferView")
+        view_where = f"bufferViews[{view}]"
+        data = self.buffer(bv.buffer, view_where + ".buffer")
+        begin = bv.byteOffset or 0
+        if begin + bv.byteLength > len(data):
+            raise GltfError(f"bytes {begin}..{begin + bv.byteLength} run past the end of buffer "
+                            f"{bv.buffer} ({len(data)} bytes)", view_where)
         elem = dt.itemsize * width
         stride = bv.byteStride or elem
-        need = stride * (count - 1) + elem if count else 0
-        if start + need > len(data) or offset + need > bv.byteLength:
-            raise GltfError(f"{what} reads past the end of bufferView {view}")
-        if count == 0:
-            return np.zeros((0, width), dtype=dt)
-        raw = np.frombuffer(data, np.uint8, count=need, offset=start)
+        if stride < elem:
+            raise GltfError(f"byteStride {stride} is less than the {elem} bytes of an element "
+                            "read through it", view_where + ".byteStride")
+        need = stride * (count - 1) + elem
+        if offset + need > bv.byteLength:
+            raise GltfError(f"reads past the end of bufferView {view}: {count} elements "
+                            f"of {elem} bytes at byteOffset {offset}, stride {stride} need "
+                            f"{offset + need} bytes, it has {bv.byteLength}", where)
+        raw = np.frombuffer(data, np.uint8, count=need, offset=begin + offset)
         rows = np.lib.stride_tricks.as_strided(raw, (count, elem), (stride, 1))
         return np.ascontiguousarray(rows).view(dt).reshape(count, width)
 
@@ -268,6 +268,19 @@ def _local_matrix(node) -> np.ndarray:
     return m
 
 
+def _invertible(world: np.ndarray) -> bool:
+    """Whether a node's world matrix can place a mesh: finite, with a finite inverse of its
+    3x3 part (normals use the inverse transpose; a scale of 0 has none)."""
+    if not np.isfinite(world).all():
+        return False
+    lin = world[:3, :3]
+    det = np.linalg.det(lin)
+    if not np.isfinite(det) or det == 0:
+        return False
+    with np.errstate(all="ignore"):
+        return bool(np.isfinite(np.linalg.inv(lin)).all())
+
+
 def _triangles(mode: int, idx: np.ndarray) -> np.ndarray:
     if mode == 4:
         return idx[: len(idx) // 3 * 3].reshape(-1, 3)
@@ -290,7 +303,9 @@ def load_gltf(path: str | Path, first_id: int = 1, intensity_scale: float = 1.0)
     walk = _NodeWalk(doc, path.name, first_id, intensity_scale, _punctual_lights(doc.g))
     walk.run(_root_nodes(doc.g))
     if not walk.objects:
-        raise GltfError("the scene has no triangles")
+        hidden = (f" (nodes {sorted(walk.unplaced)[:8]} have a singular transform)"
+                  if walk.unplaced else "")
+        raise GltfError("the scene has no triangles" + hidden, "meshes")
     camera = None
     if walk.camera_node is not None:
         camera, camera_note = _file_camera(doc.g, *walk.camera_node, walk.objects, path.name)
@@ -305,7 +320,8 @@ def _extension_notes(g, file_name: str) -> list[str]:
     it ignores."""
     unsupported = sorted(set(g.extensionsRequired or []) - SUPPORTED_REQUIRED)
     if unsupported:
-        raise GltfError(f"the file requires {', '.join(unsupported)}, which pipegen does not read")
+        raise GltfError(f"the file requires {', '.join(unsupported)}, which pipegen does not read",
+                        "extensionsRequired")
     ignored = sorted(set(g.extensionsUsed or []) - {"KHR_lights_punctual", "KHR_mesh_quantization"})
     return [f"{file_name}: extensions ignored: {', '.join(ignored)}"] if ignored else []
 
@@ -315,22 +331,26 @@ def _punctual_lights(g) -> list:
     return ((g.extensions or {}).get("KHR_lights_punctual") or {}).get("lights", [])
 
 
-def _item(items, index, what: str, owner: str):
-    """``items[index]`` for an index read from the file: one out of range (or negative, which
-    Python would count from the end) is the file's error, not an IndexError."""
-    if not isinstance(index, int) or not 0 <= index < len(items or ()):
+def _item(items, index, what: str, where: str, owner: str = ""):
+    """``items[index]`` for an index read from the file at JSON path ``where``: one out of
+    range (or negative, which Python would count from the end) is the file's error, not an
+    IndexError.  ``owner`` says who refers to it (default: ``where`` less its last key)."""
+    if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(items or ()):
+        owner = owner or where.rpartition(".")[0] or where
         raise GltfError(f"{owner} refers to {what} {index}, which does not exist "
-                        f"(the file has {len(items or ())})")
+                        f"(the file has {len(items or ())})", where)
     return items[index]
 
 
-def _root_nodes(g) -> list[int]:
-    """The default scene's root nodes; without scenes, every node that is nobody's child."""
+def _root_nodes(g) -> list[tuple[int, str]]:
+    """The default scene's root nodes, each with the JSON path naming it; without scenes,
+    every node that is nobody's child."""
     if g.scenes:
         scene_index = g.scene if g.scene is not None else 0
-        return list(_item(g.scenes, scene_index, "scene", "the file's `scene`").nodes or [])
+        scene = _item(g.scenes, scene_index, "scene", "scene", "the file's `scene`")
+        return [(n, f"scenes[{scene_index}].nodes[{k}]") for k, n in enumerate(scene.nodes or [])]
     children = {c for n in g.nodes for c in (n.children or [])}
-    return [i for i in range(len(g.nodes)) if i not in children]
+    return [(i, f"nodes[{i}]") for i in range(len(g.nodes)) if i not in children]
 
 
 class _Materials:
@@ -393,56 +413,62 @@ class _NodeWalk:
         self.camera_node: Optional[tuple[int, np.ndarray]] = None    # (camera index, world)
         self.ignored_attrs: set[str] = set()
         self.skipped_modes: set[str] = set()
+        self.unplaced: set[int] = set()      # nodes whose transform cannot place a mesh
         self.dropped = 0
 
-    def run(self, roots: list[int]) -> None:
-        stack = [(r, np.eye(4)) for r in reversed(roots)]
+    def run(self, roots: list[tuple[int, str]]) -> None:
+        """Depth first with a stack, not recursion: a chain of a million nodes is walked, and
+        a node reached twice (a cycle, or two parents) is an error where it is reached."""
+        stack = [(r, ref, np.eye(4)) for r, ref in reversed(roots)]
         visited = set()
         while stack:
-            ni, parent = stack.pop()
+            ni, ref, parent = stack.pop()
+            node = _item(self.g.nodes, ni, "node", ref)
             if ni in visited:
-                raise GltfError(f"node {ni} is reached twice (the node hierarchy must be a tree)")
+                raise GltfError(f"node {ni} is reached twice (the node hierarchy must be a tree)",
+                                ref)
             visited.add(ni)
-            if not 0 <= ni < len(self.g.nodes):
-                raise GltfError(f"node {ni} does not exist")
-            node = self.g.nodes[ni]
             world = parent @ _local_matrix(node)
             self._visit(ni, node, world)
-            for c in reversed(node.children or []):
-                stack.append((c, world))
+            for k in reversed(range(len(node.children or []))):
+                stack.append((node.children[k], f"nodes[{ni}].children[{k}]", world))
 
     def _visit(self, ni: int, node, world: np.ndarray) -> None:
         if node.camera is not None and self.camera_node is None:
-            self.camera_node = (node.camera, world)
+            self.camera_node = (node.camera, world, ni)
         ext = (node.extensions or {}).get("KHR_lights_punctual")
         if ext is not None:
             self._add_light(ni, ext.get("light"), world)
         if node.skin is not None:
             self.ignored_attrs.add("skins")
         if node.mesh is not None:
-            mesh = _item(self.g.meshes, node.mesh, "mesh", f"node {ni}")
+            mesh = _item(self.g.meshes, node.mesh, "mesh", f"nodes[{ni}].mesh", f"node {ni}")
             base_name = node.name or mesh.name or f"node{ni}"
             prims = mesh.primitives or []
             for pi, prim in enumerate(prims):
                 name = base_name if len(prims) == 1 else f"{base_name}/{pi}"
-                self._add_primitive(node.mesh, mesh, pi, prim, name, world)
+                self._add_primitive(node.mesh, mesh, pi, prim, name, world, ni)
 
     def _add_light(self, ni: int, li: Optional[int], world: np.ndarray) -> None:
-        if li is None or not 0 <= li < len(self.lights_def):
-            raise GltfError(f"node {ni} refers to light {li}, which does not exist")
+        where = f"nodes[{ni}].extensions.KHR_lights_punctual.light"
+        _item(self.lights_def, li, "light", where, f"node {ni}")
+        if not np.isfinite(world).all():
+            raise GltfError("the node's transform is not finite (it carries a light)",
+                            f"nodes[{ni}]")
         try:
             self.lights.append(punctual_light(self.lights_def[li], world, self.intensity_scale))
         except GltfError as e:
-            raise GltfError(f"light {li}: {e}") from None
+            raise GltfError(e.message, f"extensions.KHR_lights_punctual.lights[{li}]") from None
 
     def _add_primitive(self, mesh_index: int, mesh, pi: int, prim, name: str,
-                       world: np.ndarray) -> None:
+                       world: np.ndarray, ni: int) -> None:
         mode = 4 if prim.mode is None else prim.mode
         if mode not in (4, 5, 6):
             self.skipped_modes.add(_MODES.get(mode, str(mode)))
             return
+        where = f"meshes[{mesh_index}].primitives[{pi}]"
         if prim.attributes.POSITION is None:
-            raise GltfError(f"mesh {mesh_index} primitive {pi} has no POSITION")
+            raise GltfError(f"mesh {mesh_index} primitive {pi} has no POSITION", where + ".attributes")
         for a in ("TEXCOORD_0", "TEXCOORD_1", "COLOR_0", "TANGENT", "JOINTS_0", "WEIGHTS_0"):
             if getattr(prim.attributes, a, None) is not None:
                 self.ignored_attrs.add(a)
@@ -456,11 +482,19 @@ class _NodeWalk:
             return
         obj_id = self.first_id + len(self.objects)
         if obj_id > 255:
-            raise GltfError("more than 255 mesh primitives: object ids are 8-bit (1..255)")
+            raise GltfError("more than 255 mesh primitives: object ids are 8-bit (1..255)", where)
         if prim.material is not None:
-            _item(self.g.materials, prim.material, "material", f"mesh {mesh_index} primitive {pi}")
-        self.objects.append(make_object(name, obj_id, f"{self.file_name}#mesh{mesh_index}/{pi}",
-                                        local, self.materials(prim.material), world))
+            _item(self.g.materials, prim.material, "material", where + ".material",
+                  f"mesh {mesh_index} primitive {pi}")
+        if not _invertible(world):
+            self.unplaced.add(ni)
+            return
+        obj = make_object(name, obj_id, f"{self.file_name}#mesh{mesh_index}/{pi}", local,
+                          self.materials(prim.material), world)
+        if not np.isfinite(obj.positions).all():
+            self.unplaced.add(ni)
+            return
+        self.objects.append(obj)
 
     def notes(self) -> list[str]:
         """What the walk ignored or dropped, one note per kind, in a fixed order."""
@@ -478,6 +512,11 @@ class _NodeWalk:
                          f"{', '.join(sorted(self.skipped_modes))}")
         if self.dropped:
             notes.append(f"{name}: dropped {self.dropped} degenerate (zero-area) triangles")
+        if self.unplaced:
+            shown = ", ".join(str(n) for n in sorted(self.unplaced)[:8])
+            notes.append(f"{name}: meshes of nodes with a singular or overflowing transform "
+                         f"skipped (a scale of 0 hides a node): node {shown}"
+                         + (f" and {len(self.unplaced) - 8} more" if len(self.unplaced) > 8 else ""))
         return notes
 
 
@@ -486,24 +525,29 @@ def _primitive_mesh(doc: _Doc, mesh_index: int, mesh, pi: int, prim,
     """A triangle primitive as a local mesh, with the number of triangles it had before the
     degenerate ones were dropped; ``(0, None)`` when its indices make no triangle."""
     attrs = prim.attributes
-    pos = doc.accessor(attrs.POSITION)[:, :3].astype(np.float64)
+    where = f"meshes[{mesh_index}].primitives[{pi}]"
+    pos = doc.accessor(attrs.POSITION, where + ".attributes.POSITION", "POSITION")
     bad = np.flatnonzero(~np.isfinite(pos).all(axis=1))
     if len(bad):
         raise GltfError(f"mesh {mesh_index} ('{mesh.name or ''}') primitive {pi}: "
                         f"POSITION (accessor {attrs.POSITION}) vertex {int(bad[0])} is "
-                        f"not finite: {pos[bad[0]].tolist()}")
-    idx = (doc.accessor(prim.indices)[:, 0] if prim.indices is not None
-           else np.arange(len(pos)))
-    if idx.size and (idx.min() < 0 or idx.max() >= len(pos)):
-        raise GltfError(f"mesh {mesh_index} primitive {pi}: index {int(idx.max())} out of "
-                        f"range ({len(pos)} vertices)")
+                        f"not finite: {pos[bad[0]].tolist()}", f"accessors[{attrs.POSITION}]")
+    idx = (doc.accessor(prim.indices, where + ".indices", "indices")[:, 0]
+           if prim.indices is not None else np.arange(len(pos)))
+    if idx.size and idx.max() >= len(pos):
+        k = int(np.argmax(idx >= len(pos)))
+        raise GltfError(f"mesh {mesh_index} primitive {pi}: index {int(idx[k])} (entry {k}) out "
+                        f"of range ({len(pos)} vertices)", f"accessors[{prim.indices}]")
     tris = _triangles(mode, idx)
     if not len(tris):
         return 0, None
     p = pos[tris.reshape(-1)]
     if attrs.NORMAL is None:                   # flat normals, as the glTF specification asks
         return len(tris), meshes.finish_mesh(p, np.repeat(meshes.face_normals(p), 3, axis=0))
-    nrm = doc.accessor(attrs.NORMAL)[:, :3].astype(np.float64)
+    nrm = doc.accessor(attrs.NORMAL, where + ".attributes.NORMAL", "NORMAL")
+    if len(nrm) != len(pos):
+        raise GltfError(f"NORMAL has {len(nrm)} elements, POSITION {len(pos)}",
+                        where + ".attributes.NORMAL")
     n = meshes.normalize_rows(nrm[tris.reshape(-1)])
     n = np.where(np.isfinite(n).all(axis=1, keepdims=True), n, 0.0)
     flat = np.repeat(meshes.face_normals(p), 3, axis=0)
@@ -511,20 +555,30 @@ def _primitive_mesh(doc: _Doc, mesh_index: int, mesh, pi: int, prim,
     return len(tris), meshes.finish_mesh(p, n)
 
 
-def _file_camera(g, ci: int, world: np.ndarray, objects: list[SceneObject],
+def _file_camera(g, ci: int, world: np.ndarray, ni: int, objects: list[SceneObject],
                  file_name: str) -> tuple[Optional[Camera], Optional[str]]:
     """The camera of the first camera node and a note: None and why for a camera that is not
-    perspective; the far plane chosen for one without ``zfar``."""
-    cam = _item(g.cameras, ci, "camera", "a node")
+    perspective, or whose node's transform gives it no direction; the far plane chosen for
+    one without ``zfar``."""
+    cam = _item(g.cameras, ci, "camera", f"nodes[{ni}].camera", "a node")
     if cam.type != "perspective" or cam.perspective is None:
         return None, f"{file_name}: {cam.type} camera ignored (only perspective cameras)"
     p = cam.perspective
     eye = world[:3, 3]
     fwd = world[:3, :3] @ np.array([0.0, 0.0, -1.0])
     up = world[:3, :3] @ np.array([0.0, 1.0, 0.0])
-    fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
+    with np.errstate(all="ignore"):
+        fwd, up = fwd / np.linalg.norm(fwd), up / np.linalg.norm(up)
+        sideways = np.linalg.norm(np.cross(fwd, up))
+    if not (np.isfinite(eye).all() and np.isfinite(fwd).all() and np.isfinite(up).all()
+            and sideways > 1e-6):
+        return None, (f"{file_name}: camera of node {ni} ignored (its transform gives it no "
+                      "position, direction or up)")
     near = float(p.znear) if p.znear else 0.1
     note = None
+    if p.zfar is not None and p.zfar <= near:
+        raise GltfError(f"zfar {p.zfar} is not greater than znear {near}",
+                        f"cameras[{ci}].perspective.zfar")
     if p.zfar:
         far = float(p.zfar)
     else:

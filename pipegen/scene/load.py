@@ -74,13 +74,14 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+import reprlib
 import tomllib
 from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
 
-from pipegen.scene import meshes
+from pipegen.scene import limits, meshes
 from pipegen.core.diagnostics import PipegenError, Span
 from pipegen.scene.model import (
     LIGHT_TYPES, STIPPLE_LAYERS, Camera, Light, Material, Scene, SceneObject, assign_layers,
@@ -146,7 +147,7 @@ class _Locator:
         for depth, key in enumerate(keys):
             if not isinstance(key, str):
                 break
-            pat = re.compile(r"(?:^|[\s{,])(" + re.escape(key) + r")\s*=")
+            pat = re.compile(r"(?:^|[\s{,])(" + re.escape(key) + r")\s*[=.]")    # `k =`, `k.sub =`
             found = None
             for i in range(lo, end):
                 m = pat.search(self.lines[i], col if i == lo and depth else 0)
@@ -206,8 +207,8 @@ class _Reader:
     def number(self, key: str, default: Any = None, *, positive: bool = False,
                minimum: Optional[float] = None, maximum: Optional[float] = None) -> float:
         v = self._get(key, _REQUIRED if default is None else default)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            self.fail(key, f"'{_describe(self.path + (key,))}' must be a finite number, got {v!r}")
+        if isinstance(v, bool) or not _finite(v):
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be a finite number, got {_show(v)}")
         if positive and v <= 0:
             self.fail(key, f"'{_describe(self.path + (key,))}' must be > 0, got {v}")
         if minimum is not None and v < minimum or maximum is not None and v > maximum:
@@ -218,15 +219,15 @@ class _Reader:
         v = self._get(key, _REQUIRED if default is None else default)
         if isinstance(v, bool) or not isinstance(v, int) or not minimum <= v <= maximum:
             self.fail(key, f"'{_describe(self.path + (key,))}' must be an integer in "
-                      f"[{minimum}, {maximum}], got {v!r}")
+                      f"[{minimum}, {maximum}], got {_show(v)}")
         return int(v)
 
     def vec3(self, key: str, default: Any = None, *, nonzero: bool = False) -> tuple[float, float, float]:
         v = self._get(key, _REQUIRED if default is None else default)
         if (not isinstance(v, list) or len(v) != 3
-                or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)
+                or any(isinstance(x, bool) or not _finite(x)
                        for x in v)):
-            self.fail(key, f"'{_describe(self.path + (key,))}' must be a list of three numbers, got {v!r}")
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be a list of three numbers, got {_show(v)}")
         if nonzero and not any(v):
             self.fail(key, f"'{_describe(self.path + (key,))}' must not be the zero vector")
         return (float(v[0]), float(v[1]), float(v[2]))
@@ -234,7 +235,7 @@ class _Reader:
     def string(self, key: str, default: Any = None, choices: Optional[tuple[str, ...]] = None) -> str:
         v = self._get(key, _REQUIRED if default is None else default)
         if not isinstance(v, str):
-            self.fail(key, f"'{_describe(self.path + (key,))}' must be a string, got {v!r}")
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be a string, got {_show(v)}")
         if choices and v not in choices:
             self.fail(key, f"'{_describe(self.path + (key,))}' must be one of {', '.join(choices)}, got '{v}'")
         return v
@@ -242,7 +243,7 @@ class _Reader:
     def boolean(self, key: str, default: bool) -> bool:
         v = self._get(key, default)
         if not isinstance(v, bool):
-            self.fail(key, f"'{_describe(self.path + (key,))}' must be true or false, got {v!r}")
+            self.fail(key, f"'{_describe(self.path + (key,))}' must be true or false, got {_show(v)}")
         return v
 
     def sub(self, key: str, default: Any = None) -> "_Reader":
@@ -250,6 +251,27 @@ class _Reader:
 
 
 _REQUIRED = object()
+
+
+def _finite(v) -> bool:
+    """A finite number (an int too large for a float, 10**400, is not: math.isfinite would
+    raise OverflowError on it)."""
+    if isinstance(v, float):
+        return math.isfinite(v)
+    return isinstance(v, int) and abs(v) <= 1.7e308
+
+
+def _show(value) -> str:
+    """``repr(value)`` for a message, bounded: at most a few levels, items and characters of
+    what the file wrote (a table nested 5,000 levels by dotted keys, an integer of 4,000
+    digits) - repr itself would recurse, or refuse the integer."""
+    shown = reprlib.Repr()
+    shown.maxlevel, shown.maxlist, shown.maxdict, shown.maxstring, shown.maxother = 3, 6, 4, 60, 60
+    shown.maxlong = 40
+    try:
+        return shown.repr(value)
+    except ValueError:                      # an int past Python's 4300-digit conversion limit
+        return "a number of more than 4300 digits"
 
 
 def load_scene(path: str | Path) -> Scene:
@@ -302,10 +324,19 @@ def _toml_error(e: Exception, text: str, file: str) -> PipegenError:
 
 def parse_scene(text: str, file: str = "<scene>", base_dir: Path | str = ".", name: str = "scene") -> Scene:
     loc = _Locator(file, text)
+    depth, at = limits.nesting_depth(text, toml=True)
+    if depth > limits.MAX_NESTING:          # tomllib recurses: RecursionError past ~330
+        raise PipegenError(Span.at_offset(file, text, at),
+                           f"arrays and inline tables nest more than {limits.MAX_NESTING} levels")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise _toml_error(e, text, file) from None
+    except ValueError as e:                 # int() past its 4300-digit limit, unlocated
+        long = re.search(r"\w{4000,}", text)
+        raise PipegenError(Span.at_offset(file, text, long.start() if long else 0),
+                           f"invalid TOML: a number too long to read ({limits.quoted(str(e))})"
+                           ) from None
 
     top = _Reader(data, (), loc)
     top.check_keys({"width", "height", "ambient", "camera", "objects", "lights", "name", "gltf"})
