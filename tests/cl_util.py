@@ -14,7 +14,7 @@ import numpy as np
 from pipegen.scene import Geometry
 
 FLAT_COLOR = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
-              "    out->o_color = in->lights[in->object_id * PG_LIGHT_FIELDS];\n"
+              "    out->o_color = in->lights[in->object_id * PG_LIGHT_ROWS];\n"
               "    return true;\n}\n")
 
 

@@ -25,7 +25,7 @@ def test_frame_structs_layout():
         assert np.array_equal(s["camera_pos"], np.array([1, 2, 3, 0], t))
         assert np.array_equal(s["ambient"][:3], np.array([0.1, 0.2, 0.3], t))
         assert tuple(s["output_size"]) == (96, 54, 0, 0)
-        assert (int(s["num_lights"]), int(s["light"]), int(s["light_fields"])) == (5, 2, 7)
+        assert (int(s["num_lights"]), int(s["light"]), int(s["light_rows"])) == (5, 2, 7)
 
 
 def test_frame_structs_f32_only_and_put_matrices():

@@ -288,7 +288,7 @@ def test_near_plane_clipping_matches_reference_coverage():
 # -- stores ------------------------------------------------------------------------------------
 
 PER_PIXEL = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
-             "    out->o_color = in->lights[(in->pix.y * 16 + in->pix.x) * PG_LIGHT_FIELDS];\n"
+             "    out->o_color = in->lights[(in->pix.y * 16 + in->pix.x) * PG_LIGHT_ROWS];\n"
              "    return true;\n}\n")
 
 
@@ -339,7 +339,7 @@ def test_store_matches_oracle(fmt):
     if f.is_integer:
         vals = rng.integers(0, 1 << 20, size=(256, 4)).astype(np.float32)
         frag = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
-                "    out->o_color = convert_uint4(in->lights[(in->pix.y * 16 + in->pix.x) * PG_LIGHT_FIELDS]);\n"
+                "    out->o_color = convert_uint4(in->lights[(in->pix.y * 16 + in->pix.x) * PG_LIGHT_ROWS]);\n"
                 "    return true;\n}\n")
         pipe = color_pipe(fmt=fmt, fragment=frag, inputs=())
         out = pipe.render(TriScene(16, 16, fullscreen(), colors=vals))["color"]

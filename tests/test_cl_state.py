@@ -23,10 +23,10 @@ from pipegen.runtime.cl.pipeline import CLPipeline  # noqa: E402
 
 W = H = 16
 PER_PIXEL = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
-             "    out->o_color = in->lights[(in->pix.y * 16 + in->pix.x) * PG_LIGHT_FIELDS];\n"
+             "    out->o_color = in->lights[(in->pix.y * 16 + in->pix.x) * PG_LIGHT_ROWS];\n"
              "    return true;\n}\n")
 FLAT = ("static inline bool pg_fragment(const pg_in *in, pg_out *out) {\n"
-        "    out->o_color = in->lights[in->object_id * PG_LIGHT_FIELDS];\n"
+        "    out->o_color = in->lights[in->object_id * PG_LIGHT_ROWS];\n"
         "    return true;\n}\n")
 
 COMPARE = ["never", "less", "equal", "lequal", "greater", "notequal", "gequal", "always"]

@@ -58,8 +58,9 @@ flat out uint v_light;
 void main() {
     int i = int(a_light);
     v_light = uint(i);
-    vec3 centre = texelFetch(u_lights, ivec2(0, i), 0).xyz;
-    float radius = texelFetch(u_lights, ivec2(1, i), 0).x;
+    vec4 row0 = texelFetch(u_lights, ivec2(0, i), 0);   // position + radius (ir/light_layout.py)
+    vec3 centre = row0.xyz;
+    float radius = row0.w;
     gl_Position = u_proj * (u_view * vec4(centre + a_position * radius, 1.0));
 }"""
 

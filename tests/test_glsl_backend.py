@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from pipegen.ir import nodes as ir
+from pipegen.ir.light_layout import table_layout
 from pipegen.backends import glsl
 from pipegen.backends import registry
 from pipegen.backends.glsl import emit_gl
@@ -283,8 +284,15 @@ def test_shader_text(plan):
     assert "layout(location = 1) out uvec4 o_ids;" in frag
     assert "uniform sampler2D t_lightidx;" in frag
     assert "texelFetch(t_lightidx, ivec2(gl_FragCoord.xy), 0)" in frag   # same size: no clamp
-    assert "texelFetch(u_lights, ivec2(2, int(j)), 0).xyz" in frag        # slot 2 = color
-    assert "uint(texelFetch(u_lights, ivec2(5, int(j)), 0).x) == 1u" in frag
+    # light j's rows (ir/light_layout.py: position+radius, color+cos_outer, direction+type),
+    # each fetched once, just before the first statement reading it
+    assert frag.count("texelFetch(u_lights") == 3
+    assert ("        uint j = i - 1u;\n"
+            "        vec4 pg_light_row0 = texelFetch(u_lights, ivec2(0, int(j)), 0);\n"
+            "        vec3 l = pg_light_row0.xyz - v_world_pos;\n") in frag
+    assert "c += pg_light_row1.xyz * ((ndl + spec * v_material.x) * atten(length(l), " \
+           "pg_light_row0.w));" in frag
+    assert "if (uint(pg_light_row2.w) == 1u) {" in frag
     assert "o_ids = uvec4(v_ids.x, v_ids.y, 1u << (k2 & 31u), 0u);" in frag
     assert "flat in uvec2 v_ids;" in frag and "v_material.y" in frag
     assert "unused" not in frag                       # only functions the pass reaches
@@ -486,10 +494,12 @@ def _render_volume(ctx, volume, light, eye, size=(96, 72)):
     p = emit_gl(tech).to_dict()["passes"][0]
     view = _look_at(eye, light["position"])
     proj = _perspective(math.radians(60), size[0] / size[1], 0.1, 100.0)
-    table = np.zeros((1, len(LIGHTS.fields), 4), dtype=np.float32)
-    for k, f in enumerate(LIGHTS.fields):
+    layout = table_layout(LIGHTS)
+    table = np.zeros((1, layout.rows, 4), dtype=np.float32)
+    for f in LIGHTS.fields:
         val = np.atleast_1d(light.get(f.name, 0.0))
-        table[0, k, :len(val)] = val
+        place = layout.place(f.name)
+        table[0, place.row, place.offset:place.offset + len(val)] = val
     prog = ctx.program(vertex_shader=p["vertex"], fragment_shader=p["fragment"])
     prog["u_view"].write(view.T.astype("f4").tobytes())
     prog["u_proj"].write(proj.T.astype("f4").tobytes())

@@ -48,7 +48,9 @@ from typing import Callable, Optional, Sequence, Union
 
 from pipegen.ir import nodes as ir
 from pipegen.core.float32 import f32, f32_str
-from pipegen.ir.nodes import BOOL, FLOAT, INT, Scalar, Type
+from pipegen.ir.light_layout import LightLayout, Place
+from pipegen.ir.nodes import BOOL, FLOAT, INT, VEC4, Scalar, Type
+from pipegen.backends.light_rows import RowLoad, RowPlan, plan_rows
 
 FLT_MIN = 2.0 ** -126   # smallest normal float32: the normalize() guard
 
@@ -137,7 +139,7 @@ class CStyleLanguage:
     function_qualifier = ""                   # before every function definition
     reserved: frozenset = frozenset()         # identifiers renamed with a trailing "_"
     reserved_prefixes: tuple[str, ...] = ("gl_", "u_", "v_", "t_", "o_", "a_", "pg_")
-    light_fields: tuple[str, ...] = ()        # light table schema order: field -> slot
+    light_layout: Optional[LightLayout] = None   # the light table's rows (ir/light_layout.py)
     guards: dict[str, Callable[..., ir.Expr]] = _GUARDS   # builtin -> helper body (IR)
     componentwise: frozenset = _COMPONENTWISE  # guards lifted per component for vectors
     # builtin -> IR rewrite of a call (None: emit the call); the rewrites are compiler passes
@@ -149,6 +151,10 @@ class CStyleLanguage:
     def __init__(self) -> None:
         self.helpers: dict[str, ir.Function] = {}
         self._raw = False   # rendering guard helpers: builtins are emitted as they are
+        # the body being rendered: its light-row loads (light_rows.py) and the path of the
+        # statement being rendered (None: outside a body)
+        self._rows: Optional[RowPlan] = None
+        self._path: Optional[tuple] = None
 
     # ---- names, types, literals ---------------------------------------------------------------
     def type_name(self, t: Type) -> str:
@@ -286,16 +292,33 @@ class CStyleLanguage:
         return self.render_index(self._sub(e.base, UNARY), self.expr(e.index), e.base.type), ATOM
 
     def _lightfield(self, e: ir.LightField) -> tuple[str, int]:
-        if e.index is None:
-            index, itype = self.render_current_light(), ir.UINT
-        else:
-            index, itype = self.expr(e.index), e.index.type
         if e.field == "index":
+            if e.index is None:
+                index, itype = self.render_current_light(), ir.UINT
+            else:
+                index, itype = self.expr(e.index), e.index.type
             return (index if itype == e.type else self.render_construct(e.type, [index], [itype])), ATOM
-        if itype != INT:
-            index = self.render_construct(INT, [index], [itype])
-        assert e.field in self.light_fields, f"light field {e.field} not in the schema"
-        return self.render_light_field(index, self.light_fields.index(e.field), e.type), ATOM
+        assert self.light_layout is not None and e.field in self.light_layout.places, \
+            f"light field {e.field} not in the schema"
+        place = self.light_layout.place(e.field)
+        local = None if self._rows is None else self._rows.local_for(self._path, e)
+        row = local[0] if local else self.render_light_row(self._light_index(e.index), place.row)
+        return self.field_of_row(row, place, e.type), ATOM
+
+    def _light_index(self, index: Optional[ir.Expr]) -> str:
+        """A light-table index as an int expression (None: the light being drawn)."""
+        if index is None:
+            text, itype = self.render_current_light(), ir.UINT
+        else:
+            text, itype = self.expr(index), index.type
+        return text if itype == INT else self.render_construct(INT, [text], [itype])
+
+    def field_of_row(self, row: str, place: Place, t: Type) -> str:
+        """A field of type ``t`` at ``place`` taken out of ``row`` (a vec4 expression)."""
+        text = row if place.size == 4 else f"{row}.{place.components}"
+        if t.scalar is Scalar.FLOAT:
+            return text
+        return self.render_construct(t, [text], [Type(Scalar.FLOAT, t.size)])
 
     def _load(self, e: ir.Load) -> tuple[str, int]:
         coord = None if e.coord is None else self.expr(e.coord)
@@ -333,8 +356,43 @@ class CStyleLanguage:
             self._raw = False
 
     # ---- statements and functions ---------------------------------------------------------------
-    def stmts(self, body: Sequence[ir.Stmt], depth: int = 1) -> list[str]:
-        return [line for s in body for line in self.stmt(s, depth)]
+    def stmts(self, body: Sequence[ir.Stmt], depth: int = 1,
+              params: Sequence[str] = ()) -> list[str]:
+        """A block's lines; a whole body (``params``: its function's parameter names) has
+        each light-table row it reads loaded once (``light_rows.py``)."""
+        if self._path is None:
+            if self.light_layout is None:
+                return [line for s in body for line in self.stmt(s, depth)]
+            self._rows, self._path = plan_rows(body, self.light_layout, params), ()
+            try:
+                return self.stmts(body, depth)
+            finally:
+                self._rows, self._path = None, None
+        out: list[str] = []
+        block = self._path
+        for k, s in enumerate(body):
+            self._path = block + (k,)
+            for load in self._rows.loads_before(self._path):
+                out.append(self.indent * depth + self.row_declaration(load))
+            out += self.stmt(s, depth)
+        self._path = block
+        return out
+
+    def row_declaration(self, load: RowLoad) -> str:
+        """The declaration loading one light-table row into its local."""
+        row = self.render_light_row(self._light_index(load.index), load.row)
+        return f"{self.type_name(VEC4)} {load.name} = {row};"
+
+    def _block(self, name: str, body: Sequence[ir.Stmt], depth: int) -> list[str]:
+        """The lines of nested block ``name`` (then, other, body) of the current statement."""
+        if self._path is None:
+            return self.stmts(body, depth)
+        outer = self._path
+        self._path = outer + (name,)
+        try:
+            return self.stmts(body, depth)
+        finally:
+            self._path = outer
 
     def stmt(self, s: ir.Stmt, depth: int) -> list[str]:
         pad = self.indent * depth
@@ -347,18 +405,21 @@ class CStyleLanguage:
             return [pad + line for line in
                     self.render_output(s.target, self.expr(s.value)).splitlines()]
         if isinstance(s, ir.If):
-            out = [f"{pad}if ({self.expr(s.cond)}) {{", *self.stmts(s.then, depth + 1)]
+            out = [f"{pad}if ({self.expr(s.cond)}) {{", *self._block("then", s.then, depth + 1)]
             if len(s.other) == 1 and isinstance(s.other[0], ir.If):
-                chained = self.stmt(s.other[0], depth)
+                chained = self._block("other", s.other, depth)
+                if not chained[0].lstrip().startswith("if ("):   # a row load before the if
+                    return out + [f"{pad}}} else {{", *self._block("other", s.other, depth + 1),
+                                  f"{pad}}}"]
                 return out + [f"{pad}}} else {chained[0].lstrip()}"] + chained[1:]
             if s.other:
-                out += [f"{pad}}} else {{", *self.stmts(s.other, depth + 1)]
+                out += [f"{pad}}} else {{", *self._block("other", s.other, depth + 1)]
             return out + [f"{pad}}}"]
         if isinstance(s, ir.For):
             v = self.ident(s.var)
             return [f"{pad}for ({self.type_name(s.type)} {v} = {self.expr(s.start)}; "
                     f"{v} < {self.expr(s.bound)}; {v}++) {{",
-                    *self.stmts(s.body, depth + 1), f"{pad}}}"]
+                    *self._block("body", s.body, depth + 1), f"{pad}}}"]
         if isinstance(s, ir.Break):
             return [f"{pad}break;"]
         if isinstance(s, ir.Continue):
@@ -376,7 +437,8 @@ class CStyleLanguage:
         return f"{self.function_qualifier}{self.type_name(f.ret)} {self.ident(f.name)}({params})"
 
     def function(self, f: ir.Function) -> str:
-        return "\n".join([self.signature(f) + " {", *self.stmts(f.body, 1), "}"])
+        body = self.stmts(f.body, 1, [n for n, _ in f.params])
+        return "\n".join([self.signature(f) + " {", *body, "}"])
 
     # ---- hooks: what differs between dialects ----------------------------------------------------
     def render_builtin(self, name: str, args: list[str], types: list[Type], ret: Type) -> str:
@@ -425,7 +487,8 @@ class CStyleLanguage:
         """The (uint) index of the light this pass is drawing."""
         raise NotImplementedError
 
-    def render_light_field(self, index: str, slot: int, t: Type) -> str:
+    def render_light_row(self, index: str, row: int) -> str:
+        """Row ``row`` (a vec4) of the record of light ``index`` (an int expression)."""
         raise NotImplementedError
 
     def render_load(self, target: str, coord: Optional[str], t: Type) -> str:

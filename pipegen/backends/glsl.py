@@ -36,7 +36,8 @@ from __future__ import annotations
 from typing import Optional
 
 from pipegen.ir import nodes as ir
-from pipegen.ir.nodes import DrawKind, Scalar, Type, Volume
+from pipegen.ir.light_layout import table_layout
+from pipegen.ir.nodes import DrawKind, Type, Volume
 from pipegen.backends import plan as planlib
 from pipegen.backends.plan import GLPassCode, Plan
 from pipegen.backends import templating
@@ -120,7 +121,7 @@ class GLSLLanguage(CStyleLanguage):
     def __init__(self, tech: Optional[ir.Technique] = None, pass_: Optional[ir.Pass] = None):
         super().__init__()
         self.tech, self.pass_ = tech, pass_
-        self.light_fields = tuple(f.name for f in tech.lights.fields) if tech else ()
+        self.light_layout = table_layout(tech.lights) if tech else None
         lights = pass_ is not None and pass_.draw.kind is DrawKind.LIGHTS
         self.current_light = "v_light" if lights else "u_light"
         self.unclamped: set[str] = set()   # targets whose load(T) needs no clamp
@@ -147,11 +148,8 @@ class GLSLLanguage(CStyleLanguage):
     def render_current_light(self) -> str:
         return self.current_light
 
-    def render_light_field(self, index: str, slot: int, t: Type) -> str:
-        texel = f"texelFetch(u_lights, ivec2({slot}, {index}), 0){texel_select(t)}"
-        if t.scalar is Scalar.FLOAT:
-            return texel
-        return self.render_construct(t, [texel], [Type(Scalar.FLOAT, t.size)])
+    def render_light_row(self, index: str, row: int) -> str:
+        return f"texelFetch(u_lights, ivec2({row}, {index}), 0)"
 
     def render_load(self, target: str, coord: Optional[str], t: Type) -> str:
         if coord is None:
@@ -237,11 +235,11 @@ def emit_vertex(tech: ir.Technique, p: ir.Pass, common: dict, varyings: list,
     kind = p.draw.kind
     if kind is DrawKind.LIGHTS:
         volume = p.draw.volume or Volume.SPHERE
-        slots = {f.name: k for k, f in enumerate(tech.lights.fields)}
-        assert all(f in slots for f in VOLUME_LIGHT_FIELDS[volume.value]), p.name   # frontend/lower/
+        fields = table_layout(tech.lights).places
+        assert all(f in fields for f in VOLUME_LIGHT_FIELDS[volume.value]), p.name   # frontend/lower/
         return templating.render("gl_vertex_lights.glsl.j2", **common, stage="vertex",
                                  varyings=varyings, attributes=attributes, volume=volume.value,
-                                 slots=slots, flt_min=GLSLLanguage().render_float(FLT_MIN))
+                                 fields=fields, flt_min=GLSLLanguage().render_float(FLT_MIN))
     name = "gl_vertex_scene.glsl.j2" if kind is DrawKind.SCENE else "gl_vertex_fullscreen.glsl.j2"
     return templating.render(name, **common, stage="vertex", varyings=varyings,
                              attributes=attributes)

@@ -11,6 +11,7 @@ import re
 from typing import Optional
 
 from pipegen.ir import nodes as ir
+from pipegen.ir.light_layout import table_layout
 from pipegen.ir.nodes import Scalar, Type
 from pipegen.ir.builtins import BIT_CAST_BUILTINS
 from pipegen.passes import lower_mix_constant
@@ -151,7 +152,7 @@ class OpenCLLanguage(CStyleLanguage):
     def __init__(self, tech: Optional[ir.Technique] = None, pass_: Optional[ir.Pass] = None):
         super().__init__()
         self.tech, self.pass_ = tech, pass_
-        self.light_fields = tuple(f.name for f in tech.lights.fields) if tech else ()
+        self.light_layout = table_layout(tech.lights) if tech else None
         self.in_body = False
         self.raw_helpers: dict[str, str] = {}   # BIT_HELPERS used, dependencies first
 
@@ -284,11 +285,8 @@ class OpenCLLanguage(CStyleLanguage):
     def render_current_light(self) -> str:
         return "in->light"
 
-    def render_light_field(self, index: str, slot: int, t: Type) -> str:
-        texel = f"in->lights[({index}) * PG_LIGHT_FIELDS + {slot}]{texel_select(t)}"
-        if t.scalar is Scalar.FLOAT:
-            return texel
-        return self.render_construct(t, [texel], [Type(Scalar.FLOAT, t.size)])
+    def render_light_row(self, index: str, row: int) -> str:
+        return f"in->lights[({index}) * PG_LIGHT_ROWS + {row}]"
 
     def render_load(self, target: str, coord: Optional[str], t: Type) -> str:
         coord = "in->pix" if coord is None else coord

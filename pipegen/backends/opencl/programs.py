@@ -14,6 +14,7 @@ from pipegen.core import formats as F
 from pipegen.core.float32 import f32
 from pipegen.ir import access, nodes as ir
 from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS
+from pipegen.ir.light_layout import schema_layout
 from pipegen.backends import templating
 from pipegen.backends.cstyle import FLT_MIN
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan
@@ -130,9 +131,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
                       "sampled": name in code.sampled})
     inputs = set(code.inputs)
     draw = pass_.draw
-    fields = [f[0] for f in plan.lights.fields]
+    layout = schema_layout(plan.lights.fields)
     volume = (draw.volume or ir.Volume.SPHERE).value
-    slots = {f: k for k, f in enumerate(fields)}
     # the previous frame's camera: in the frame struct of the programs that read it only
     # (the host's frame buffer always holds it, after the common fields)
     prelude = pass_prelude(pass_, tile, precision)[1]
@@ -153,7 +153,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         "cl_pass.cl.j2",
         technique=plan.technique, pass_name=pass_.name, prelude=prelude,
         dynamic=dynamic, state=_state_defines(pass_, dynamic, precision),
-        kind=draw.kind.value, volume=volume, slots=slots, light_fields=len(fields),
+        kind=draw.kind.value, volume=volume, fields=layout.places, light_rows=layout.rows,
         varyings=varyings,
         flats=[{"name": n, "component": c} for n, c in SCENE_FLAT.items() if n in inputs],
         writes=writes, depth=depth, stencil=stencil, reads=reads,

@@ -92,11 +92,13 @@ from typing import Optional
 import numpy as np
 
 from pipegen.ir import nodes as ir
+from pipegen.ir.light_layout import schema_layout
 from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from pipegen.runtime.cl import clamps as cl_clamps, context as cl_context
 from pipegen.runtime import draws
 from pipegen.runtime.common import check_param_overrides, check_scene
+from pipegen.runtime.light_table import light_rows
 from pipegen.runtime.cl.device import Device
 from pipegen.runtime.cl.geometry import DrawGeometry, FrameState, ShadowView
 from pipegen.runtime.cl.targets import TargetStore, d24_resolve
@@ -108,7 +110,7 @@ FRAME_DTYPE = np.dtype([("view", "<f4", (16,)), ("proj", "<f4", (16,)),
                         ("inv_view", "<f4", (16,)), ("inv_proj", "<f4", (16,)),
                         ("camera_pos", "<f4", (4,)), ("ambient", "<f4", (4,)),
                         ("output_size", "<f4", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
-                        ("light_fields", "<u4"), ("pad", "<u4"),
+                        ("light_rows", "<u4"), ("pad", "<u4"),
                         # the previous frame's camera: in the struct of programs that read it
                         ("prev_view", "<f4", (16,)), ("prev_proj", "<f4", (16,))])
 assert FRAME_DTYPE.itemsize == 448
@@ -117,7 +119,7 @@ FRAME64_DTYPE = np.dtype([("view", "<f8", (16,)), ("proj", "<f8", (16,)),
                           ("inv_view", "<f8", (16,)), ("inv_proj", "<f8", (16,)),
                           ("camera_pos", "<f8", (4,)), ("ambient", "<f8", (4,)),
                           ("output_size", "<f8", (4,)), ("num_lights", "<u4"), ("light", "<u4"),
-                          ("light_fields", "<u4"), ("pad", "<u4"), ("pad2", "<u4", (4,)),
+                          ("light_rows", "<u4"), ("pad", "<u4"), ("pad2", "<u4", (4,)),
                           ("prev_view", "<f8", (16,)), ("prev_proj", "<f8", (16,))])
 assert FRAME64_DTYPE.itemsize == 896
 
@@ -135,7 +137,7 @@ def _put_matrices(fr: np.ndarray, f8: Optional[np.ndarray], **mats) -> None:
 
 def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
                    output_size: tuple[int, int], num_lights: int, light: int,
-                   light_fields: int, f64: bool) -> tuple[np.ndarray, Optional[np.ndarray]]:
+                   light_rows: int, f64: bool) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """The ``pg_frame`` struct of a camera, and its ``pg_frame64`` with ``f64`` (else None):
     ``inv_view``/``inv_proj`` are the inverses of ``view``/``proj``, ``prev_*`` the previous
     frame's camera."""
@@ -149,7 +151,7 @@ def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
         s["camera_pos"][:3] = np.asarray(camera_pos, t)
         s["ambient"][:3] = np.asarray(ambient, t)
         s["output_size"][:2] = output_size
-        s["num_lights"], s["light"], s["light_fields"] = num_lights, light, light_fields
+        s["num_lights"], s["light"], s["light_rows"] = num_lights, light, light_rows
     return fr, f8
 
 
@@ -263,7 +265,7 @@ class CLPipeline:
         prev = getattr(scene, "prev_camera", cam)
         fr, f8 = _frame_structs(view, proj, prev.view_matrix(), prev.projection(out_w / out_h),
                                 cam.position, scene.ambient, (out_w, out_h), len(scene.lights),
-                                light, len(self.plan.lights.fields), self.f64)
+                                light, schema_layout(self.plan.lights.fields).rows, self.f64)
         return fr, f8, view, proj
 
     # -- rendering ----------------------------------------------------------------------------------
@@ -355,8 +357,8 @@ class CLPipeline:
         self._selection = draws.LightSelection(self.plan, list(scene.lights))
         self.geometry.use_scene()
         capacity = max(1, self.plan.lights.capacity)
-        fields = [list(f) for f in self.plan.lights.fields]
-        table = (np.asarray(scene.light_table(fields, capacity), np.float32) if fields
+        fields = self.plan.lights.fields
+        table = (light_rows(scene, fields, capacity) if fields      # ir/light_layout.py
                  else np.zeros((0, 4), np.float32))
         self._lights_buf = self.device.buffer(table.reshape(-1, 4) if table.size
                                               else np.zeros((1, 4), np.float32))

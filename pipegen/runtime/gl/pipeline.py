@@ -52,6 +52,7 @@ import numpy as np
 
 from pipegen.core import formats as F
 from pipegen.ir import nodes as ir
+from pipegen.ir.light_layout import schema_layout
 from pipegen.backends.plan import PassPlan, Plan, TargetPlan, plan_from_dict
 from pipegen.ir.lifetimes import MemoryPlan, Sharing, memory_plan
 from pipegen.runtime import draws
@@ -60,6 +61,7 @@ from pipegen.runtime.gl import formats as GF
 from pipegen.runtime.gl import state as GS
 from pipegen.runtime.gl import transitions as GT
 from pipegen.runtime.common import check_param_overrides, check_scene
+from pipegen.runtime.light_table import light_rows
 from pipegen.runtime.gl.context import (
     GL, check_error, clear_stale_errors, debug_enabled, get_context)
 
@@ -307,7 +309,9 @@ class GLPipeline:
         self._clears: Optional[FrameClears] = None
         self.capacity = max(1, plan.lights.capacity)
         self.fields = list(plan.lights.fields)
-        self.light_tex = GF.create_texture("rgba32f", max(1, len(self.fields)), self.capacity)
+        # a texel column per row of a light's record, a line per light (ir/light_layout.py)
+        self.light_tex = GF.create_texture("rgba32f", max(1, schema_layout(self.fields).rows),
+                                           self.capacity)
         self._samplers = {mode: self._sampler(mode) for mode in ("nearest", "linear")}
         self._meshes: dict[str, moderngl.Buffer] = {}
         self._scene = None
@@ -429,10 +433,8 @@ class GLPipeline:
         self._selection = draws.LightSelection(self.plan, lights)
         self._lights = lights
         if self.fields:
-            table = np.asarray(scene.light_table([list(f) for f in self.fields],
-                                                 self.capacity), dtype=np.float32)
-            GF.write_texture(self.light_tex, "rgba32f", table.reshape(self.capacity,
-                                                                        len(self.fields), 4))
+            GF.write_texture(self.light_tex, "rgba32f",
+                             light_rows(scene, self.fields, self.capacity))
         self._scene = scene
 
     def _scene_vbo(self, draw: ir.Draw) -> tuple[moderngl.Buffer, int]:

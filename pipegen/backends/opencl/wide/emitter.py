@@ -24,6 +24,7 @@ class WideEmitter(WideStatements, WideExpressions):
         # specialised name -> the (dict, key, text) entries its emission added, itself last:
         # a function a discarded render emitted is put back without rendering it again
         self.emitted: dict[str, list] = {}
+        self.rows, self.path = None, ()     # the body's light-row loads (light_rows.py)
 
     # ---- entry -------------------------------------------------------------------------------
     def fragment(self, functions) -> str:

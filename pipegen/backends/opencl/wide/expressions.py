@@ -207,6 +207,11 @@ class WideExpressions:
         return Val([acc], e.type, base.varying)
 
     def _lightfield(self, e: ir.LightField) -> Val:
+        local = None
+        if e.field != "index" and self.rows is not None:
+            local = self.rows.local_for(self.path, e)     # its row, loaded once (light_rows.py)
+        if local is not None:
+            return self._row_field(local[0], local[1], e.type)
         if e.index is None:
             index, itype = self.lang.render_current_light(), ir.UINT
         else:
@@ -221,15 +226,18 @@ class WideExpressions:
             return Val([c], e.type, False)
         if itype != ir.INT:
             index = self.lang.render_construct(ir.INT, [index], [itype])
-        slot = self.lang.light_fields.index(e.field)
-        base = f"in->lights[({index}) * PG_LIGHT_FIELDS + {slot}]"
+        place = self.lang.light_layout.place(e.field)
+        return self._row_field(self.lang.render_light_row(index, place.row), place, e.type)
+
+    def _row_field(self, row: str, place, t: Type) -> Val:
+        """The components of a light field at ``place`` of ``row`` (uniform)."""
         comps = []
-        for k in range(e.type.size):
-            c = f"{base}.{'xyzw'[k]}"
-            if e.type.scalar is not Scalar.FLOAT:
-                c = self.lang.render_construct(Type(e.type.scalar), [c], [ir.FLOAT])
+        for k in place.components:
+            c = f"{row}.{k}"
+            if t.scalar is not Scalar.FLOAT:
+                c = self.lang.render_construct(Type(t.scalar), [c], [ir.FLOAT])
             comps.append(c)
-        return Val(comps, e.type, False)
+        return Val(comps, t, False)
 
     def _gather(self, fn: str, args: list, t: Type) -> Val:
         self.ntmp += 1

@@ -10,14 +10,15 @@ from __future__ import annotations
 from typing import Optional
 
 from pipegen.ir import nodes as ir
-from pipegen.ir.nodes import Scalar, Type
+from pipegen.ir.nodes import VEC4, Scalar, Type
+from pipegen.backends.light_rows import plan_rows
 from pipegen.backends.opencl.wide.values import C_TYPES, W, Unsupported, Val, ctype, widen
 
 # what a function's rendering sets on the emitter: saved and restored around the rendering of
 # a function it calls
 _STATE = ("varying_locals", "env", "fixed", "mask", "dyn", "loop_masks", "loops",
           "masked_loops", "retmode", "main", "ret_type", "ret_varying", "returned_varying",
-          "ntmp", "pre", "final_ret_varying", "dirty")
+          "ntmp", "pre", "final_ret_varying", "dirty", "rows", "path")
 
 
 class _Restart(Exception):
@@ -40,6 +41,9 @@ class WideStatements:
         masked_loops: set = set()
         retmode = False
         kept = (len(self.structs), len(self.out_funcs))
+        layout = self.lang.light_layout
+        # each light-table row read once (light_rows.py), as the scalar emitter does
+        self.rows = None if layout is None else plan_rows(body, layout, list(params))
         for _ in range(200):
             _truncate(self.structs, kept[0])
             _truncate(self.out_funcs, kept[1])
@@ -58,6 +62,7 @@ class WideStatements:
             self.ntmp = 0
             self.pre: list[str] = []
             self.dirty = False
+            self.path = ()
             head: list[str] = []
             if retmode:
                 head.append(f"    int{W} pg_wdone = (int{W})(0);")
@@ -134,11 +139,38 @@ class WideStatements:
         return Val(out, v.type, v.varying)
 
     # ---- statements ----------------------------------------------------------------------------
-    def _block(self, body, depth: int) -> list[str]:
+    def _block(self, body, depth: int, name: Optional[str] = None) -> list[str]:
+        """The lines of a body, or of nested block ``name`` (then, other, body) of the current
+        statement; ``self.path`` is the path of the statement being rendered."""
+        outer = self.path
+        block = outer if name is None else outer + (name,)
         out = []
-        for s in body:
-            out += self._stmt(s, depth)
+        try:
+            for k, s in enumerate(body):
+                self.path = block + (k,)
+                out += self._row_loads(depth)
+                out += self._stmt(s, depth)
+        finally:
+            self.path = outer
         return out
+
+    def _row_loads(self, depth: int) -> list[str]:
+        """The light-table rows loaded before the current statement (uniform: one light)."""
+        lines = []
+        for load in [] if self.rows is None else self.rows.loads_before(self.path):
+            if load.index is None:
+                index, itype = self.lang.render_current_light(), ir.UINT
+            else:
+                iv = self.expr(load.index)
+                if iv.varying:
+                    raise Unsupported("varying light index")
+                index, itype = iv.comps[0], load.index.type
+            if itype != ir.INT:
+                index = self.lang.render_construct(ir.INT, [index], [itype])
+            row = self.lang.render_light_row(index, load.row)
+            lines += self._flush(depth, [f"{'    ' * depth}const {self.lang.type_name(VEC4)} "
+                                         f"{load.name} = {row};"])
+        return lines
 
     def _flush(self, depth: int, lines: list[str]) -> list[str]:
         pad = "    " * depth
@@ -195,10 +227,10 @@ class WideStatements:
             c = self.expr(s.cond)
             if not c.varying:
                 head = self._flush(depth, [f"{pad}if ({_condition(c.comps[0])}) {{"])
-                then = self._block(s.then, depth + 1)
+                then = self._block(s.then, depth + 1, "then")
                 out = head + then
                 if s.other:
-                    out += [f"{pad}}} else {{"] + self._block(s.other, depth + 1)
+                    out += [f"{pad}}} else {{"] + self._block(s.other, depth + 1, "other")
                 return out + [f"{pad}}}"]
             # if-conversion: both branches under masks
             self.ntmp += 1
@@ -208,7 +240,7 @@ class WideStatements:
             lines = self._flush(depth, [f"{pad}const int{W} {m} = {cond if outer is None else f'({cond}) & {outer}'};"])
             lines.append(f"{pad}{{")
             self.mask = m
-            lines += self._block(s.then, depth + 1)
+            lines += self._block(s.then, depth + 1, "then")
             lines.append(f"{pad}}}")
             if s.other:
                 self.ntmp += 1
@@ -217,7 +249,7 @@ class WideStatements:
                 lines.append(f"{pad}const int{W} {m2} = {neg};")
                 lines.append(f"{pad}{{")
                 self.mask = m2
-                lines += self._block(s.other, depth + 1)
+                lines += self._block(s.other, depth + 1, "other")
                 lines.append(f"{pad}}}")
             self.mask = outer
             return lines
@@ -234,7 +266,7 @@ class WideStatements:
             self.loop_masks.append(self.mask)
             self.loops.append(key)
             if key not in self.masked_loops:
-                body = self._block(s.body, depth + 1)
+                body = self._block(s.body, depth + 1, "body")
                 self.loop_masks.pop()
                 self.loops.pop()
                 return head + body + [f"{pad}}}"]
@@ -246,7 +278,7 @@ class WideStatements:
             init = f"(int{W})(0)" if entry is None else f"~({entry})"
             head = [f"{pad}int{W} {brk} = {init};"] + head
             self.dyn = self.dyn + [brk, cont]
-            body = self._block(s.body, depth + 1)
+            body = self._block(s.body, depth + 1, "body")
             self.dyn = self.dyn[:-2]
             self.loop_masks.pop()
             self.loops.pop()
