@@ -1,8 +1,8 @@
 """pipegen's generated GL pipeline vs a hand-written moderngl + PyOpenGL loop (issue 14).
 
     python benchmarks/hand_gl.py [--frames 15] [--sizes 320x180,1280x720]
-        [--scenes many_lights,small] [--techniques deferred,lidr_bitplanes] [--threads 2]
-        [--calls] [--all]
+        [--scenes many_lights,small] [--techniques deferred,lidr_bitplanes,forward]
+        [--threads 2] [--calls] [--all]
 
 For ``deferred`` and ``lidr_bitplanes`` this file holds the loop a programmer would write by
 hand for that technique: the GLSL, target formats, clear values and blend constants come from
@@ -11,7 +11,15 @@ decides is written out here for the one technique: which framebuffer each pass d
 per distinct set of attachments), which state changes between passes (set when it changes,
 by someone who knows the pass order), which textures are bound, which lights are drawn.
 Nothing of ``pipegen.runtime``'s pipeline code is used: only ``gl_context`` (the shared EGL
-context) and ``gl_formats`` (texture creation, read-back).
+context) and ``gl_formats`` (texture creation, read-back).  The light table is uploaded in the
+rows the compiler lays it out in (``ir/light_layout.py``), which the generated shaders read.
+
+``forward`` (issue 26 item 6) has a hand-written *shader* too: one loop over the lights, each
+light's four packed rows fetched once (position + radius, colour + type, direction + cos_inner,
+cos_outer + shadow tile; the shadow matrix rows only for a light casting a shadow), the view
+vector normalised once per pixel, Blinn-Phong as ``common/lighting.pipe`` writes it.  Its light
+table is packed by hand here (``pack_lights``).  The scenes have no shadow-casting lights (the
+hand loop refuses one: it draws no shadow maps), as pipegen, which then runs no shadow pass.
 
 For every technique x scene x size it
 
@@ -70,17 +78,18 @@ class HandLoop:
                          for p in plan.passes}
         self.state = {p.name: p.state for p in plan.passes}
         self.tex, self.clear_words = {}, {}
+        self.sizes = {t.name: t.resolve(w, h) for t in plan.targets}   # the shadow atlas: its own
         for t in plan.targets:
-            self.tex[t.name] = GF.create_texture(t.format.name, w, h)
+            self.tex[t.name] = GF.create_texture(t.format.name, *self.sizes[t.name])
             c = t.clear
             self.clear_words[t.name] = GF.clear_codes(t.format.name, c.color, c.depth, c.stencil)
         self.formats = {t.name: t.format for t in plan.targets}
-        # the light table
-        fields = [list(f) for f in plan.lights.fields]
+        self.cleared = list(self.tex)           # targets cleared every frame
+        # the light table: a texel column per row of a light, a line per light
         cap = max(1, plan.lights.capacity)
-        self.light_tex = GF.create_texture("rgba32f", len(fields), cap)
-        GF.write_texture(self.light_tex, "rgba32f", np.asarray(
-            scene.light_table(fields, cap), np.float32).reshape(cap, len(fields), 4))
+        table = self.light_table(cap)
+        self.light_tex = GF.create_texture("rgba32f", table.shape[1], cap)
+        GF.write_texture(self.light_tex, "rgba32f", table)
         ids = np.zeros(1, np.uint32)
         GL.glCreateSamplers(1, ids)
         self.sampler = int(ids[0])
@@ -109,6 +118,19 @@ class HandLoop:
             reads = next(p.reads for p in plan.passes if p.name == name)
             for k, r in enumerate(reads):
                 prog["t_" + r].value = k + 1
+
+    def light_table(self, cap: int) -> np.ndarray:
+        """(cap, rows, 4) float32: the generated shaders' light table, each field in the row
+        and components the compiler placed it (``ir/light_layout.py``)."""
+        from pipegen.ir.light_layout import schema_layout
+        fields = [tuple(f) for f in self.plan.lights.fields]
+        layout = schema_layout(fields)
+        slots = np.asarray(self.scene.light_table([list(f) for f in fields], cap), np.float32)
+        rows = np.zeros((cap, layout.rows, 4), np.float32)
+        for k, (name, _) in enumerate(fields):
+            p = layout.place(name)
+            rows[:, p.row, p.offset:p.offset + p.size] = slots[:, k, :p.size]
+        return rows
 
     # -- building blocks ---------------------------------------------------------------------
     def fbo(self, colors, depth=None) -> int:
@@ -160,7 +182,8 @@ class HandLoop:
             for k, v in data.items():
                 if k in prog:
                     prog[k].write(v)
-        for name, tex in self.tex.items():
+        for name in self.cleared:
+            tex = self.tex[name]
             g = self.GF.gl_format(self.formats[name].name)
             GL.glClearTexImage(tex, 0, g.format, g.type, self.clear_words[name])
         # the switches nothing here turns on (the context is shared with pipegen)
@@ -182,7 +205,7 @@ class HandLoop:
     def read(self) -> dict[str, np.ndarray]:
         out = {}
         for name, tex in self.tex.items():
-            data = self.GF.read_texture(tex, self.formats[name].name, self.w, self.h)
+            data = self.GF.read_texture(tex, self.formats[name].name, *self.sizes[name])
             if self.formats[name].has_stencil:
                 out[name], out[name + ".stencil"] = self.GF.split_depth_stencil(data)
             else:
@@ -340,7 +363,136 @@ class HandBitplanes(HandLoop):
         GL.glFinish()
 
 
-HAND = {"deferred": HandDeferred, "lidr_bitplanes": HandBitplanes}
+# forward's shade pass as written by hand: the light table in packed rows, each read once
+FORWARD_FRAGMENT = """#version 330 core
+uniform vec3 u_camera_pos;
+uniform vec3 u_ambient;
+uniform uint u_num_lights;
+uniform sampler2D u_lights;        // per light: 4 rows, then 4 shadow matrix rows (pack_lights)
+uniform sampler2D t_shadow_atlas;  // 2 x 2 tiles
+in vec3 v_world_pos;
+in vec3 v_normal;
+flat in vec3 v_albedo;
+flat in vec3 v_material;           // specular, shininess, alpha
+layout(location = 0) out vec4 o_color;
+
+// 1 where light i's shadow map sees p lit (one depth compare), 1 for lights without one
+float shadow(int i, float tile, vec3 p, vec3 dir) {
+    if (tile < 0.0) {
+        return 1.0;
+    }
+    vec4 q = vec4(p - dir * 0.1, 1.0);
+    vec4 c = vec4(dot(texelFetch(u_lights, ivec2(4, i), 0), q),
+                  dot(texelFetch(u_lights, ivec2(5, i), 0), q),
+                  dot(texelFetch(u_lights, ivec2(6, i), 0), q),
+                  dot(texelFetch(u_lights, ivec2(7, i), 0), q));
+    if (c.w <= 0.0) {
+        return 1.0;
+    }
+    float z = c.z / c.w * 0.5 + 0.5;
+    ivec2 ts = textureSize(t_shadow_atlas, 0) / 2;
+    int k = int(tile);
+    vec2 uv = (c.xy / c.w * 0.5 + 0.5) * vec2(ts);
+    ivec2 t = clamp(ivec2(clamp(floor(uv), vec2(-8.0), vec2(ts) + 8.0)), ivec2(0), ts - 1);
+    return z <= texelFetch(t_shadow_atlas, ivec2(k % 2, k / 2) * ts + t, 0).x ? 1.0 : 0.0;
+}
+
+void main() {
+    vec3 p = v_world_pos;
+    vec3 n = normalize(v_normal);
+    vec3 v = normalize(u_camera_pos - p);
+    vec3 c = u_ambient * v_albedo;
+    for (uint i = 0u; i < u_num_lights; i++) {
+        int li = int(i);
+        vec4 pos_radius = texelFetch(u_lights, ivec2(0, li), 0);
+        vec4 color_type = texelFetch(u_lights, ivec2(1, li), 0);
+        vec4 dir_inner = texelFetch(u_lights, ivec2(2, li), 0);
+        vec4 outer_tile = texelFetch(u_lights, ivec2(3, li), 0);
+        vec3 l = -dir_inner.xyz;           // directional (type 2)
+        float att = 1.0;
+        if (color_type.w != 2.0) {         // point (0) and spot (1)
+            vec3 to_light = pos_radius.xyz - p;
+            float d = length(to_light);
+            l = to_light / max(d, 1e-06);
+            float x = clamp(1.0 - d * d / (pos_radius.w * pos_radius.w), 0.0, 1.0);
+            att = x * x;
+        }
+        float ndl = max(dot(n, l), 0.0);
+        vec3 h = normalize(l + v);
+        float spec = ndl > 0.0 ? pow(max(dot(n, h), 1e-06), v_material.y) : 0.0;
+        vec3 lit = color_type.xyz * att * (v_albedo * ndl + vec3(v_material.x * spec));
+        if (color_type.w == 1.0) {
+            lit *= smoothstep(outer_tile.x, dir_inner.w, dot(-l, dir_inner.xyz));
+        }
+        c += lit * shadow(li, outer_tile.y, p, dir_inner.xyz);
+    }
+    o_color = vec4(c, 1.0);
+}
+"""
+
+
+def pack_lights(scene, cap: int) -> np.ndarray:
+    """(cap, 8, 4) float32: the rows ``FORWARD_FRAGMENT`` reads, packed by hand."""
+    names = ["position", "radius", "color", "type", "direction", "cos_inner", "cos_outer",
+             "shadow_tile", "shadow_m0", "shadow_m1", "shadow_m2", "shadow_m3"]
+    types = {"position": "vec3", "color": "vec3", "direction": "vec3", "type": "uint"}
+    types.update({f"shadow_m{k}": "vec4" for k in range(4)})
+    f = np.asarray(scene.light_table([[n, types.get(n, "float")] for n in names], cap),
+                   np.float32)
+    field = {n: f[:, k] for k, n in enumerate(names)}
+    rows = np.zeros((cap, 8, 4), np.float32)
+    for r, (vec, one) in enumerate((("position", "radius"), ("color", "type"),
+                                    ("direction", "cos_inner"))):
+        rows[:, r, :3], rows[:, r, 3] = field[vec][:, :3], field[one][:, 0]
+    rows[:, 3, 0], rows[:, 3, 1] = field["cos_outer"][:, 0], field["shadow_tile"][:, 0]
+    for k in range(4):
+        rows[:, 4 + k] = field[f"shadow_m{k}"]
+    return rows
+
+
+class HandForward(HandLoop):
+    """forward.pipe: every fragment loops over the light table, with the shader above."""
+
+    def __init__(self, plan, scene):
+        if any(getattr(l, "shadows", False) for l in scene.lights):
+            raise SystemExit("hand_gl.py: the hand-written forward draws no shadow maps; "
+                             "use a scene without shadow-casting lights")
+        super().__init__(plan, scene)
+        # the hand shader replaces the generated one (the vertex shader stays: same varyings)
+        shade = next(p for p in plan.passes if p.name == "shade")
+        self.programs["shade"].release()
+        self.programs["shade"] = prog = self.ctx.program(vertex_shader=shade.code.vertex,
+                                                         fragment_shader=FORWARD_FRAGMENT)
+        prog["u_lights"].value = 0
+        prog["t_shadow_atlas"].value = 1
+        self.f_shade = self.fbo(["color"], "ds")
+        self.v_shade = self.scene_vao("shade")
+        # no shadow maps are drawn: the atlas keeps its clear value, set once
+        self.cleared.remove("shadow_atlas")
+        g = self.GF.gl_format(self.formats["shadow_atlas"].name)
+        self.GL.glClearTexImage(self.tex["shadow_atlas"], 0, g.format, g.type,
+                                self.clear_words["shadow_atlas"])
+
+    def light_table(self, cap: int) -> np.ndarray:
+        return pack_lights(self.scene, cap)
+
+    def frame(self) -> None:
+        GL = self.GL
+        self.begin_frame()
+        # shade: depth less + write, back faces culled, the shadow atlas (cleared) on unit 1
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.f_shade)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glEnable(GL.GL_CULL_FACE)
+        GL.glCullFace(GL.GL_BACK)
+        GL.glBindTextureUnit(1, self.tex["shadow_atlas"])
+        self.v_shade.render(vertices=self.scene_count)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        GL.glFinish()
+
+
+HAND = {"deferred": HandDeferred, "lidr_bitplanes": HandBitplanes, "forward": HandForward}
 
 
 @contextlib.contextmanager
@@ -463,7 +615,7 @@ def main() -> int:
     ap.add_argument("--frames", type=int, default=15)
     ap.add_argument("--sizes", default="320x180,1280x720")
     ap.add_argument("--scenes", default="many_lights,small")
-    ap.add_argument("--techniques", default="deferred,lidr_bitplanes")
+    ap.add_argument("--techniques", default="deferred,lidr_bitplanes,forward")
     ap.add_argument("--threads", default="2")
     ap.add_argument("--calls", action="store_true", help="list pipegen's most frequent calls")
     ap.add_argument("--all", action="store_true",
