@@ -20,8 +20,6 @@ from __future__ import annotations
 import base64
 import binascii
 import json
-import os
-import stat
 import struct
 from pathlib import Path
 from typing import Optional
@@ -47,31 +45,6 @@ class GltfError(ValueError):
 class _Unreadable(str):
     """A JSON number Python would make inf or refuse (``1e999``, 5000 digits): kept as its
     text, so the schema reports it where it stands ("... is not of type 'number'")."""
-
-
-def read_regular_file(path: Path, limit: int, nbytes: Optional[int] = None,
-                      where: str = "") -> bytes:
-    """The bytes of ``path``, a regular file (not a device, FIFO or folder): all of them, at
-    most ``limit``, or with ``nbytes`` only the first ``nbytes``.  ``OSError`` when it cannot
-    be opened, ``GltfError`` otherwise."""
-    st = os.stat(path)
-    if not stat.S_ISREG(st.st_mode):
-        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
-        raise GltfError(f"'{limits.quoted(str(path))}' is {kind}", where)
-    if nbytes is None and st.st_size > limit:
-        raise GltfError(_too_large(str(path), st.st_size, limit), where)
-    with open(path, "rb") as f:
-        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):        # replaced since the stat
-            raise GltfError(f"'{limits.quoted(str(path))}' is not a regular file", where)
-        data = f.read(limit + 1 if nbytes is None else nbytes)
-    if len(data) > limit:                                          # grew since the stat
-        raise GltfError(_too_large(str(path), len(data), limit), where)
-    return data
-
-
-def _too_large(what: str, size: int, limit: int) -> str:
-    return (f"'{limits.quoted(what)}' is {limits.size_text(size)}, more than the limit of "
-            f"{limits.size_text(limit)} (PIPEGEN_SCENE_MAX_BYTES raises it)")
 
 
 def split_glb(data: bytes) -> tuple[bytes, int, Optional[bytes]]:
@@ -159,7 +132,8 @@ def buffer_bytes(uri: Optional[str], byte_length: int, folder: Path, glb_binary:
     ``data:`` URI, or a file inside ``folder``; ``where`` is the buffer's JSON path."""
     limit = limits.max_file_bytes()
     if byte_length > limit:
-        raise GltfError(_too_large("the buffer", byte_length, limit), where + ".byteLength")
+        raise GltfError(f"the buffer is {limits.too_large(byte_length, limit)}",
+                        where + ".byteLength")
     if uri is None:
         if glb_binary is None:
             raise GltfError("the buffer has no uri and the file has no binary chunk", where)
@@ -199,7 +173,7 @@ def _buffer_file(uri: str, byte_length: int, folder: Path, limit: int, where: st
         raise GltfError(f"'{limits.quoted(uri)}' leads outside the folder of the glTF file "
                         f"({root})", where)
     try:
-        return read_regular_file(target, limit, byte_length, where)
+        return limits.read_file(target, limit, byte_length)
     except OSError as e:
         raise GltfError(f"cannot read '{limits.quoted(uri)}': {e.strerror or e}", where) from None
 
@@ -207,7 +181,7 @@ def _buffer_file(uri: str, byte_length: int, folder: Path, limit: int, where: st
 def load_document(path: Path):
     """The pygltflib document of a .gltf or .glb file and the GLB's BIN chunk (or None)."""
     import pygltflib
-    raw = read_regular_file(path, limits.max_file_bytes())
+    raw = limits.read_file(path, limits.max_file_bytes())
     binary, offset = None, None
     if path.suffix.lower() == ".glb" or raw.startswith(GLB_MAGIC):
         raw, offset, binary = split_glb(raw)

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import os
 import re
+import stat
+from pathlib import Path
+from typing import Optional
 
 from pipegen.core.diagnostics import PipegenError
 from pipegen.core.sources import MAX_SOURCE_BYTES
@@ -38,6 +41,11 @@ MAX_FACE_CORNERS = 1024
 #: of that, wherever in a program's stack the loader runs.  A scene needs 3 levels, a glTF
 #: file about 6 (more in ``extras``).
 MAX_NESTING = 64
+#: (corner, face) pairs an OBJ file's normal smoothing may compare around vertices on a crease
+#: (valence² each; the 4x Sponza has 3.5M pairs around all its vertices), and pairs held at
+#: once (about 100 bytes each): a vertex shared by more than 2048 faces cannot be on a crease.
+MAX_SMOOTHING_PAIRS = 1 << 26
+SMOOTHING_BATCH_PAIRS = 1 << 22
 #: A TOML scene file: it lists objects and lights (at most 255 objects), its meshes live in
 #: OBJ or glTF files.  The same bound as a ``.pipe`` source.
 MAX_TOML_BYTES = MAX_SOURCE_BYTES
@@ -66,6 +74,36 @@ def max_file_bytes() -> int:
 def max_elements() -> int:
     """:data:`DEFAULT_MAX_ELEMENTS`, or ``$PIPEGEN_SCENE_MAX_ELEMENTS``."""
     return _from_env("PIPEGEN_SCENE_MAX_ELEMENTS", DEFAULT_MAX_ELEMENTS)
+
+
+class UnreadableFile(OSError):
+    """A path a loader will not read: not a regular file, or too large."""
+
+
+def read_file(path: str | Path, limit: int, nbytes: Optional[int] = None) -> bytes:
+    """The bytes of ``path``, a regular file (a device, FIFO or folder is refused before it
+    is opened: ``/dev/zero`` would read forever): all of them, at most ``limit``, or with
+    ``nbytes`` only the first ``nbytes``.  ``OSError`` (``UnreadableFile`` among them, its
+    ``strerror`` says why) when it cannot be read."""
+    st = os.stat(path)
+    if stat.S_ISDIR(st.st_mode):
+        raise IsADirectoryError(21, "Is a directory", str(path))
+    if not stat.S_ISREG(st.st_mode):
+        raise UnreadableFile(0, "not a regular file", str(path))
+    if nbytes is None and st.st_size > limit:
+        raise UnreadableFile(0, too_large(st.st_size, limit), str(path))
+    with open(path, "rb") as f:
+        if not stat.S_ISREG(os.fstat(f.fileno()).st_mode):        # replaced since the stat
+            raise UnreadableFile(0, "not a regular file", str(path))
+        data = f.read(limit + 1 if nbytes is None else nbytes)
+    if len(data) > limit:                                          # grew since the stat
+        raise UnreadableFile(0, too_large(len(data), limit), str(path))
+    return data
+
+
+def too_large(size: int, limit: int) -> str:
+    return (f"{size_text(size)}, more than the limit of {size_text(limit)} "
+            "(PIPEGEN_SCENE_MAX_BYTES raises it)")
 
 
 def size_text(n: int) -> str:

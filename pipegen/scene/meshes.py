@@ -232,22 +232,59 @@ def smooth_normals(faces: np.ndarray, fn_raw: np.ndarray, crease_deg: float) -> 
         hv = corners[hard]
         order = hard[np.argsort(hv, kind="stable")]
         sorted_v = corners[order]
-        m = len(order)
         starts = np.flatnonzero(np.r_[True, sorted_v[1:] != sorted_v[:-1]])
-        sizes = np.diff(np.r_[starts, m])
-        r_size = np.repeat(sizes, sizes)             # run size of every sorted corner
-        r_start = np.repeat(starts, sizes)
-        i = np.repeat(np.arange(m), r_size)          # pairs (i, j), j over i's run (i too)
-        offset = np.arange(len(i)) - np.repeat(np.cumsum(r_size) - r_size, r_size)
-        j = np.repeat(r_start, r_size) + offset
-        unit_s, raw_s = take_rows(unit, order // 3), take_rows(fn_raw, order // 3)
-        close = np.einsum("ij,ij->i", np.repeat(unit_s, r_size, axis=0),
-                          take_rows(unit_s, j)) >= cos_crease
-        add = take_rows(raw_s, j[close])
-        acc = np.stack([np.bincount(i[close], weights=add[:, k], minlength=m) for k in range(3)],
-                       axis=1)
-        out[order] = normalize_rows(acc)
+        sizes = np.diff(np.r_[starts, len(order)])
+        for a, b in _pair_batches(starts, sizes, sorted_v):
+            out[order[a:b]] = _crease_sums(order[a:b], corners, unit, fn_raw, cos_crease)
     return out
+
+
+def _pair_batches(starts: np.ndarray, sizes: np.ndarray, vertex: np.ndarray):
+    """Slices [a, b) of the sorted hard corners, whole vertices each, of at most
+    ``limits.SMOOTHING_BATCH_PAIRS`` (corner, face) pairs (about 100 bytes of memory a pair),
+    after checking the work is bounded: a vertex on a crease shared by thousands of faces (a
+    file's hostile fan) would need valence² pairs."""
+    from pipegen.scene import limits
+    pairs = sizes.astype(np.int64) ** 2
+    worst = int(np.argmax(pairs))
+    if pairs[worst] > limits.SMOOTHING_BATCH_PAIRS or pairs.sum() > limits.MAX_SMOOTHING_PAIRS:
+        raise ObjError(f"smoothing the normals needs {int(pairs.sum())} comparisons of faces "
+                       f"around creased vertices, more than the limit of "
+                       f"{limits.MAX_SMOOTHING_PAIRS} (vertex {int(vertex[starts[worst]]) + 1} "
+                       f"is shared by {int(sizes[worst])} faces, at most "
+                       f"{math.isqrt(limits.SMOOTHING_BATCH_PAIRS)} may meet at a crease)")
+    total = np.cumsum(pairs)
+    ends = np.r_[starts[1:], starts[-1] + sizes[-1]]
+    run = 0
+    while run < len(sizes):
+        done = total[run - 1] if run else 0
+        last = max(run, int(np.searchsorted(total, done + limits.SMOOTHING_BATCH_PAIRS,
+                                            side="right")) - 1)
+        yield int(starts[run]), int(ends[last])
+        run = last + 1
+
+
+def _crease_sums(order: np.ndarray, corners: np.ndarray, unit: np.ndarray, fn_raw: np.ndarray,
+                 cos_crease: float) -> np.ndarray:
+    """Normals of hard corners ``order`` (sorted by vertex, whole vertices): each the sum of
+    the raw normals of the faces around its vertex within the crease of its own, normalised;
+    the pairs (corner, face) of each vertex are listed, valence² of them."""
+    sorted_v = corners[order]
+    m = len(order)
+    starts = np.flatnonzero(np.r_[True, sorted_v[1:] != sorted_v[:-1]])
+    sizes = np.diff(np.r_[starts, m])
+    r_size = np.repeat(sizes, sizes)             # run size of every sorted corner
+    r_start = np.repeat(starts, sizes)
+    i = np.repeat(np.arange(m), r_size)          # pairs (i, j), j over i's run (i too)
+    offset = np.arange(len(i)) - np.repeat(np.cumsum(r_size) - r_size, r_size)
+    j = np.repeat(r_start, r_size) + offset
+    unit_s, raw_s = take_rows(unit, order // 3), take_rows(fn_raw, order // 3)
+    close = np.einsum("ij,ij->i", np.repeat(unit_s, r_size, axis=0),
+                      take_rows(unit_s, j)) >= cos_crease
+    add = take_rows(raw_s, j[close])
+    acc = np.stack([np.bincount(i[close], weights=add[:, k], minlength=m) for k in range(3)],
+                   axis=1)
+    return normalize_rows(acc)
 
 
 # -- normal groups -----------------------------------------------------------------------------

@@ -54,7 +54,7 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.scene import decimals, meshes
+from pipegen.scene import decimals, limits, meshes
 from pipegen.scene.meshes import Mesh, ObjError
 
 #: Statements of an OBJ file the reader uses; every other one is counted and reported.
@@ -186,8 +186,8 @@ def _numbers(records: _Records, width: int, data: bytes) -> np.ndarray:
             what = {b"v": "a 'v' record needs three coordinates",
                     b"vn": "a 'vn' record needs three components"}[key]
             detail = "" if "needs" in str(e) else f" ({e})"
-            raise ObjError(f"{what}: '{key.decode()} {rec.decode(errors='replace').strip()}'"
-                           f"{detail}", _line_of(data, key, k)) from None
+            raise ObjError(f"{what}: '{key.decode()} {limits.quoted(rec.strip())}'"
+                           f"{limits.quoted(detail)}", _line_of(data, key, k)) from None
     return out
 
 
@@ -235,10 +235,20 @@ def _corner_indices(faces: _Records, data: bytes) -> tuple[np.ndarray, np.ndarra
                 v[k] = int(c[0])
                 vn[k] = int(c[2]) if len(c) >= 3 and c[2] else 0
             except ValueError as e:
-                raise ObjError(f"cannot read 'f {f.decode(errors='replace').strip()}': {e}",
-                               _line_of(data, b"f", fi)) from None
+                raise ObjError(f"cannot read 'f {limits.quoted(f.strip())}': "
+                               f"{limits.quoted(str(e))}", _line_of(data, b"f", fi)) from None
             k += 1
     return v, vn, counts
+
+
+def _check_count(n: int, what: str, data: bytes, keyword: bytes = b"") -> None:
+    """Refuse more than ``limits.max_elements()`` records (at the first one past it) or
+    triangles: the arrays made from them are float64 rows."""
+    limit = limits.max_elements()
+    if n > limit:
+        raise ObjError(f"{n} {what}, more than the limit of {limit} "
+                       "(PIPEGEN_SCENE_MAX_ELEMENTS raises it)",
+                       _line_of(data, keyword, limit) if keyword else 0)
 
 
 def _resolve(idx: np.ndarray, before: np.ndarray, total: int, what: str, counts: np.ndarray,
@@ -319,24 +329,32 @@ def _scan(data: bytes):
 def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     """Read an OBJ file (and the MTL files its ``mtllib`` names, next to it)."""
     path = Path(path)
-    data = path.read_bytes()
+    data = limits.read_file(path, limits.max_file_bytes())
     if data.startswith(b"\xef\xbb\xbf"):
         data = data[3:]
     v_rec, vn_rec, f_rec, f_v, f_vn, f_mat, mat_names, libs, ignored = _scan(data)
     if not len(f_rec):
         raise ObjError("no faces")
+    for rec in (v_rec, vn_rec, f_rec):
+        _check_count(len(rec), f"'{rec.keyword.decode()}' records", data, rec.keyword)
 
     V = _numbers(v_rec, 3, data)
     bad = np.flatnonzero(~np.isfinite(V).all(axis=1))
     if len(bad):
         k = int(bad[0])
         raise ObjError(f"vertex {k + 1} is not finite: "
-                       f"'v {v_rec.bodies()[k].decode(errors='replace').strip()}'"
+                       f"'v {limits.quoted(v_rec.bodies()[k].strip())}'"
                        + (f" ({len(bad)} such vertices)" if len(bad) > 1 else ""),
                        _line_of(data, b"v", k))
     N = _numbers(vn_rec, 3, data)
 
     vi, ni, counts = _corner_indices(f_rec, data)
+    wide = np.flatnonzero(counts > limits.MAX_FACE_CORNERS)
+    if len(wide):
+        raise ObjError(f"a face of {int(counts[wide[0]])} corners: at most "
+                       f"{limits.MAX_FACE_CORNERS} (it would be a fan of that many triangles)",
+                       _line_of(data, b"f", int(wide[0])))
+    _check_count(int(counts.sum()) - 2 * len(counts), "triangles", data)
     def per_corner(before, total):
         return np.repeat(np.asarray(before, dtype=np.int64), counts)
 
@@ -359,17 +377,22 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
     positions = meshes.take_rows(V, F.reshape(-1))
     tri = positions.reshape(-1, 3, 3)
     fn_raw = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])   # length = 2 * area
-    normals = meshes.smooth_normals(F, fn_raw, crease_deg)
+    try:
+        normals = meshes.smooth_normals(F, fn_raw, crease_deg)
+    except ObjError as e:                           # the work around a vertex is bounded
+        raise ObjError(f"{path.name}: {e}", e.line) from None
     if tri_has_n.any():
         given = meshes.normalize_rows(N[ni[corner[tri_has_n]].reshape(-1)])
         normals.reshape(-1, 3, 3)[tri_has_n] = given.reshape(-1, 3, 3)
 
     notes = []
     if ignored:
-        what = ", ".join(f"'{k}' x{n}" + (f" ({_MEANING[k]})" if k in _MEANING else "")
-                         for k, n in sorted(ignored.items()))
-        notes.append(f"{path.name}: ignored {what}")
-    materials, mtl_notes = _materials(path, libs)
+        kinds = sorted(ignored.items())
+        what = ", ".join(f"'{limits.quoted(k)}' x{n}" + (f" ({_MEANING[k]})" if k in _MEANING else "")
+                         for k, n in kinds[:12])
+        more = f" and {len(kinds) - 12} other statements" if len(kinds) > 12 else ""
+        notes.append(f"{path.name}: ignored {what}{more}")
+    materials, mtl_notes = _materials(path, libs, data)
     notes += mtl_notes
     mat_of_tri = np.asarray(f_mat, dtype=np.int64)[face_of_tri]
     parts, missing, dropped_total = [], [], 0
@@ -402,13 +425,24 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
 # -- MTL ---------------------------------------------------------------------------------------
 
 
-def _materials(obj_path: Path, libs: list[str]) -> tuple[dict[str, MtlMaterial], list[str]]:
+def _materials(obj_path: Path, libs: list[str],
+               data: bytes = b"") -> tuple[dict[str, MtlMaterial], list[str]]:
+    """The materials of the MTL files ``libs`` (``mtllib`` names, inside the OBJ file's folder:
+    a file from elsewhere cannot make pipegen read others) and notes on what was skipped."""
     materials: dict[str, MtlMaterial] = {}
     notes = []
+    folder = obj_path.parent.resolve()
     for lib in libs:
-        p = obj_path.parent / lib
         try:
-            text = p.read_text(errors="replace")
+            p = (folder / lib).resolve()
+        except (OSError, RuntimeError, ValueError) as e:    # a link loop, a NUL
+            raise ObjError(f"mtllib '{limits.quoted(lib)}': {e}") from None
+        if not p.is_relative_to(folder):
+            at = re.search(rb"^[ \t]*mtllib[^\n]*" + re.escape(lib.encode()), data, re.M)
+            raise ObjError(f"mtllib '{limits.quoted(lib)}' leads outside the folder of the OBJ "
+                           f"file ({folder})", data.count(b"\n", 0, at.start()) + 1 if at else 0)
+        try:
+            text = limits.read_file(p, limits.max_file_bytes()).decode(errors="replace")
         except OSError as e:
             notes.append(f"{obj_path.name}: cannot read material library '{lib}' ({e.strerror}); "
                          "its materials get the defaults")
