@@ -238,3 +238,52 @@ def test_gl_slot_reuse_renders_identical_targets(path, scene):
     except Exception as exc:      # no EGL / llvmpipe here
         pytest.skip(f"no OpenGL context: {exc}")
     compare_renders("gl", path, scene)
+
+
+# ---- figures a user reads: pipegen info, the report, the bandwidth estimate -----------------------
+
+
+MIB_720P = 1280 * 720          # pixels of the output: a 1-byte-per-pixel target's bytes
+
+
+def test_bandwidth_estimate_of_deferred_by_the_stated_rule():
+    from pipegen.ir.traffic import frame_traffic, gbuffer
+    tech = compile_file(ROOT / "pipelines/deferred.pipe").technique
+    per_pass, total = frame_traffic(tech.passes, tech.targets, 1280, 720)
+    got = {t.name: (t.read_bytes // MIB_720P, t.write_bytes // MIB_720P, t.repeated)
+           for t in per_pass}
+    # bytes per pixel: galbedo 4, gnormal 8, gpos 16, accum 8, color 4, ds 4
+    assert got["gbuffer"] == (4, 28 + 4, False)          # depth test reads ds; writes all
+    assert got["ambient_pass"] == (4, 8, False)          # reads galbedo, writes accum
+    assert got["directional_lights"] == (28 + 8, 8, False)   # + accum blended (read)
+    assert got["shade_light_volume"] == (28 + 8 + 4, 8, True)   # + ds stencil test
+    assert got["resolve"] == (8, 4, False)
+    # the clears at the frame's start write every target once (40550400 bytes), then each
+    # pass once
+    assert total == 40550400 + sum(t.read_bytes + t.write_bytes for t in per_pass)
+    assert [t.name for t in gbuffer(tech.passes, tech.targets, tech.output)] == \
+        ["galbedo", "gnormal", "gpos"]
+
+
+def test_gbuffer_bytes_per_pixel_of_inferred_scale_with_its_size():
+    from pipegen.ir.traffic import gbuffer, gbuffer_bytes_per_output_pixel
+    tech = compile_file(ROOT / "pipelines/inferred.pipe").technique
+    assert [t.name for t in gbuffer(tech.passes, tech.targets, tech.output)] == \
+        ["gnormal", "gmaterial", "gdsf"]
+    # 4 + 2 + 4 bytes at 800x450 over 1280x720 output pixels
+    assert gbuffer_bytes_per_output_pixel(tech.passes, tech.targets, tech.output, 1280, 720) \
+        == pytest.approx(10 * 800 * 450 / (1280 * 720), abs=1e-12)
+
+
+def test_info_and_report_give_the_three_figures(capsys):
+    from pipegen.cli.main import main
+    assert main(["info", str(ROOT / "pipelines/deferred.pipe")]) == 0
+    text = capsys.readouterr().out
+    assert "sum of all targets  40550400 (38.67 MiB)" in text
+    assert "peak live at once   36864000 (35.16 MiB)" in text
+    assert "allocated, CL       36864000 (35.16 MiB)  saves 9.1 %" in text
+    assert "allocated, GL       36864000 (35.16 MiB)  saves 9.1 %" in text
+    assert "G-buffer: galbedo rgba8 4 + gnormal rgba16f 8 + gpos rgba32f 16 = 28 B/px" in text
+    report = compile_file(ROOT / "pipelines/deferred.pipe").report()
+    assert "peak live at once   36864000 (35.16 MiB)" in report
+    assert "5. shade_light_volume  35.16 MiB" in text and "per light" in text

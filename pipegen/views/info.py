@@ -9,7 +9,9 @@ from typing import Optional
 from pipegen.core.units import format_bytes
 from pipegen.frontend.lower.names import param_type_name
 from pipegen.ir import nodes as ir
+from pipegen.ir.lifetimes import lifetimes
 from pipegen.ir.memory import target_bytes, technique_bytes
+from pipegen.views.memory import live_text, memory_lines, traffic_lines
 from pipegen.views.report import error_bound_text
 
 
@@ -38,8 +40,10 @@ def describe(compiled, output_size: tuple[int, int],
     else:
         lines.append("  (none)")
 
-    lines += ["", f"targets at output size {w}x{h} (* = the output image)"]
-    rows = [("name", "format", "size", "samples", "B/px", "bytes")]
+    lines += ["", f"targets at output size {w}x{h} (* = the output image; live: the passes "
+                  f"from its first use to its last)"]
+    rows = [("name", "format", "size", "samples", "B/px", "bytes", "live")]
+    life = lifetimes(tech.passes, tech.targets, tech.output)
     for t in tech.targets:
         tw, th = t.size.resolve(w, h)
         size = f"{tw}x{th}"
@@ -49,7 +53,8 @@ def describe(compiled, output_size: tuple[int, int],
             size += f" (output*{t.size.scale:g})"
         rows.append((t.name + (" *" if t.name == tech.output else ""), t.format.name, size,
                      str(t.samples), str(t.format.bytes_per_pixel),
-                     format_bytes(target_bytes(t, w, h), "MiB", exact=True)))
+                     format_bytes(target_bytes(t, w, h), "MiB", exact=True),
+                     live_text(life[t.name], len(tech.passes))))
     lines += table(rows)
     lines.append(f"  total: {format_bytes(technique_bytes(tech, w, h), 'MiB', exact=True)}")
 
@@ -65,6 +70,8 @@ def describe(compiled, output_size: tuple[int, int],
         if p.repeat_group is not None:
             parts.append("repeat per light" + "".join(" " + t for t in p.repeat_types))
         lines.append(f"  {i}. {p.name}: " + "; ".join(parts))
+
+    lines += ["", *memory_lines(tech, w, h), "", *traffic_lines(tech, w, h)]
 
     lines += ["", "packing schemes"]
     if tech.packings:

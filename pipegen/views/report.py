@@ -1,11 +1,14 @@
-"""The human-readable compile report: passes in order, targets and their memory, state per
-pass, packing capacities and errors."""
+"""The human-readable compile report: passes in order, targets and their memory (lifetimes,
+the three figures, the bandwidth estimate: ``views/memory.py``), state per pass, packing
+capacities and errors."""
 
 from __future__ import annotations
 
 from pipegen.core.units import format_bytes
 from pipegen.ir import nodes as ir
+from pipegen.ir.lifetimes import lifetimes
 from pipegen.ir.memory import target_bytes, technique_bytes
+from pipegen.views.memory import live_text, memory_lines, traffic_lines
 
 
 def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
@@ -19,7 +22,8 @@ def render_report(compiled, output_size: tuple[int, int] = (1280, 720)) -> str:
                                                for p in tech.params))
     lines.append(f"lights    table of {tech.lights.capacity}: "
                  + ", ".join(f"{f.name} {f.type}" for f in tech.lights.fields))
-    lines += ["", *target_table(tech, w, h), "", *pass_section(tech)]
+    lines += ["", *target_table(tech, w, h), "", *memory_lines(tech, w, h), "",
+              *traffic_lines(tech, w, h), "", *pass_section(tech)]
     if tech.packings:
         lines += ["", "packing schemes"]
         for p in tech.packings:
@@ -49,7 +53,9 @@ def error_bound_text(p: ir.Packing) -> str:
 
 
 def target_table(tech: ir.Technique, w: int, h: int) -> list[str]:
-    rows = [("target", "format", "size", "samples", "B/px", "memory", "written by", "read by")]
+    rows = [("target", "format", "size", "samples", "B/px", "memory", "live", "written by",
+             "read by")]
+    life = lifetimes(tech.passes, tech.targets, tech.output)
     for t in tech.targets:
         tw, th = t.size.resolve(w, h)
         writers = [p.name for p in tech.passes
@@ -60,8 +66,9 @@ def target_table(tech: ir.Technique, w: int, h: int) -> list[str]:
         rows.append((t.name + (" *" if t.name == tech.output else ""), t.format.name, size,
                      str(t.samples), str(t.format.bytes_per_pixel),
                      format_bytes(target_bytes(t, w, h), "MiB"),
+                     live_text(life[t.name], len(tech.passes)),
                      ",".join(writers) or "-", ",".join(readers) or "-"))
-    out = [f"targets at {w}x{h} (* = output)"] + _table(rows)
+    out = [f"targets at {w}x{h} (* = output; live: passes from first use to last)"] + _table(rows)
     out.append(f"  total target memory: {format_bytes(technique_bytes(tech, w, h), 'MiB')}")
     return out
 
