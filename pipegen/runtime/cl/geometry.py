@@ -36,6 +36,7 @@ from pipegen.runtime.cl import (
 from pipegen.runtime import draws
 from pipegen.runtime.cl.device import Device
 from pipegen.runtime.cl.setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
+from pipegen.runtime.cl.transfers import Readback, write
 
 
 def f4(a: np.ndarray) -> np.ndarray:
@@ -220,7 +221,6 @@ class DrawGeometry:
         # share set-ups and bins between pass executions (the module docstring)
         self.share = os.environ.get("PIPEGEN_CL_SHARE_SETUP", "1") != "0"
         self.only: Optional[int] = None    # unshared: the pass whose set-up is being made
-        self.holds: list = []          # per frame: host arrays non-blocking writes still read
 
     def begin_frame(self, state: FrameState) -> None:
         """A new frame, ``state``: the last frame's set-ups and bins are dropped and their
@@ -228,7 +228,6 @@ class DrawGeometry:
         self.frame_state = state
         self.frame = {}
         self.pending = {}
-        self.holds = []
         self.pool.recycle()
 
     def use_scene(self) -> None:
@@ -691,15 +690,14 @@ class DrawGeometry:
             gsize = ((nverts + 63) // 64) * 64
             v.kernels.append(cl.enqueue_nd_range_kernel(dev.queue, kern, (gsize,), (64,)))
             if i == 0 and not on_device:
-                v.copies.append(cl.enqueue_copy(dev.queue, v.clip, clip_buf, is_blocking=False))
+                v.copies.append(Readback(dev.queue, v.clip, clip_buf))
                 if self.f64:
-                    v.copies.append(cl.enqueue_copy(dev.queue, v.clip64, clip64_buf,
-                                                    is_blocking=False))
+                    v.copies.append(Readback(dev.queue, v.clip64, clip64_buf))
             if S:
                 out = None
                 if not on_device:
                     out = np.empty((S, nverts, 4), np.float32)
-                    v.copies.append(cl.enqueue_copy(dev.queue, out, vbuf, is_blocking=False))
+                    v.copies.append(Readback(dev.queue, out, vbuf))
                 v.outs.append((have, out))
                 v.vbufs.append(vbuf)
                 if have == v.names:
@@ -802,9 +800,7 @@ class DrawGeometry:
         for k in range(S):
             cl.enqueue_copy(queue, grown, buf, byte_count=nverts * 16,
                             src_offset=k * nverts * 16, dst_offset=k * total * 16)
-            cl.enqueue_copy(queue, grown, new[k], dst_offset=(k * total + nverts) * 16,
-                            is_blocking=False)
-        self.holds.append(new)          # read by the non-blocking writes
+            write(queue, grown, new[k], dst_offset=(k * total + nverts) * 16)
         return grown
 
     def _upload(self, tris, vary_buf) -> Geo:

@@ -36,6 +36,7 @@ import numpy as np
 from pipegen.backends.opencl import programs as cl_programs
 from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime.cl.setup import Triangles, setup_triangles
+from pipegen.runtime.cl.transfers import Readback, write
 
 __all__ = ["DeviceRows", "DeviceSetup", "supports"]
 
@@ -160,9 +161,9 @@ class DeviceSetup:
         out = {name: np.empty((ntris,) + layout[name][1], layout[name][0])
                for name in HOST_FIELDS}
         if ntris:
-            events.append(cl.enqueue_copy(self.queue, status, status_buf, is_blocking=False))
+            events.append(Readback(self.queue, status, status_buf))
             for name, arr in out.items():
-                events.append(cl.enqueue_copy(self.queue, arr, bufs[name], is_blocking=False))
+                events.append(Readback(self.queue, arr, bufs[name]))
         params = dict(width=W, height=H, cull=cull, depth_clamp=depth_clamp, flat=flat,
                       scissor=scissor, samples=samples, smooth=list(smooth),
                       pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
@@ -179,8 +180,8 @@ class DeviceSetup:
         copies; the other fields ``DeviceRows``, ``vary`` a ``DeviceVaryings``, read from the
         device on first use); ``bufs``: the device buffers of
         their per-triangle fields, one row per input triangle, then the clipped triangles'
-        fans (``"vary"``: the varyings with the clipper's vertices, when it made some;
-        ``"_hold"``: host arrays still being written to the buffers); ``index``: the row of
+        fans (``"vary"``: the varyings with the clipper's vertices, when it made some);
+        ``index``: the row of
         ``bufs`` of each triangle of ``tris`` (int32), what tile lists must hold."""
         self.clip(job)
         status, out, prm = job.status, job.out, job.params
@@ -242,17 +243,12 @@ class DeviceSetup:
 
     def _write_rows(self, job: _Job, bufs: dict, fields: dict, at: int) -> None:
         """Write host rows ``fields`` (per field name) into the field buffers from row ``at``."""
-        import pyopencl as cl
         m = len(next(iter(fields.values()))) if fields else 0
         self._grow(job, bufs, at + m)
-        hold = bufs.setdefault("_hold", [])      # host arrays non-blocking writes read
         for name, extra in fields.items():
             extra = np.ascontiguousarray(extra)
-            if not extra.size:
-                continue
-            hold.append(extra)
-            cl.enqueue_copy(self.queue, bufs[name], extra, dst_offset=at * (extra.nbytes // m),
-                            is_blocking=False)
+            if extra.size:
+                write(self.queue, bufs[name], extra, dst_offset=at * (extra.nbytes // m))
 
     def clip(self, job: _Job) -> None:
         """Wait for ``pg_setup``'s statuses and queue ``pg_clip_setup`` on the triangles that
@@ -292,14 +288,13 @@ class DeviceSetup:
         cl.enqueue_nd_range_kernel(self.queue, job.clip_kernel, (((nh + 63) // 64) * 64,),
                                    (64,))
         fan = np.empty(_FANS * nh, np.uint8)
-        events = [cl.enqueue_copy(self.queue, fan, fan_buf, is_blocking=False)]
+        events = [Readback(self.queue, fan, fan_buf)]
         fields = {}
         for name, arr in job.out.items():
             row = arr.nbytes // max(T, 1)
             host = np.empty((_FANS * nh,) + arr.shape[1:], arr.dtype)
             if host.size:
-                events.append(cl.enqueue_copy(self.queue, host, bufs[name],
-                                              src_offset=T * row, is_blocking=False))
+                events.append(Readback(self.queue, host, bufs[name], src_offset=T * row))
             fields[name] = host
         job.clipping.update(events=events, fan=fan, fields=fields, nv_out=nv_out,
                             vary_out=vary_out, keep=[fan_buf, hard_buf])
