@@ -131,29 +131,36 @@ KILLZONE2 = ROOT / "examples" / "techniques" / "killzone2_gbuffer.pipe"
 def test_killzone2_example_compiles_with_the_new_builtins():
     from pipegen.compiler.driver import compile_file
     c = compile_file(KILLZONE2)
-    gl = c.plan("gl").passes[0].code.fragment
+    gl_passes = {p.name: p for p in c.plan("gl").passes}
+    cl_passes = {p.name: p for p in c.plan("cl").passes}
+    gl = gl_passes["gbuffer"].code.fragment
     assert "packHalf2x16(" in gl and "uniform mat4 u_prev_proj;" in gl
-    assert "pg_pack_half2x16(" in c.plan("cl").passes[0].code.kernel
-    lights = c.plan("gl").passes[1].code.fragment
+    assert "pg_pack_half2x16(" in cl_passes["gbuffer"].code.kernel
+    lights = gl_passes["local_lights"].code.fragment
     assert "unpackHalf2x16(" in lights and "u_prev" not in lights
 
 
 @pytest.mark.gl
 @pytest.mark.cl
 def test_killzone2_example_on_a_moving_camera(scenes):
-    """GL and CL agree exactly on every target; the G-buffer decodes to numpy's motion (within
-    the 8-bit step) and the view normal (within the half and 8-bit rounding); the lit image is
-    deferred.pipe's to 2 codes (same lighting, another G-buffer)."""
+    """GL and CL agree exactly on every G-buffer target (the lit image within a code); the
+    G-buffer decodes to numpy's motion (within the 8-bit step) and the view normal (within the
+    half and 8-bit rounding); the lit image is deferred.pipe's to 2 codes (same lighting,
+    another G-buffer)."""
     from pipegen.compiler.driver import compile_file
     still, moving = scenes
     c = compile_file(KILLZONE2)
     got = {b: c.pipeline(b).render(moving) for b in ("gl", "cl")}
     for name in got["gl"]:
-        assert np.array_equal(got["gl"][name], got["cl"][name]), name
+        if name != "lacc":
+            assert np.array_equal(got["gl"][name], got["cl"][name]), name
+    # the light passes decode the specular power with exp2, whose last bit GL and CL may round
+    # differently: a code apart at most
+    lacc = [np.asarray(got[b]["lacc"], int) for b in ("gl", "cl")]
+    assert np.abs(lacc[0] - lacc[1]).max() <= 1
     g = got["cl"]
-    z = np.asarray(g["zcopy"], np.float64)
-    if z.ndim == 3:
-        z = z[..., 0]
+    from pipegen.core import formats
+    z = formats.get("d24s8").dequantize(g["ds"])      # the light passes read D24S8 directly
     covered = z < 1.0
     h, w = z.shape
     aspect = w / h
