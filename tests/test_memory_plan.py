@@ -287,3 +287,17 @@ def test_info_and_report_give_the_three_figures(capsys):
     report = compile_file(ROOT / "pipelines/deferred.pipe").report()
     assert "peak live at once   36864000 (35.16 MiB)" in report
     assert "5. shade_light_volume  35.16 MiB" in text and "per light" in text
+
+
+def test_sweep_bandwidth_counts_each_pass_as_often_as_the_scene_runs_it():
+    from pipegen.ir.traffic import frame_traffic
+    from pipegen.scene import load_scene
+    from pipegen.tools.sweep.run import SHARING, frame_bandwidth
+    scene = load_scene(ROOT / "examples/scenes/small.toml")
+    tech = compile_file(ROOT / "pipelines/forward_multipass.pipe").technique
+    per_pass, once = frame_traffic(tech.passes, tech.targets, scene.width, scene.height)
+    per_light = next(t for t in per_pass if t.repeated)
+    lights = len(scene.lights)
+    assert lights > 1
+    assert frame_bandwidth(tech, scene) == once + (lights - 1) * per_light.total
+    assert SHARING == {"cl": Sharing.BYTES, "gl": Sharing.DESCRIPTOR}

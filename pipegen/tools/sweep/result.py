@@ -14,12 +14,17 @@ COLUMNS = ["technique", "params", "backend", "frame_ms", "target_bytes", "rmse_s
            "p99_scene", "max_scene", "flip_scene", "rmse_f64", "p99_f64", "max_f64", "agree"]
 # (frame_ms is the median of the timed frames, frame_ms_q1..frame_ms_q3 their interquartile
 # range; ties: the numbers of the rows on the same backend whose ranges overlap; pareto: on its
-# backend's front; reference: what the *_scene errors are measured against; clamped: values
+# backend's front; target_bytes: the sum of all targets, peak_bytes: the most live at once,
+# allocated_bytes: what the row's backend allocates sharing storage between targets of
+# disjoint lifetimes (ir/lifetimes.py: CL true aliasing, GL slot reuse), bandwidth_bytes: the
+# frame's estimated memory traffic on the sweep's scene (ir/traffic.py's rule, each pass
+# counted as often as the scene's lights run it); reference: what the *_scene errors are
+# measured against; clamped: values
 # the formats clamped in a CL frame, the output's highlights aside (empty on GL rows: GL never
 # shows them); target_errors: each intermediate attribute's p99 in its own units)
 EXTRA_COLUMNS = ["cpu_ms", "rmse_interior", "max_interior", "file", "width", "height", "notes",
                  "frame_ms_q1", "frame_ms_q3", "ties", "pareto", "reference", "clamped",
-                 "target_errors"]
+                 "target_errors", "peak_bytes", "allocated_bytes", "bandwidth_bytes"]
 # results.json only, per row: where its error map and image are, its worst pixels
 # ([x, y, [got r, g, b], [reference r, g, b]], y from the top, rgba8 codes), the command that
 # reproduces it, its intermediate targets' errors (``jobs.intermediate_errors``) and, on CL

@@ -10,7 +10,9 @@ import sys
 from typing import Optional
 
 from pipegen.core.outdir import safe_name
+from pipegen.ir.lifetimes import Sharing, technique_memory
 from pipegen.ir.memory import technique_bytes
+from pipegen.ir.traffic import frame_traffic
 from pipegen.tools.sweep.commands import row_command
 from pipegen.tools.sweep.jobs import (load_spec_scene, reference_data, render_job, scene_spec,
                                       spec_name, time_job)
@@ -96,12 +98,17 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
 
     rows, maps, images = [], {}, {}
     for v, res in zip(variants, results):
-        tb = technique_bytes(compiled[v.index].technique, s.width, s.height)
+        tech = compiled[v.index].technique
+        tb = technique_bytes(tech, s.width, s.height)
+        memory = {b: technique_memory(tech, s.width, s.height, SHARING[b]) for b in backends}
+        bandwidth = frame_bandwidth(tech, s)
         for b in backends:
             m = res["metrics"][b]
             name = safe_name(f"{v.slug}_{b}", ".png")
             row = dict(technique=v.technique, params=v.params_text, backend=b,
                        frame_ms=ms[v.index].get(b, math.nan), target_bytes=tb,
+                       peak_bytes=memory[b].peak_bytes,
+                       allocated_bytes=memory[b].allocated_bytes, bandwidth_bytes=bandwidth,
                        cpu_ms=cpu_ms[v.index].get(b, math.nan),
                        frame_ms_q1=q1[v.index].get(b, math.nan),
                        frame_ms_q3=q3[v.index].get(b, math.nan),
@@ -124,6 +131,21 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
                  for t, r in refs.items()}
     return SweepResult(rows, spec_name(spec, s), s.width, s.height, len(s.lights), backends,
                        pool.where, how, notes, maps, images, described, warnings=warnings)
+
+
+# how each backend's runtime shares target storage when it aliases (docs/memory.md)
+SHARING = {"cl": Sharing.BYTES, "gl": Sharing.DESCRIPTOR}
+
+
+def frame_bandwidth(tech, scene) -> int:
+    """The frame's estimated memory traffic (``ir/traffic.py``) on ``scene``, each pass counted
+    as often as the frame runs it (repeat groups and shadow maps once per light they take)."""
+    from pipegen.backends.plan import technique_plan
+    from pipegen.runtime.draws import LightSelection
+    runs = [0] * len(tech.passes)
+    for k, _ in LightSelection(technique_plan(tech, ""), list(scene.lights)).schedule():
+        runs[k] += 1
+    return frame_traffic(tech.passes, tech.targets, scene.width, scene.height, runs)[1]
 
 
 def plan_references(variants: list, compiled: dict, text: Optional[str], samples: int) -> dict:
