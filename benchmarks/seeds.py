@@ -1,6 +1,7 @@
 """The papers' figures next to the ones measured here, on llvmpipe (GL) and PoCL (CL), in one run.
 
     python benchmarks/seeds.py [--frames 3] [--threads 2] [--scale 1.0] [--skip-forward]
+        [--unshared]
 
 - **Trebilco 2007** (light-indexed deferred rendering, ShaderX6): 255 lights at 1024x768, LIDR
   at 1/2/4 lights per pixel 82/62/37 FPS against multi-pass forward 12 FPS.  Here: the
@@ -19,7 +20,10 @@ Timings come from ``pipegen.tools.sweep.jobs.time_job``, as ``pipegen sweep`` ta
 one fresh process, pinned to ``--threads`` CPUs with ``LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT =
 --threads``, one untimed warm-up render per variant and backend, then ``--frames`` rounds
 timing every variant once each, in alternating order; the median.  GL: ``frame()`` to
-``glFinish`` (no read-back); CL: ``render()`` (with the read-back of every target).
+``glFinish``; CL: ``frame()`` until the queue is empty (neither reads a target back; until
+issue 26 the CL figures held the read-back of every target).  ``--unshared``: CL frames with
+every pass execution setting up and binning its own triangles, as before the runtime shared
+them (``$PIPEGEN_CL_SHARE_SETUP=0``).
 
 Only ratios can match: the papers ran GPUs of 2007-2009 with fixed-function rasterisers and
 blenders; here rasterisation, depth test and blending are software.  ``--scale`` shrinks every
@@ -30,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import colorsys
+import os
 import random
 import sys
 import tempfile
@@ -142,7 +147,13 @@ def main() -> int:
                     help="multiply every size by this (default 1: the papers' sizes)")
     ap.add_argument("--skip-forward", action="store_true",
                     help="leave out multi-pass forward on 255 lights (the slowest part)")
+    ap.add_argument("--unshared", action="store_true",
+                    help="CL: every pass execution sets up and bins its own triangles "
+                         "($PIPEGEN_CL_SHARE_SETUP=0, runtime/cl/geometry.py): the frames "
+                         "before set-up reuse")
     args = ap.parse_args()
+    if args.unshared:       # read by the timing process the sweep's time_job starts
+        os.environ["PIPEGEN_CL_SHARE_SETUP"] = "0"
     t_start = time.perf_counter()
 
     def sized(w, h):

@@ -156,3 +156,19 @@ def test_each_shadow_view_and_viewport_size_set_up_on_its_own():
     inferred.render(scene)
     scene_passes = [t for t in inferred.last_timings if "vertex" in t]
     assert len(scene_passes) >= 2
+
+
+def test_frame_renders_what_render_returns_without_reading_it_back():
+    """``CLPipeline.frame`` (timings) queues the frame ``render`` does: the blend counts it
+    leaves are the same, and a ``render`` after it returns a fresh pipeline's targets."""
+    compiled = _compiled("deferred")
+    scene = _scene("mixed_lights")
+    pipe = compiled.pipeline("cl", SIZE)
+    assert pipe.frame(scene) is None
+    counts = pipe.last_blend_counts
+    again = pipe.render(scene)
+    fresh = compiled.pipeline("cl", SIZE)
+    want = fresh.render(scene)
+    _assert_same(again, want)
+    _assert_same(counts, fresh.last_blend_counts)
+    assert any(c.any() for c in counts.values())

@@ -8,11 +8,11 @@ tiles.  ``templates/cl_bin.cl.j2`` runs that loop where the set-up triangles alr
 gives the same tile lists: the same (triangle, tile) pairs, each tile's triangles in
 submission order (tests/test_cl_bin.py compares them with the numpy binning's).
 
-``DeviceBinner(ctx, queue).bin(...)`` queues the kernels and a read of two numbers that does
-not wait (``transfers.Readback``) (the tiles with triangles, the entries) and returns ``DeviceBins`` at once: the
-host waits only when it launches the raster kernel, which needs the number of tiles, after
-every pass of the frame is prepared.  ``$PIPEGEN_CL_DEVICE_BIN=0`` bins every draw in numpy
-instead, for comparisons.
+``DeviceBinner(ctx, queue).bin(...)`` queues the kernels and a read of two numbers (the tiles
+with triangles, the entries) that does not wait (``transfers.Readback``), and returns
+``DeviceBins`` at once: the host waits only when it launches the raster kernel, which needs
+the number of tiles, after every pass of the frame is prepared.  ``$PIPEGEN_CL_DEVICE_BIN=0``
+bins every draw in numpy instead, for comparisons.
 """
 
 from __future__ import annotations

@@ -3,7 +3,8 @@
 ``CLPipeline(plan, size=None).render(scene) -> {target: codes}`` returns the same arrays as
 ``GLPipeline``: GL row order (row 0 = window y 0, the bottom row), ``formats.Format.dtype``
 codes, ``(H, W)`` for one channel and ``(H, W, C)`` otherwise; a d24s8 target ``ds`` gives
-24-bit depth codes under ``"ds"`` and the stencil under ``"ds.stencil"``.
+24-bit depth codes under ``"ds"`` and the stencil under ``"ds.stencil"``.  ``frame(scene)``
+renders the same frame and reads nothing back (timings, as ``GLPipeline.frame``).
 ``render(..., capture_passes=True)`` returns ``(targets, captures)`` with one entry
 ``{"pass", "light", "targets", "blend_counts"}`` after every executed pass (per light inside
 repeat groups).
@@ -272,6 +273,21 @@ class CLPipeline:
     def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
         """Render one frame: ``{target: codes}``, or ``(targets, captures)`` with
         ``capture_passes`` (see the module docstring)."""
+        captures = self._draw(scene, params, capture_passes)
+        result = self.store.read_all()
+        self._end_frame()
+        return (result, captures) if capture_passes else result
+
+    def frame(self, scene, params: Optional[dict] = None) -> None:
+        """Render one frame and wait for the device, reading no target back: what frame
+        timings measure, as ``GLPipeline.frame`` (at 160x90 the read-back of every target is
+        a fixed cost GL's ``frame`` does not pay).  Blend counts and clamps are read on first
+        use, as after ``render``."""
+        self._draw(scene, params, False)
+        self._end_frame()
+
+    def _draw(self, scene, params: Optional[dict], capture_passes: bool) -> list[dict]:
+        """Queue a frame's passes (the captures with ``capture_passes``, else [])."""
         check_param_overrides(self.plan, params)
         self._use_scene(scene)
         self.prepare(scene)
@@ -305,7 +321,11 @@ class CLPipeline:
             for k, light in runs:
                 self._run_pass_observed(k, light, captures if capture_passes else None)
         self.store.end_frame()
-        result = self.store.read_all()
+        return captures
+
+    def _end_frame(self) -> None:
+        """After a frame's passes (and its read-back): the blend counts and clamps to read on
+        first use, the queue drained, the raster kernels' times."""
         self._blend_counts, self._blend_count_bufs = None, dict(self.store.blend_counts)
         self._clamps = None
         if cl_clamps.collecting():
@@ -314,7 +334,6 @@ class CLPipeline:
         for timing, ev in self._events:          # raster kernels run while the host goes on
             timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
         self._events = []
-        return (result, captures) if capture_passes else result
 
     def _run_pass_observed(self, k: int, light: Optional[int], captures: Optional[list]):
         """One pass execution on its own: with ``profile``, the queue drained before and after
