@@ -19,7 +19,8 @@ except a repeat group's passes and a shadow-map pass, which run once per light (
 shadow-casting light): ``frame_traffic`` takes how many times each pass runs.
 
 The **G-buffer** is the set of targets a pass drawing the scene writes and a later pass reads
-(its depth or colour attachments, not the output): its bytes per pixel are the sum of their
+(its depth or colour attachments, not the output), leaving out a target any pass blends into
+(an accumulation buffer holds lighting, not the surface): its bytes per pixel are the sum of their
 formats' (at their own size; ``gbuffer_bytes_per_output_pixel`` scales by the target sizes).
 """
 
@@ -92,8 +93,9 @@ def gbuffer(passes: Sequence, targets: Sequence, output: str) -> list:
         if p.draw.kind is ir.DrawKind.SCENE and not p.draw.shadow:
             for n in list(p.writes) + ([p.depth_target] if p.depth_target else []):
                 written_by_scene.setdefault(n, k)
+    blended = {n for p in passes for n in p.writes if p.state.blend_for(n).enabled}
     read_later = {n for n, k in written_by_scene.items()
-                  if any(n in q.reads for q in passes[k + 1:])}
+                  if n not in blended and any(n in q.reads for q in passes[k + 1:])}
     return [t for t in targets if t.name in read_later and t.name != output]
 
 
