@@ -542,8 +542,17 @@ def _primitive_mesh(doc: _Doc, mesh_index: int, mesh, pi: int, prim,
     if not len(tris):
         return 0, None
     p = pos[tris.reshape(-1)]
+    try:
+        return len(tris), _finish(doc, attrs, where, pos, tris, p)
+    except meshes.ObjError as e:               # the work of finding normal groups is bounded
+        raise GltfError(str(e), where) from None
+
+
+def _finish(doc: _Doc, attrs, where: str, pos: np.ndarray, tris: np.ndarray,
+            p: np.ndarray) -> meshes.Mesh:
+    """The primitive's mesh from its corner positions ``p``: its NORMAL, or flat normals."""
     if attrs.NORMAL is None:                   # flat normals, as the glTF specification asks
-        return len(tris), meshes.finish_mesh(p, np.repeat(meshes.face_normals(p), 3, axis=0))
+        return meshes.finish_mesh(p, np.repeat(meshes.face_normals(p), 3, axis=0))
     nrm = doc.accessor(attrs.NORMAL, where + ".attributes.NORMAL", "NORMAL")
     if len(nrm) != len(pos):
         raise GltfError(f"NORMAL has {len(nrm)} elements, POSITION {len(pos)}",
@@ -552,7 +561,7 @@ def _primitive_mesh(doc: _Doc, mesh_index: int, mesh, pi: int, prim,
     n = np.where(np.isfinite(n).all(axis=1, keepdims=True), n, 0.0)
     flat = np.repeat(meshes.face_normals(p), 3, axis=0)
     n = np.where((np.linalg.norm(n, axis=1) > 0)[:, None], n, flat)   # unusable: the face's
-    return len(tris), meshes.finish_mesh(p, n)
+    return meshes.finish_mesh(p, n)
 
 
 def _file_camera(g, ci: int, world: np.ndarray, ni: int, objects: list[SceneObject],

@@ -143,7 +143,7 @@ def buffer_bytes(uri: Optional[str], byte_length: int, folder: Path, glb_binary:
         if not comma:
             raise GltfError("a data: URI needs a comma before its data", where + ".uri")
         try:
-            data = (base64.b64decode(payload) if header.endswith(";base64")
+            data = (base64.b64decode(payload, validate=True) if header.endswith(";base64")
                     else unquote_to_bytes(payload))
         except (binascii.Error, ValueError) as e:
             raise GltfError(f"cannot decode the data: URI ({e})", where + ".uri") from None

@@ -42,9 +42,10 @@ MAX_FACE_CORNERS = 1024
 #: file about 6 (more in ``extras``).
 MAX_NESTING = 64
 #: (corner, face) pairs an OBJ file's normal smoothing may compare around vertices on a crease
-#: (valence² each; the 4x Sponza has 3.5M pairs around all its vertices), and pairs held at
-#: once (about 100 bytes each): a vertex shared by more than 2048 faces cannot be on a crease.
-MAX_SMOOTHING_PAIRS = 1 << 26
+#: (valence² each; the 4x Sponza has 3.5M pairs around all its vertices) and of triangles
+#: sharing an edge (a few seconds at the limit), and pairs held at once (about 100 bytes
+#: each): a vertex shared by more than 2048 faces cannot be on a crease.
+MAX_SMOOTHING_PAIRS = 1 << 24
 SMOOTHING_BATCH_PAIRS = 1 << 22
 #: A TOML scene file: it lists objects and lights (at most 255 objects), its meshes live in
 #: OBJ or glTF files.  The same bound as a ``.pipe`` source.
@@ -130,18 +131,19 @@ _TOML_TOKENS = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"[^"\\\n]*(?:\\.
                           r"|'[^'\n]*'|#[^\n]*|[\[\]{}]")
 
 
-def nesting_depth(text: str, toml: bool = False) -> tuple[int, int]:
-    """The deepest nesting of ``[`` and ``{`` in JSON (or with ``toml``, TOML) text outside
-    its strings and comments, and the offset where it is first reached: how deep a recursive
-    parser would descend.  No recursion, and a JSON string is skipped with ``str.find`` (a
-    100 MB ``data:`` URI in about 0.1 s).  Brackets after a string left open are not counted
-    in JSON and are in TOML (the file is malformed either way)."""
+def nesting_depth(text: str, toml: bool = False, limit: int = MAX_NESTING) -> tuple[int, int]:
+    """How deep ``[`` and ``{`` nest in JSON (or with ``toml``, TOML) text outside its strings
+    and comments - how deep a recursive parser would descend - up to ``limit + 1`` (the scan
+    stops there), and the offset of the bracket that reached that depth.  No recursion, and a
+    JSON string is skipped with ``str.find`` (a 100 MB ``data:`` URI in milliseconds).
+    Brackets after a string left open are not counted in JSON and are in TOML (the file is
+    malformed either way)."""
     depth = deepest = at = 0
     i, pattern = 0, _TOML_TOKENS if toml else _JSON_SPECIAL
-    while True:
+    while deepest <= limit:
         m = pattern.search(text, i)
         if m is None:
-            return deepest, at
+            break
         start, i = m.start(), m.end()
         c = text[start]                     # not m.group(): a string may be megabytes long
         if c in "[{":
@@ -153,7 +155,8 @@ def nesting_depth(text: str, toml: bool = False) -> tuple[int, int]:
         elif c == '"' and not toml:
             i = _json_string_end(text, i)
             if i < 0:
-                return deepest, at
+                break
+    return deepest, at
 
 
 def _json_string_end(text: str, i: int) -> int:

@@ -142,6 +142,8 @@ class _Locator:
         if region is None:
             return None
         start, end = region
+        if not table and not keys:          # the scene as a whole: its first line
+            return self.span(0, 0, len(self.lines[0].rstrip()) if self.lines else 0)
         best = self.span(start, 0, len(self.lines[start].rstrip())) if table else None
         lo, col = start, 0
         for depth, key in enumerate(keys):

@@ -367,11 +367,9 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5,
     # A non-manifold edge (3+ triangles) needs every pair, not only neighbours in the sort.
     starts = np.flatnonzero(np.r_[True, ~same])
     runs = np.diff(np.r_[starts, len(order)])
-    extra = [(order[s + i], order[s + j]) for s, n in zip(starts[runs > 2], runs[runs > 2])
-             for i in range(n) for j in range(i + 2, n)]
-    if extra:
-        e0 = np.concatenate([e0, [p[0] for p in extra]])
-        e1 = np.concatenate([e1, [p[1] for p in extra]])
+    if np.any(runs > 2):
+        x0, x1 = _edge_pairs(starts[runs > 2], runs[runs > 2])
+        e0, e1 = np.concatenate([e0, order[x0]]), np.concatenate([e1, order[x1]])
 
     unit = normalize_rows(np.asarray(normals, dtype=np.float64))
 
@@ -383,6 +381,27 @@ def normal_groups(positions: np.ndarray, normals: np.ndarray, tol: float = 1e-5,
     # roots are first triangles: a component's number is its root's rank among the roots
     rank = np.cumsum(roots == np.arange(tri_count)) - 1
     return (rank[roots] % 256).astype(np.int64)
+
+
+def _edge_pairs(run_starts: np.ndarray, run_sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Within each run [s, s + n) of sorted edge-instances, the pairs (i, j), j >= i + 2, in
+    the order of runs, then i, then j (consecutive pairs are already listed).  Whole arrays,
+    not a Python loop: an edge a file repeats 1000 times has 500k pairs, counted first (at
+    most ``limits.MAX_SMOOTHING_PAIRS``)."""
+    from pipegen.scene import limits
+    pairs = int((run_sizes.astype(np.int64) ** 2).sum())
+    if pairs > limits.MAX_SMOOTHING_PAIRS:
+        raise ObjError(f"edges shared by many triangles (up to {int(run_sizes.max())}) need "
+                       f"{pairs} comparisons of their normals, more than the limit of "
+                       f"{limits.MAX_SMOOTHING_PAIRS}")
+    first = np.cumsum(run_sizes) - run_sizes
+    members = np.repeat(run_starts, run_sizes) + np.arange(int(run_sizes.sum())) - np.repeat(first, run_sizes)
+    size = np.repeat(run_sizes, run_sizes)               # run size of every member
+    i = np.repeat(members, size)
+    offset = np.arange(len(i)) - np.repeat(np.cumsum(size) - size, size)
+    j = np.repeat(np.repeat(run_starts, run_sizes), size) + offset
+    keep = j >= i + 2
+    return i[keep], j[keep]
 
 
 # -- light volumes -----------------------------------------------------------------------------

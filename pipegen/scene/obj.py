@@ -410,7 +410,10 @@ def read_obj(path: str | Path, crease_deg: float = 45.0) -> ObjModel:
             missing.append(f"'{name}' (no MTL defines it)")
         pos = np.take(tri, sel, axis=0).reshape(-1, 3)
         nrm = np.take(normals.reshape(-1, 3, 3), sel, axis=0).reshape(-1, 3)
-        mesh = meshes.finish_mesh(pos, nrm, np.take(F, sel, axis=0))
+        try:
+            mesh = meshes.finish_mesh(pos, nrm, np.take(F, sel, axis=0))
+        except ObjError as e:                       # the work around an edge is bounded
+            raise ObjError(f"{path.name}: {e}") from None
         parts.append(ObjPart(mat, mesh, len(sel) - mesh.triangle_count))
         dropped_total += len(sel) - mesh.triangle_count
     if missing:
