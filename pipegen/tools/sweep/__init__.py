@@ -32,9 +32,8 @@ Two phases, never overlapping:
    alternating order (forward, then backward), so drift on the machine hits all variants
    alike.  The figure is the median, with the interquartile range: rows whose ranges overlap
    are ties, never ranked (``pareto.py``).  GL: ``GLPipeline.frame`` (all passes,
-   ``glFinish``, no read-back); CL: ``CLPipeline.render`` (all passes and the read-back of
-   every target: the CL runtime has no frame without read-back).  ``--frames 0`` skips this
-   phase.
+   ``glFinish``, no read-back); CL: ``CLPipeline.frame`` (all passes, the queue drained, no
+   read-back).  ``--frames 0`` skips this phase.
 
 Outputs in DIR (an output folder like ``run``'s: see docs/cli.md): ``index.html`` (the report to
 explore, ``report_html.py``), ``results.csv`` and ``results.json`` (one row per variant and

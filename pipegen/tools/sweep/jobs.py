@@ -326,7 +326,8 @@ def timing_main() -> int:
            f"pinned to CPU{'s' if len(pinned) != 1 else ''} "
            f"{','.join(map(str, pinned)) or '(no affinity support)'}; variants interleaved "
            f"(each round times every variant once, alternating forward and backward order); "
-           f"GL: frame() to glFinish without read-back; CL: render() with read-back; "
+           f"GL: frame() to glFinish, CL: frame() until its queue is empty, neither reading "
+           f"a target back; "
            f"cpu_ms: the process's CPU time per frame, all its threads (steadier than wall "
            f"time where other work shares the CPUs)")
     sys.stdout.write(json.dumps({"ms": ms, "q1": q1, "q3": q3, "cpu_ms": cpu_ms, "how": how})
