@@ -27,7 +27,8 @@ def test_shipped_knobs():
     assert allowed("lidr_bitplanes") == {"index_bits": (8, 16, 32)}
     assert allowed("deferred_calver") == {"lut_size": (64, 256, 1024, 4096),
                                           "tonemap": (False, True), "fog": (0, 1, 2),
-                                          "dof_taps": (0, 4, 8, 16), "pcf_taps": (1, 4, 9, 16)}
+                                          "dof_taps": (0, 4, 8, 16), "pcf_taps": (1, 4, 9, 16),
+                                          "hdr_accumulate": ("blend", "copy_back")}
     assert allowed("forward") == {"pcf_taps": (1, 4, 9, 16)}
 
 

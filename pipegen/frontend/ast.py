@@ -260,10 +260,19 @@ class ClearSpec(Node):
 
 
 @record
+class Condition(Node):
+    """``if EXPR`` after a pass's, a repeat block's or a target's name: the declaration is
+    present only where EXPR, over parameters, holds (frontend/lower/conditions.py)."""
+
+    expr: Expr
+
+
+@record
 class TargetDecl(Node):
     name: Name
     format: Name
     options: list[Union[SizeAbs, SizeRel, Samples, ClearSpec]]
+    condition: Optional[Condition] = None
 
 
 @record
@@ -408,6 +417,7 @@ PassStmt = Union[Draw, Writes, Reads, Depth, Stencil, Blend, BlendConstant, Mask
 class PassDecl(Node):
     name: Name
     stmts: list[PassStmt]
+    condition: Optional[Condition] = None     # `pass NAME if COND { … }`
 
 
 @record
@@ -416,6 +426,7 @@ class RepeatBlock(Node):
 
     passes: list[PassDecl]
     light_types: list[Word] = field(default_factory=list)   # `repeat per light spot … { … }`
+    condition: Optional[Condition] = None     # `repeat per light … if COND { … }`
 
 
 @record

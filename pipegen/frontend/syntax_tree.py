@@ -220,8 +220,9 @@ class _ToAst(Transformer):
         return ast.LightFieldDecl(self._name(ch[0]), self._name(ch[1]), span=self._span(meta))
 
     def target(self, meta, ch):
-        return ast.TargetDecl(self._name(ch[0]), self._name(ch[1]), ch[2:],
-                              span=self._span(meta))
+        *options, condition = ch[2:]      # [condition] leaves a None placeholder when absent
+        return ast.TargetDecl(self._name(ch[0]), self._name(ch[1]), options,
+                              condition=condition, span=self._span(meta))
 
     def size_abs(self, meta, ch):
         return ast.SizeAbs(ch[0], ch[1], span=self._span(meta))
@@ -294,8 +295,11 @@ class _ToAst(Transformer):
 
     # -- passes ------------------------------------------------------------------------------
     def pass_decl(self, meta, ch):
-        return ast.PassDecl(self._name(ch[0]), self._merge_stencil_tails(ch[1:]),
-                            span=self._span(meta))
+        return ast.PassDecl(self._name(ch[0]), self._merge_stencil_tails(ch[2:]),
+                            condition=ch[1], span=self._span(meta))
+
+    def condition(self, meta, ch):
+        return ast.Condition(ch[0], span=self._span(meta))
 
     def _merge_stencil_tails(self, stmts: list) -> list:
         out = []
@@ -315,8 +319,10 @@ class _ToAst(Transformer):
 
     def repeat_block(self, meta, ch):
         types = [c for c in ch if isinstance(c, ast.Word)]
-        passes = [c for c in ch if not isinstance(c, ast.Word)]
-        return ast.RepeatBlock(passes, types, span=self._span(meta))
+        conditions = [c for c in ch if isinstance(c, ast.Condition)]
+        passes = [c for c in ch if isinstance(c, ast.PassDecl)]
+        return ast.RepeatBlock(passes, types, conditions[0] if conditions else None,
+                               span=self._span(meta))
 
     def draw(self, meta, ch):
         span = self._span(meta)

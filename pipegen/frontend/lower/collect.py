@@ -17,6 +17,7 @@ class PassItem:
     decl: ast.PassDecl
     group: Optional[int]          # repeat group from a `repeat per light { … }` block
     block_types: tuple = ()       # the block's light types (`repeat per light spot { … }`)
+    conditions: tuple = ()        # `if COND` of its block and its own: present where all hold
 
 
 @record
@@ -71,11 +72,14 @@ class Collector:
                             "put the passes that run once per light inside it")
             group = self._new_group()
             types = tuple(item.light_types)
-            d.passes.extend(PassItem(p, group, types) for p in item.passes)
+            block = (item.condition,) if item.condition is not None else ()
+            d.passes.extend(PassItem(p, group, types, block + _own_condition(p))
+                            for p in item.passes)
         elif isinstance(item, ast.PassDecl):
             # A pass with its own `repeat per light` is a repeat group of one.
             repeats = any(isinstance(s, ast.RepeatPerLight) for s in item.stmts)
-            d.passes.append(PassItem(item, self._new_group() if repeats else None))
+            d.passes.append(PassItem(item, self._new_group() if repeats else None,
+                                     conditions=_own_condition(item)))
         else:
             bucket = {ast.ParamDecl: d.params, ast.LightsDecl: d.lights,
                       ast.TargetDecl: d.targets, ast.OutputDecl: d.outputs,
@@ -127,6 +131,10 @@ class Collector:
                     "include paths are relative to the including file; the library shipped "
                     "with pipegen is included as common/NAME.pipe; more folders can be listed "
                     "in PIPEGEN_PATH")
+
+
+def _own_condition(p: ast.PassDecl) -> tuple:
+    return (p.condition,) if p.condition is not None else ()
 
 
 _NAMED_KINDS = {ast.ParamDecl: "parameter", ast.TargetDecl: "target", ast.PackDecl: "packing",

@@ -13,6 +13,8 @@ from pipegen.ir.builtins import (
     BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, STAGE_INPUTS, TARGET_FUNCTIONS, TYPE_NAMES, Where,
     binary_type, describe_overloads, resolve_builtin, target_read_type, unary_type)
 from pipegen.core.diagnostics import Span
+from pipegen.core.formats import FORMATS
+from pipegen.packing.base import SCHEMES
 from pipegen.frontend.lower.names import (
     A_or_An, Lowering, Context, Local, Uses, a_or_an, did_you_mean, error, listing,
     reserved_meaning, shader_type)
@@ -88,8 +90,12 @@ class ExprChecker:
         if n in low.params:
             p = low.params[n]
             if p.type == ir.VOID:
-                raise error(e.span, f"parameter '{n}' is a format, not a value",
-                            "format parameters are used in target declarations")
+                what = ("a format" if p.default in FORMATS else "a packing scheme"
+                        if p.default in SCHEMES else "a word")
+                raise error(e.span, f"parameter '{n}' holds {what} ('{p.default}'), "
+                            f"not a value", "word parameters choose formats and packing "
+                            "schemes in declarations, and passes and targets in conditions "
+                            f"(`pass NAME if {n} == WORD {{ … }}`)")
             return ir.Var(n, p.type, "param")
         if n in STAGE_INPUTS:
             return self._stage_input(e)

@@ -15,7 +15,9 @@ Phases, in order (each may rely on the ones before):
 5. functions -- signatures first, then bodies (so order and mutual calls do not matter),
                 then recursion and what each function needs transitively (bodies:
                 ``lowering/expressions.py`` and ``lowering/statements.py``)
-6. passes   -- draw, attachments, fixed-function state, fragment body (``lowering/passes.py``)
+6. passes   -- draw, attachments, fixed-function state, fragment body (``lowering/passes.py``);
+               then the passes and targets whose `if COND` is false are dropped (every pass is
+               checked first, present or not; ``lowering/conditions.py``)
 7. expectations -- ``expect`` statements: names and scene files checked
                 (``lowering/expectations.py``)
 
@@ -30,6 +32,7 @@ Format-valued parameters have type ``ir.VOID`` and a ``str`` value: they are not
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Optional, Union
 
 from pipegen.frontend import ast, parse as syntax
@@ -38,7 +41,9 @@ from pipegen.core import sources
 from pipegen.ir.builtins import LIGHT_FIELDS
 from pipegen.core.diagnostics import Span
 from pipegen.core.formats import FORMATS, Format
+from pipegen.packing.base import SCHEMES as SCHEME_NAMES
 from pipegen.frontend.lower.collect import Collector, Decls, PassItem
+from pipegen.frontend.lower.conditions import holds, spelling
 from pipegen.frontend.lower.expectations import lower_expectations
 from pipegen.frontend.lower.names import (
     SAMPLE_COUNTS, Loader, a_or_an, Context, did_you_mean, error, generated_by, Global, listing,
@@ -93,6 +98,7 @@ class _Lowerer:
         self._packings(d.packs)
         self._functions(d.functions)
         passes = self._passes(d.passes)
+        targets = self._present_targets(d.targets, targets, passes, output)
         return ir.Technique(
             name=tech.name.name, title=tech.title, params=params, targets=targets,
             lights=self.lights, packings=self._ir_packings(),
@@ -239,7 +245,8 @@ class _Lowerer:
                 raise error(name.span, f"parameter '{n}' is {a_or_an(param_type_name(p))}, "
                             f"not a format", "declare it like `param fmt = rgba16f`")
             if p.default not in FORMATS:
-                raise error(name.span, f"parameter '{n}' holds the packing scheme "
+                what = "the packing scheme" if p.default in SCHEME_NAMES else "the word"
+                raise error(name.span, f"parameter '{n}' holds {what} "
                                       f"'{p.default}', not a format",
                             "declare a format parameter like `param fmt = rgba16f`")
             return FORMATS[p.default]
@@ -500,8 +507,47 @@ class _Lowerer:
                 raise error(name.span, f"duplicate pass name '{name.name}'",
                             f"the first pass '{name.name}' is on line {names[name.name].line}")
             names[name.name] = name.span
-            out.append(PassLowerer(self, item).lower())
-        return tuple(out)
+            lowered = PassLowerer(self, item).lower()   # checked whether present or not
+            if all([holds(c, self.params) for c in item.conditions]):
+                out.append(lowered)
+        return _renumber_groups(out)
+
+    def _present_targets(self, decls: list[ast.TargetDecl], targets: tuple[ir.Target, ...],
+                         passes: tuple[ir.Pass, ...], output: str) -> tuple[ir.Target, ...]:
+        """The targets whose condition holds (all of them without conditions); a pass, a
+        packing or the output using one whose condition does not is an error."""
+        absent = {d.name.name: d.condition for d in decls
+                  if d.condition is not None and not holds(d.condition, self.params)}
+        if not absent:
+            return targets
+        why = lambda t: (f"target '{t}', which is present only if {spelling(absent[t])} "
+                         f"(false here)")
+        if output in absent:
+            raise error(absent[output].span, f"the output is {why(output)}",
+                        "the output target cannot have a condition")
+        for p in passes:
+            used = set(p.reads) | set(p.writes) | {p.depth_target} | {t for t, _ in p.clears}
+            for t in sorted(used & absent.keys()):
+                raise error(p.span, f"pass '{p.name}' uses {why(t)}",
+                            "give the pass a condition that implies the target's")
+        for name, options in self.pack_options.items():
+            if options.get("target") in absent:
+                raise error(self.packs[name].span, f"packing '{name}' is for "
+                            f"{why(options['target'])}", "drop the target's condition")
+        return tuple(t for t in targets if t.name not in absent)
+
+
+def _renumber_groups(passes: list[ir.Pass]) -> tuple[ir.Pass, ...]:
+    """Repeat groups numbered 0, 1, … in pass order again once absent passes are gone."""
+    numbers: dict[int, int] = {}
+    out = []
+    for p in passes:
+        if p.repeat_group is not None:
+            group = numbers.setdefault(p.repeat_group, len(numbers))
+            if group != p.repeat_group:
+                p = dataclasses.replace(p, repeat_group=group)
+        out.append(p)
+    return tuple(out)
 
 
 def _option_word(opt: ast.Node) -> str:

@@ -20,6 +20,11 @@ class ParamBuilder:
     def build(self) -> ir.Param:
         d = self.decl
         t = self._type()
+        # A word parameter with `in {…}` may hold any word listed there (`param hdr_accumulate
+        # = blend in {blend, copy_back}`: a choice read by pass and target conditions); without
+        # the list only formats and packing schemes.
+        self.words = {v.name for v in d.allowed or () if isinstance(v, ast.Name)} \
+            if t == ir.VOID else set()
         default = self._coerce(d.value, t)
         allowed = tuple(self._coerce(v, t) for v in d.allowed or ())
         if allowed and default not in allowed:
@@ -57,7 +62,7 @@ class ParamBuilder:
             v.name if isinstance(v, ast.Name) else None
         kind = v.kind if isinstance(v, ast.Number) else \
             "bool" if isinstance(v, ast.Bool) else "name" if isinstance(v, ast.Name) else "?"
-        result = _convert_param_value(value, kind, t)
+        result = _convert_param_value(value, kind, t, self.words)
         if result is None:
             raise error(v.span, f"parameter '{self.decl.name.name}' is "
                         f"{a_or_an(_type_word(t))}; {_show_literal(v)} is not", _param_hint(t))
@@ -65,7 +70,10 @@ class ParamBuilder:
 
     def override(self, p: ir.Param, value) -> ir.Param:
         kind, raw = _classify_override(value)
-        converted = _convert_param_value(raw, kind, p.type)
+        words = set(p.allowed) if p.type == ir.VOID else set()
+        converted = _convert_param_value(raw, kind, p.type, words)
+        if converted is None and words and kind == "name":
+            converted = raw       # a word it cannot hold: refused below, with its words
         if converted is None:
             raise error(self.decl.name.span,
                         f"parameter '{p.name}' is {a_or_an(_type_word(p.type))}; "
@@ -76,11 +84,12 @@ class ParamBuilder:
         return ir.Param(p.name, p.type, converted, p.allowed, p.span, p.accurate)
 
 
-def _convert_param_value(value, kind: str, t: ir.Type):
+def _convert_param_value(value, kind: str, t: ir.Type, words: set = frozenset()):
     """A literal of ``kind`` ("float", "int", "uint", "bool", "name") as a value of parameter
     type ``t``; None when it does not fit.  Integer literals serve float and (when not
-    negative) uint parameters; names serve word parameters: a format, or a packing scheme
-    (``pack NAME = PARAM(…)`` then packs with the scheme the parameter holds)."""
+    negative) uint parameters; names serve word parameters: a format, a packing scheme
+    (``pack NAME = PARAM(…)`` then packs with the scheme the parameter holds), or one of
+    ``words``, the parameter's own allowed words."""
     if t == ir.FLOAT and kind in ("float", "int", "uint"):
         return float(value)
     if t == ir.INT and kind == "int":
@@ -89,7 +98,8 @@ def _convert_param_value(value, kind: str, t: ir.Type):
         return int(value)
     if t == ir.BOOL and kind == "bool":
         return bool(value)
-    if t == ir.VOID and kind == "name" and (value in FORMATS or value in SCHEMES):
+    if t == ir.VOID and kind == "name" and (value in FORMATS or value in SCHEMES
+                                            or value in words):
         return value
     return None
 
@@ -124,8 +134,8 @@ def _type_word(t: ir.Type) -> str:
 def _param_hint(t: ir.Type) -> str:
     return {ir.FLOAT: "write a number like 0.5", ir.INT: "write an integer like 3",
             ir.UINT: "write a non-negative integer like 3u", ir.BOOL: "write true or false"}.get(
-        t, f"write a format name ({' '.join(FORMATS)}) or a packing scheme "
-           f"({' '.join(SCHEMES)})")
+        t, f"write a format name ({' '.join(FORMATS)}), a packing scheme "
+           f"({' '.join(SCHEMES)}), or list the words it may hold: `in {{a, b}}`")
 
 
 def _show(v) -> str:
