@@ -175,6 +175,16 @@ def test_node_cycles_and_absurd_depth(tmp_path):
     assert len(scene.objects) == 5
 
 
+def test_a_glTF_with_too_many_nodes_is_refused_before_they_are_read(tmp_path):
+    """100,000 nodes (pygltflib alone would take two minutes over them): refused at once."""
+    import time
+    t0 = time.perf_counter()
+    message = _gltf_error(tmp_path, lambda d: d["nodes"].extend({} for _ in range(100_000)))
+    assert message.startswith("nodes: 100") and message.endswith(
+        " nodes: more than the 4096 a scene may hold")
+    assert time.perf_counter() - t0 < 30            # a hang guard, not a timing
+
+
 def test_a_singular_node_transform_skips_its_meshes_with_a_note(tmp_path):
     doc = json.loads(CORNELL.read_text())
     doc["nodes"][1]["scale"] = [0, 0, 0]                   # hides the white walls

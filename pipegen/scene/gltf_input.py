@@ -120,6 +120,11 @@ def parse_json(raw: bytes, file_offset: Optional[int] = None) -> dict:
         raise GltfError(f"invalid JSON: {e.msg}", _text_position(text, e.pos, file_offset, raw)) from None
     if not isinstance(document, dict):
         raise GltfError("the JSON document is not an object", "the document")
+    for key in gltf_schema.READ:             # before the schema walks every item
+        items = document.get(key)
+        if isinstance(items, list) and len(items) > limits.MAX_ITEMS:
+            raise GltfError(f"{len(items)} {key}: more than the {limits.MAX_ITEMS} a scene may "
+                            f"hold", key)
     problem = gltf_schema.first_error(document)
     if problem is not None:
         raise GltfError(limits.quoted(problem[1]), problem[0])

@@ -35,6 +35,10 @@ DEFAULT_MAX_ELEMENTS = 1 << 22
 #: Corners of one OBJ face (a polygon is cut into a fan of corners - 2 triangles): exporters
 #: write triangles and quads, CAD files a few dozen corners now and then.
 MAX_FACE_CORNERS = 1024
+
+# items in one top-level glTF array (nodes, meshes, accessors, ...): pipegen renders at most 255
+# objects, and pygltflib takes about a millisecond per node (10^6 nodes: 20 minutes)
+MAX_ITEMS = 4096
 #: Brackets and braces open at once in a TOML scene or a glTF document, and levels of tables a
 #: TOML scene's dotted keys make.  tomllib and json recurse once or more per level and raise
 #: RecursionError past about 330 (TOML arrays) or 1000 (JSON) levels: this stops well short
