@@ -172,3 +172,38 @@ def test_frame_renders_what_render_returns_without_reading_it_back():
     _assert_same(again, want)
     _assert_same(counts, fresh.last_blend_counts)
     assert any(c.any() for c in counts.values())
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+def test_a_run_of_lights_in_one_launch_renders_a_launch_per_light(scene_name):
+    """Multi-pass forward's light pass draws all its lights in one raster launch
+    (``programs.batches_lights``); drained pass by pass (``profile``) it launches once per
+    light: the same targets, blend counts and clamps."""
+    pipe = _compiled("forward_multipass").pipeline("cl", SIZE)
+    scene = _scene(scene_name)
+    one = pipe.render(scene)
+    one_counts, one_clamps = pipe.last_blend_counts, pipe.last_clamps
+    runs = [t for t in pipe.last_timings if t["pass"] == "per_light"]
+    assert len(runs) == 1 and runs[0]["lights"] == len(scene.lights)
+    pipe.profile = []
+    each = pipe.render(scene)
+    assert len([t for t in pipe.last_timings if t["pass"] == "per_light"]) == len(scene.lights)
+    _assert_same(one, each)
+    _assert_same(one_counts, pipe.last_blend_counts)
+    assert one_clamps == pipe.last_clamps
+
+
+def test_only_a_lone_repeat_pass_that_writes_no_depth_draws_lights_in_one_launch():
+    from pipegen.backends.opencl.programs import batches_lights
+    from pipegen.compiler.driver import compile_source
+    batched = {}
+    for technique in TECHNIQUES:
+        plan = _compiled(technique).plan("cl")
+        batched[technique] = [p.name for p in plan.passes if batches_lights(plan, p)]
+    assert batched == {t: (["per_light"] if t == "forward_multipass" else [])
+                       for t in TECHNIQUES}
+    source = (ROOT / "pipelines" / "forward_multipass.pipe").read_text()
+    writes_depth = source.replace("depth ds equal nowrite", "depth ds lequal write")
+    assert writes_depth != source
+    plan = compile_source(writes_depth, str(ROOT / "pipelines" / "x.pipe")).plan("cl")
+    assert not any(batches_lights(plan, p) for p in plan.passes)

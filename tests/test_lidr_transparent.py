@@ -219,10 +219,11 @@ def test_renders_the_example_scenes_without_mismatch(name):
     # 7 lights of bank 0 reach one surface point: some are certainly dropped
     ("stress_overlap", "7 point/spot lights with index % 3 == 0 reach the surface seen at one "
                        "pixel, the packing `b0` (bitplanes) holds 4: lights will be dropped"),
-    # at most 4 of bank 0 reach a surface point, up to 8 volumes lie along a ray (the tile
-    # bound says 9): which of them the index keeps depends on the draw order
+    # at most 4 of bank 0 reach a surface point, up to 8 volumes lie along a ray (the 16-pixel
+    # tile bound says 9, refined to 4- and 1-pixel tiles 8): which of them the index keeps
+    # depends on the draw order
     ("cornell_box", "the packing `b0` (bitplanes) holds 4: lights may be dropped (a "
-                    "conservative bound: up to 9 point/spot light volumes with index % 3 == 0 "
+                    "conservative bound: up to 8 point/spot light volumes with index % 3 == 0 "
                     "lie along a pixel's view ray in front of its surface (light-volume front "
                     "faces))")])
 def test_reports_banks_over_capacity(name, bank0):

@@ -1,5 +1,6 @@
 """reference.light_bound: the tile bound is conservative (at every pixel it is at least the
-per-pixel count of light volumes, which is at least the lights reaching the surface), the
+per-pixel count of light volumes, which is at least the lights reaching the surface), and so
+is its refinement over 4-pixel and 1-pixel tiles for every capacity, the
 pruned per-pixel maximum is exactly lighting.lights_per_pixel's, the sampled surface lies on
 its pixel centres, and mismatches() words a capacity overflow as surely as the counts allow."""
 
@@ -60,6 +61,9 @@ def assert_counts_nest(scene):
         assert (tiles >= volumes).all(), (scene.name, faces)
         assert (volumes >= reach).all(), (scene.name, faces)
         assert LB.volume_bound(scene, lights, full, faces, sky) == volumes.max()
+        for capacity in range(int(tiles.max()) + 1):      # 0: every tile down to 1 pixel
+            refined = LB.refined_bound(scene, lights, capacity)
+            assert volumes.max() <= refined <= tiles.max(), (scene.name, faces, capacity)
     assert LB.reaching_max(scene, lights, full) == reach.max()
 
 
@@ -163,6 +167,32 @@ def test_large_frames_say_will_from_a_sample_and_may_from_the_tile_bound():
     assert bound >= lights_per_pixel_bound(street, {"point", "spot"}) > 4
     lights = [l for l in street.lights if l.type in ("point", "spot")]
     assert LB.reaching_max(street, lights, LB.surface(street)) <= 4
+
+
+def test_refining_the_tiles_fits_what_the_16_pixel_tiles_overflow(monkeypatch):
+    """lidr_transparent on many_lights at 1280x720: a bank's 16x16 tile bound is 5 (the
+    packing holds 4) where no pixel's is; the 4- and 1-pixel tiles show it fits, without
+    rasterising anything.  lidr_bitplanes there may drop lights: the refined bound it quotes
+    is at most the tile bound and at least the per-pixel count's maximum on the full surface."""
+    s = example(ROOT / "examples/scenes/many_lights.toml")
+    assert (s.width, s.height) == (1280, 720)
+    banks = [[l for i, l in enumerate(s.lights) if l.type in ("point", "spot") and i % 3 == k]
+             for k in (0, 1, 2)]                    # lidr_transparent's banks b0, b1, b2
+    assert max(int(LB.tile_counts(s, b).max()) for b in banks) == 5
+    assert max(LB.refined_bound(s, b, 4) for b in banks) == 4
+
+    def no_raster(*args, **kwargs):
+        raise AssertionError("rasterised")
+    with monkeypatch.context() as m:
+        m.setattr(LB, "rasterize_triangles", no_raster)
+        transparent = compile_file(ROOT / "pipelines/lidr_transparent.pipe").technique
+        assert [x.message for x in mismatches(transparent, s) if x.kind == "capacity"] == []
+    [message] = capacity(s)
+    said = int(re.search(r"up to (\d+) ", message).group(1))
+    lights = [l for l in s.lights if l.type in ("point", "spot")]
+    assert "lights may be dropped (a conservative bound" in message
+    assert lights_per_pixel_bound(s, {"point", "spot"}) <= said \
+        <= int(LB.tile_counts(s, lights).max())
 
 
 def test_a_scene_the_tile_bound_fits_is_not_rasterised(monkeypatch):

@@ -8,7 +8,10 @@ cheapest first:
 
 - ``tile_marks``: per screen tile (``TILE`` pixels square), the lights whose circumscribing
   sphere meets the cone of view rays through the tile (a sphere/cone test, no rasterisation).
-  It bounds the volumes marked at every pixel of the tile.
+  It bounds the volumes marked at every pixel of the tile.  ``refined_bound`` splits the tiles
+  whose count exceeds a capacity into 4-pixel, then 1-pixel tiles and tests their parent's
+  lights again with the same cone test: a bound as conservative, much tighter where a tile's
+  lights crowd only part of it.
 - ``volume_bound``: the most volumes marked at one pixel, per pixel from the float64 visible
   surface (exactly what ``lighting.lights_per_pixel(conservative=True)`` gives), evaluated only
   in the tiles whose tile count can still raise the maximum.
@@ -16,7 +19,7 @@ cheapest first:
   a spot, inside its outer cone (the reference's attenuation and cone factor are not zero);
   directional lights everywhere.
 
-``load(...)`` combines them for one packing: the tile bound when it already fits; else the
+``load(...)`` combines them for one packing: the tile bound, refined, when it fits; else the
 lights reaching the surface at a sample of pixels (every ``stride``-th pixel, about
 ``SAMPLE_PIXELS`` of them, a small rasterisation), which proves "will be dropped" when it
 exceeds the capacity; else the full-resolution surface settles it.
@@ -35,6 +38,8 @@ from pipegen.reference.raster import GBuffer, rasterize_triangles
 from pipegen.reference.rounding import as_float32
 
 TILE = 16                    # pixels per tile side
+REFINE = (4, 1)              # the finer tiles an over-capacity tile is split into, in turn
+REFINE_TESTS = 250_000       # the most sphere/cone tests one split may take (some 0.05 s)
 SAMPLE_PIXELS = 320 * 180    # about this many pixels in the sampled surface
 # Angular slack of the sphere/cone test, in radians: covers arccos's rounding near 0 (about
 # 1.5e-8); a pixel at 1280x720 spans some 7e-4 rad, so the bound loosens by nothing visible.
@@ -135,38 +140,137 @@ def tile_grid(scene) -> tuple[int, int]:
     return -(-scene.height // TILE), -(-scene.width // TILE)
 
 
+def _cones(scene, x: np.ndarray, y: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """(unit axis, half angle) of the cone of view rays through each square tile of ``size``
+    pixels whose top-left pixel is (``x``, ``y``), clipped to the image, ``MARGIN`` pixels
+    beyond its outermost pixel centres.  The cone holds the rays through its corners, so (a
+    circular cone being convex) every ray through the rectangle between them."""
+    x0, y0 = x + 0.5 - MARGIN, y + 0.5 - MARGIN
+    x1 = np.minimum(x + size, scene.width) - 0.5 + MARGIN
+    y1 = np.minimum(y + size, scene.height) - 0.5 + MARGIN
+    axis = _unproject(scene, (x0 + x1) / 2, (y0 + y1) / 2)
+    half = np.zeros(len(axis))
+    for cx, cy in ((x0, y0), (x1, y0), (x0, y1), (x1, y1)):
+        corner = _unproject(scene, cx, cy)
+        half = np.maximum(half, np.arccos(np.clip(np.einsum("ij,ij->i", axis, corner), -1, 1)))
+    return axis, half
+
+
+class _Spheres:
+    """The circumscribing spheres of the point/spot lights of ``lights`` as seen from the eye:
+    the unit direction to each centre, the half angle it subtends, whether it holds the eye."""
+
+    def __init__(self, scene, lights):
+        cam = np.asarray(scene.camera.position, dtype=np.float64)
+        spheres = [l for l in lights if l.type != "directional"]
+        oc = np.array([as_float32(l.position) for l in spheres]).reshape(-1, 3) - cam
+        R = np.array([float(as_float32(l.radius)) for l in spheres]) * volume_grow()
+        d = np.linalg.norm(oc, axis=1)
+        self.inside = d <= R * (1 + 1e-9)
+        self.seen = np.arcsin(np.minimum(R / np.maximum(d, 1e-300), 1.0))
+        self.toward = oc / np.maximum(d, 1e-300)[:, None]
+
+    def meet(self, axis: np.ndarray, half: np.ndarray, light: np.ndarray) -> np.ndarray:
+        """bool per (cone, light index) pair: the sphere meets the cone."""
+        cos = np.einsum("ij,ij->i", axis, self.toward[light])
+        angle = np.arccos(np.clip(cos, -1, 1))
+        return self.inside[light] | (angle <= half + self.seen[light] + ANGLE_SLACK)
+
+
 def tile_marks(scene, lights) -> np.ndarray:
     """bool (tiles, point/spot lights of ``lights``): the light's circumscribing sphere meets
     the cone of view rays through the tile (tiles row-major, ``tile_grid``).  A ray of the
     tile that a light-volume pass marks for the light (either faces) meets the sphere at
     t >= 0, so it lies within asin(R/d) of the direction to the centre; the tile's rays lie
-    within the cone around its centre ray through its corners (a circular cone is convex, so
-    holding the corner rays it holds the rectangle between them)."""
+    within the cone around its centre ray (``_cones``)."""
     ty, tx = tile_grid(scene)
-    x0 = np.arange(tx) * TILE + 0.5 - MARGIN
-    x1 = np.minimum((np.arange(tx) + 1) * TILE, scene.width) - 0.5 + MARGIN
-    y0 = np.arange(ty) * TILE + 0.5 - MARGIN
-    y1 = np.minimum((np.arange(ty) + 1) * TILE, scene.height) - 0.5 + MARGIN
-    X0, Y0 = np.meshgrid(x0, y0)
-    X1, Y1 = np.meshgrid(x1, y1)
-    X0, X1, Y0, Y1 = X0.ravel(), X1.ravel(), Y0.ravel(), Y1.ravel()
-    axis = _unproject(scene, (X0 + X1) / 2, (Y0 + Y1) / 2)
-    half = np.zeros(len(axis))
-    for cx, cy in ((X0, Y0), (X1, Y0), (X0, Y1), (X1, Y1)):
-        corner = _unproject(scene, cx, cy)
-        half = np.maximum(half, np.arccos(np.clip(np.einsum("ij,ij->i", axis, corner), -1, 1)))
-    cam = np.asarray(scene.camera.position, dtype=np.float64)
-    grow = volume_grow()
-    spheres = [l for l in lights if l.type != "directional"]
-    if not spheres:
+    y, x = np.divmod(np.arange(ty * tx), tx)
+    axis, half = _cones(scene, x * TILE, y * TILE, TILE)
+    s = _Spheres(scene, lights)
+    if not len(s.seen):
         return np.zeros((len(axis), 0), dtype=bool)
-    oc = np.array([as_float32(l.position) for l in spheres]) - cam
-    R = np.array([float(as_float32(l.radius)) for l in spheres]) * grow
-    d = np.linalg.norm(oc, axis=1)
-    inside = d <= R * (1 + 1e-9)
-    seen = np.arcsin(np.minimum(R / np.maximum(d, 1e-300), 1.0))
-    angle = np.arccos(np.clip(axis @ (oc / np.maximum(d, 1e-300)[:, None]).T, -1, 1))
-    return inside[None, :] | (angle <= half[:, None] + seen[None, :] + ANGLE_SLACK)
+    angle = np.arccos(np.clip(axis @ s.toward.T, -1, 1))
+    return s.inside[None, :] | (angle <= half[:, None] + s.seen[None, :] + ANGLE_SLACK)
+
+
+@dataclass
+class _Tiles:
+    """Square tiles of ``size`` pixels (top-left pixel ``x``, ``y``) and the lights each may
+    meet: those of tile t are ``light[start[t]:start[t] + count[t]]``."""
+    x: np.ndarray
+    y: np.ndarray
+    size: int
+    light: np.ndarray
+    count: np.ndarray
+
+    def take(self, t: np.ndarray) -> "_Tiles":
+        start = np.cumsum(self.count) - self.count
+        n = self.count[t]
+        first = np.cumsum(n) - n
+        light = self.light[np.repeat(start[t] - first, n) + np.arange(int(n.sum()))]
+        return _Tiles(self.x[t], self.y[t], self.size, light, n)
+
+    def split(self, scene, child: int, spheres: "_Spheres") -> "_Tiles":
+        """Each tile split into tiles of ``child`` pixels (clipped to the image), each child
+        keeping the lights of its parent whose sphere meets its own cone."""
+        k = self.size // child
+        dy, dx = np.divmod(np.arange(k * k), k)
+        cx = (self.x[:, None] + dx[None, :] * child).ravel()
+        cy = (self.y[:, None] + dy[None, :] * child).ravel()
+        parent = np.repeat(np.arange(len(self.x)), k * k)
+        keep = (cx < scene.width) & (cy < scene.height)
+        cx, cy, inherited = cx[keep], cy[keep], self.take(parent[keep])
+        pair_child = np.repeat(np.arange(len(cx)), inherited.count)
+        axis, half = _cones(scene, cx, cy, child)
+        met = spheres.meet(axis[pair_child], half[pair_child], inherited.light)
+        return _Tiles(cx, cy, child, inherited.light[met],
+                      np.bincount(pair_child[met], minlength=len(cx)))
+
+
+CHUNK = 256                  # tiles split to 1 pixel at a time, the most crowded first
+
+
+def refined_bound(scene, lights, capacity: int, marks: Optional[np.ndarray] = None) -> int:
+    """An upper bound of the volumes of ``lights`` a light-volume pass marks at one pixel,
+    at most the tile bound: each tile whose count exceeds ``capacity`` is split into tiles of
+    ``REFINE`` pixels in turn, each child tested (``_cones``, the same sphere/cone test) for
+    the lights its parent meets; the maximum over the tiles where the splitting stopped.
+    Tiles are split to the last size ``CHUNK`` at a time, the most crowded first, only until
+    a last-size tile still exceeds the capacity (the packing then overflows whatever the
+    rest gives: they keep the count of their size); a split that would take more than
+    ``REFINE_TESTS`` sphere/cone tests is not made.  No rasterisation: pixels hidden behind
+    the surface count as the tile bound counts them."""
+    marks = tile_marks(scene, lights) if marks is None else marks
+    directional = sum(l.type == "directional" for l in lights)
+    counts = marks.sum(axis=1) + directional
+    best = int(counts[counts <= capacity].max(initial=0))
+    over = np.flatnonzero(counts > capacity)
+    tx = tile_grid(scene)[1]
+    tile, light = np.nonzero(marks[over])
+    tiles = _Tiles(over % tx * TILE, over // tx * TILE, TILE, light,
+                   np.bincount(tile, minlength=len(over)))
+    spheres = _Spheres(scene, lights)
+    for level, child in enumerate(REFINE):
+        if not len(tiles.x) or int(tiles.count.sum()) * (tiles.size // child) ** 2 \
+                > REFINE_TESTS:
+            break
+        last = level == len(REFINE) - 1
+        order = np.argsort(-tiles.count, kind="stable") if last else np.arange(len(tiles.x))
+        step = CHUNK if last else len(order)
+        split = []
+        for at in range(0, len(order), step):
+            children = tiles.take(order[at:at + step]).split(scene, child, spheres)
+            n = children.count + directional
+            best = max(best, int(n[n <= capacity].max(initial=0)))
+            split.append(children.take(np.flatnonzero(n > capacity)))
+            if last and (n > capacity).any():       # overflows: the rest keep their count
+                rest = tiles.count[order[at + step:]]
+                return max(best, int(n.max()), int(rest.max(initial=0)) + directional)
+        tiles = _Tiles(np.concatenate([t.x for t in split]),
+                       np.concatenate([t.y for t in split]), child,
+                       np.concatenate([t.light for t in split]),
+                       np.concatenate([t.count for t in split]))
+    return max(best, int(tiles.count.max(initial=0)) + directional)
 
 
 def tile_counts(scene, lights, marks: Optional[np.ndarray] = None) -> np.ndarray:
@@ -321,14 +425,16 @@ class Load:
 def load(scene, lights, capacity: int, surfaces: Surfaces, faces: str = "back",
          sky: bool = False) -> Load:
     """How many of ``lights`` a packing holding ``capacity`` must hold at one pixel, computed
-    only as far as the verdict needs: the tile bound when it fits; the lights reaching the
-    surface at the sampled pixels when they overflow it ("will"); the volumes marked at a
-    sampled pixel when they overflow it ("may", with the tile bound); else the full
-    surface's counts."""
+    only as far as the verdict needs: the tile bound, refined over the tiles it overflows
+    (``refined_bound``), when it fits; the lights reaching the surface at the sampled pixels
+    when they overflow it ("will"); the volumes marked at a sampled pixel when they overflow
+    it ("may", with the refined tile bound); else the full surface's counts."""
     if not lights:
         return Load(0, 0, True)
     marks = tile_marks(scene, lights)
     tiles = int(tile_counts(scene, lights, marks).max())
+    if tiles > capacity:
+        tiles = refined_bound(scene, lights, capacity, marks)
     if tiles <= capacity:
         return Load(tiles, None, False)
     sampled = surfaces.sampled()

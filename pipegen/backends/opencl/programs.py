@@ -149,6 +149,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     if f64:
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
+    batch = batches_lights(plan, pass_, dynamic)
     return templating.render(
         "cl_pass.cl.j2",
         technique=plan.technique, pass_name=pass_.name, prelude=prelude,
@@ -164,7 +165,32 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
-        wide_w=cl_wide.W)
+        wide_w=cl_wide.W, batch=batch)
+
+
+def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:
+    """Whether the raster kernel of ``pass_`` draws a run of lights in one launch (its
+    ``pg_batch``, ``pg_nbatch`` arguments; 0 lights: ``repeat_light`` alone).  One launch
+    gives what a launch per light gives where nothing but the light differs between the
+    draws and no draw changes what the next one tests: the pass is alone in its ``repeat per
+    light`` group (else the group's passes alternate), draws the scene (the same triangles for
+    every light), clears nothing, writes no depth or stencil, with one sample, in float32 and
+    baked state; and not a cross-triangle batch (``xbatch``: a wide pass without varyings has
+    its own loop).  Multi-pass forward's light passes: 255 launches a frame become one."""
+    if dynamic or plan.precision != "f32" or pass_.repeat_group is None:
+        return False
+    if sum(q.repeat_group == pass_.repeat_group for q in plan.passes) != 1:
+        return False
+    if pass_.draw.kind is not ir.DrawKind.SCENE or pass_.draw.shadow or pass_.clears:
+        return False
+    stencil_bits = plan.target(pass_.depth_target).format.stencil_bits \
+        if pass_.depth_target else 0
+    if plan.pass_samples(pass_) != 1 or _writes_depth(pass_) \
+            or _writes_stencil(pass_, stencil_bits, False):
+        return False
+    # with varyings the kernel is never a cross-triangle batch (xbatch needs none)
+    code = pass_.code
+    return code is not None and bool(code.fragment) and bool(varying_slots(pass_))
 
 
 def _writes_depth(pass_: PassPlan) -> bool:

@@ -182,6 +182,9 @@ class CLPipeline:
         self.device = Device(self.ctx, self.queue, [
             cl_context.build_program(self.source(k)) for k in range(len(plan.passes))])
         self.geometry = DrawGeometry(self.device, plan, tile)
+        # per pass: its raster kernel draws a run of lights in one launch (``_batched``)
+        self._batches = [cl_programs.batches_lights(plan, p, dynamic_state)
+                         for p in plan.passes]
         self.clamp_counters = cl_clamps.ClampCounters(self.ctx, self.queue, plan)
         self._clamps: Optional[list] = []
         self._presets: dict = {}
@@ -314,7 +317,8 @@ class CLPipeline:
             # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
             # frames interleaved in one process, medians of 15: light_prepass 37.9 -> 35.0
             # ms, inferred 30.8 -> 27.3, deferred_calver and deferred within 2 %)
-            prepared = [(k, light, self._prepare_pass(k, light)) for k, light in runs]
+            prepared = [(k, light, self._prepare_pass(k, light))
+                        for k, light in self._batched(runs)]
             for k, light, launch in prepared:
                 self._run_pass(k, light, launch)
         else:       # pass by pass: drained around each (profile), or read after each
@@ -403,12 +407,31 @@ class CLPipeline:
         stress runner's read perturbation wraps it)."""
         (launch or self._prepare_pass(k, light))()
 
-    def _prepare_pass(self, k: int, light: Optional[int]):
+    def _batched(self, runs: list) -> list:
+        """The schedule's pass executions ``(k, light)``, a run of consecutive executions of a
+        pass whose kernel draws a run of lights in one launch (``programs.batches_lights``)
+        as one ``(k, (light, ...))``."""
+        out: list = []
+        for k, light in runs:
+            if self._batches[k] and out and out[-1][0] == k:
+                out[-1] = (k, out[-1][1] + (light,))
+            else:
+                out.append((k, (light,) if self._batches[k] else light))
+        return out
+
+    def _prepare_pass(self, k: int, light):
         """The host work of a pass execution (its set-up triangles and bins); returns the
-        function that queues its device work (clears, resolves, the raster kernel) in order."""
+        function that queues its device work (clears, resolves, the raster kernel) in order.
+        ``light``: a tuple of lights for a run drawn in one launch (``_batched``; its timing
+        has ``lights``, their number)."""
         p = self.plan.passes[k]
         width, height = self._pass_size(p)
+        batch = light if isinstance(light, tuple) else None
+        if batch is not None:
+            light = batch[0]
         timing = {"pass": p.name, "light": light}
+        if batch is not None:
+            timing["lights"] = len(batch)
         self.last_timings.append(timing)
         lights, drawn = None, None
         if p.draw.kind is ir.DrawKind.LIGHTS:
@@ -425,14 +448,16 @@ class CLPipeline:
             for name, c in p.clears:
                 self.store.clear_for_pass(name, c)
             if drawn is not None:
-                self._launch(k, p, light, timing, width, height, drawn, frame_buf, frame64_buf)
+                self._launch(k, p, light, timing, width, height, drawn, frame_buf, frame64_buf,
+                             batch)
         return launch
 
     def _launch(self, k: int, p: PassPlan, light: Optional[int], timing: dict, width: int,
-                height: int, drawn: tuple, frame_buf, frame64_buf) -> None:
+                height: int, drawn: tuple, frame_buf, frame64_buf,
+                batch: Optional[tuple] = None) -> None:
         """Queue a pass's raster kernel (``drawn``: its geometry and bins; nothing when no
-        tile has a triangle).  Bins built on the device tell their number of tiles when
-        their binning has run: this waits for it."""
+        tile has a triangle), for ``light`` or the lights of ``batch``.  Bins built on the
+        device tell their number of tiles when their binning has run: this waits for it."""
         import pyopencl as cl
         geo, tb = drawn
         if not tb.ntiles:
@@ -448,6 +473,9 @@ class CLPipeline:
                 bufs["zp"], bufs["zq"], bufs["flat"], bufs["vtx"], bufs["scissor"],
                 bufs["bbox"], bufs["vary"], np.int32(geo.tris.nverts), frame_buf,
                 self._lights_buf, st, np.uint32(light or 0)]
+        if self._batches[k]:        # the run of lights (none: ``light`` alone)
+            args += [dev.buffer(np.asarray(batch, np.uint32)) if batch else dev.dummy,
+                     np.int32(len(batch) if batch else 0)]
         for name in p.writes:
             args.append(self._targets[name].buf)
         for name in p.writes:

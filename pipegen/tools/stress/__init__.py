@@ -23,22 +23,27 @@ DEFAULT_SIZE = (96, 64)
 
 
 def stress(compiled, base=None, cases: Optional[str] = None, size=DEFAULT_SIZE,
-           progress: Callable[[str], None] = lambda msg: None):
+           progress: Callable[[str], None] = lambda msg: None, general: bool = False,
+           path=None):
     """Run the named cases (``cases``: comma-separated names or groups, None: all) of
     ``compiled`` (a ``Compiled`` or a technique path) on ``base`` (a loaded ``Scene``, a scene
-    path, or None: the built-in scene) at ``size`` (None: the scene's): ``[CaseResult]``."""
+    path, or None: the built-in scene) at ``size`` (None: the scene's): ``[CaseResult]``.
+    Each case is rendered by the variant compiled for its scene (``general``: by the general
+    build); ``path``: the ``.pipe`` file of a ``Compiled``, so that variants shrink the
+    light table as ``pipegen run`` does."""
     import os
     from pipegen.scene.load import default_scene, load_scene
     from pipegen.tools.stress.cases import build, case_names
     from pipegen.tools.stress.run import Stress
     if isinstance(compiled, (str, os.PathLike)):
         from pipegen.compiler.driver import compile_file
+        path = compiled
         compiled = compile_file(compiled)
     if isinstance(base, (str, os.PathLike)):
         base = load_scene(base)
     base = base if base is not None else default_scene()
     base = base.with_size(*size) if size else base
-    runner = Stress(compiled)
+    runner = Stress(compiled, general=general, path=path)
     out = []
     for case in build(base, case_names(cases)):
         progress(case.name)

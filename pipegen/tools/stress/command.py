@@ -56,6 +56,11 @@ def add_parser(sub, size_arg, output_note: str):
                         "own float64 evaluation's): " + REFERENCE_HELP)
     p.add_argument("--reference-samples", type=int, default=1, metavar="N",
                    help=SAMPLES_HELP)
+    p.add_argument("--general", action="store_true",
+                   help="render every case with the general build, compiled for every scene "
+                        "(default: each case with the variant compiled for its scene's "
+                        "features, one per distinct set of features, as pipegen run renders "
+                        "that scene; docs/specialise.md)")
     p.add_argument("-o", "--out", metavar="DIR",
                    help="folder for worst-pixel PNGs and failing scenes (default: "
                         "build/stress/<technique>)")
@@ -94,7 +99,7 @@ def cmd_stress(args) -> int:
 
     reference = choose_reference(args.reference, compiled, args.reference_samples) \
         if measured else None
-    runner = Stress(compiled, reference=reference)
+    runner = Stress(compiled, reference=reference, general=args.general, path=args.file)
     results = []
     for case in build(base, names) if names else []:
         say(case.name)
@@ -106,7 +111,7 @@ def cmd_stress(args) -> int:
         results += randoms
     print(f"{compiled.name}: stress on {base.name} at {size[0]}x{size[1]} "
           f"({len(results)} cases; error of each float32 target against the float64 "
-          f"evaluation, divided by its bound)")
+          f"evaluation, divided by its bound; {runner.builds_text()})")
     print(report.table(results))
     for line in report.notes(results):
         print(f"note: {line}")

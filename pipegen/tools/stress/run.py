@@ -2,8 +2,10 @@
 float32 backends against the float64 values within the bound of the tolerance model
 (``pipegen.proof``: ``f64_bound.py``, ``f64_compare.py``; docs/tolerances.md).
 
-``Stress(compiled)`` holds one pipeline per backend (built once, reused for every case);
-``Stress.run_case(case) -> CaseResult``.  A case the technique cannot render as the scene asks
+``Stress(compiled)`` renders each case with the variant compiled for the case's scene (as
+``pipegen run`` would render that scene; ``general=True``: the general build), one per set
+of facts (``ir.SceneFacts``), each with one pipeline per backend and its float64 bound, built
+once and reused by every case with those facts; ``Stress.run_case(case) -> CaseResult``.  A case the technique cannot render as the scene asks
 (``features.mismatches``: light types, translucency, light-index capacity, the light table) is
 rendered where possible and reported with its mismatches and dropped lights, its bounds not
 counted (``status == "unsupported"``).
@@ -60,28 +62,66 @@ class CaseResult:
         return self.status == "FAIL"
 
 
+@dataclass
+class Build:
+    """One build a case renders: the compiled technique, its bound (``F64Bound``, with the
+    float64 pipeline) and a pipeline per float32 backend."""
+    compiled: object
+    bound: F64Bound
+    pipes: dict
+
+    @property
+    def info(self):
+        return self.bound.info
+
+    @property
+    def f64(self):
+        return self.bound.f64
+
+
 class Stress:
-    def __init__(self, compiled, per_channel: bool = True, reference=None):
+    def __init__(self, compiled, per_channel: bool = True, reference=None,
+                 general: bool = False, path=None):
         """``per_channel``: perturb each channel of the read targets in turn (2 renders per
         channel and level of reads); False: all channels at once (2 renders per level).
         ``reference`` (``proof.references.Reference``): also measure each case's output
         against it (``CaseResult.vs_reference``); the bounds stay the technique's own
-        float64 evaluation's."""
+        float64 evaluation's.  ``general``: render every case with ``compiled`` itself
+        instead of the variant compiled for its scene; ``path``: the ``.pipe`` file, so
+        that the variants' light tables shrink (``driver.for_scene``)."""
         from pipegen.compiler.capabilities import capabilities
-        self.compiled = compiled
+        self.compiled = compiled          # the general build: names, mismatches, capacities
         self.reference = reference
-        self.bound = F64Bound(compiled, per_channel)
-        self.info = self.bound.info
-        self.f64 = self.bound.f64
-        self.pipes = {b: compiled.pipeline(b) for b in BACKENDS}
+        self.per_channel, self.general, self.path = per_channel, general, path
         self.caps = capabilities(compiled.technique)
+        self._builds: dict = {}           # facts (None: the general build) -> Build
 
-    def bounds(self, scene, f64: dict, blends: dict) -> tuple[dict, dict]:
-        """Per target key: the bound (value units, the f64 array's shape), and its parts."""
-        return self.bound.bounds(scene, f64, blends)
+    def build(self, scene) -> Build:
+        """The build that renders ``scene``: the variant compiled for it (one per facts), or
+        with ``general`` the general build."""
+        from pipegen.compiler.driver import for_scene
+        from pipegen.scene.features import scene_features
+        key = None if self.general else scene_features(scene).facts()
+        if key not in self._builds:
+            compiled = for_scene(self.compiled, scene, self.general, self.path)
+            self._builds[key] = Build(compiled, F64Bound(compiled, self.per_channel),
+                                      {b: compiled.pipeline(b) for b in BACKENDS})
+        return self._builds[key]
+
+    def builds(self) -> list:
+        """The builds (``Compiled``) that rendered the cases so far, one per set of facts."""
+        return [b.compiled for b in self._builds.values()]
+
+    def builds_text(self) -> str:
+        """Which builds rendered the cases so far, for the report's first line."""
+        if self.general:
+            return "the general build (--general)"
+        n = len(self._builds)
+        return (f"each case rendered by the variant compiled for its scene: {n} variant"
+                f"{'s' * (n != 1)}; --general renders the general build")
 
     # -- lights dropped ----------------------------------------------------------------------
-    def dropped(self, scene) -> str:
+    def dropped(self, scene, build: Build) -> str:
         caps = self.caps
         if not caps.index_packings and not caps.slot_packings:
             return "-"
@@ -102,7 +142,7 @@ class Stress:
             n = np.maximum(n, 0)
             out.append(f"{pack}: <={int(n.max())}/px on {int((n > 0).sum())} px")
         for pack, slots, types in caps.slot_packings:
-            lost = self.pipes["cl"].dropped_lights.get(pack, [])
+            lost = build.pipes["cl"].dropped_lights.get(pack, [])
             if lost:
                 sub = dataclasses.replace(scene, lights=tuple(scene.lights[i] for i in lost))
                 n = lights_per_pixel(g, sub)
@@ -113,12 +153,12 @@ class Stress:
         return "; ".join(out) or "0"
 
     # -- against the chosen reference ----------------------------------------------------------
-    def vs_reference(self, scene, renders: dict) -> dict:
+    def vs_reference(self, scene, renders: dict, compiled) -> dict:
         """backend -> the output's error figures against the reference on ``scene`` (the
         worst pixel located); ``{"error": message}`` when the reference cannot render it."""
         from pipegen.proof.accuracy import codes_vs_reference, output_codes
         try:
-            return {b: codes_vs_reference(output_codes(self.compiled, renders[b]),
+            return {b: codes_vs_reference(output_codes(compiled, renders[b]),
                                           self.reference, scene, worst=1) for b in BACKENDS}
         except PipegenError as e:
             return {"error": e.message}
@@ -131,33 +171,35 @@ class Stress:
                          (scene.width, scene.height), "ok", scene=scene)
         res.mismatches = [m.message for m in self.compiled.mismatches(scene)]
         try:
-            renders = {b: self.pipes[b].render(scene) for b in BACKENDS}
-            f64 = self.f64.render(scene)
+            build = self.build(scene)
+            compiled = build.compiled
+            renders = {b: build.pipes[b].render(scene) for b in BACKENDS}
+            f64 = build.f64.render(scene)
         except PipegenError as e:
             res.status = "not rendered"
             res.mismatches.append(e.message if hasattr(e, "message") else str(e))
             res.seconds = time.perf_counter() - t0
             return res
-        blends = getattr(self.pipes["cl"], "last_blend_counts", {}) or {}
+        blends = getattr(build.pipes["cl"], "last_blend_counts", {}) or {}
         res.nonfinite = {b: finite_counts(renders[b], False) for b in BACKENDS}
         res.nonfinite["f64"] = finite_counts(f64, True)
         from pipegen.proof.check import compare_targets, explain_disagreements
-        rows = compare_targets(self.compiled, renders["gl"], renders["cl"], len(scene.lights),
+        rows = compare_targets(compiled, renders["gl"], renders["cl"], len(scene.lights),
                                counts=blends)
         if not all(r.passed for r in rows):
-            rows = explain_disagreements(self.compiled, scene, renders["gl"], renders["cl"],
+            rows = explain_disagreements(compiled, scene, renders["gl"], renders["cl"],
                                          rows, blends, f64)
         res.agree = all(r.passed for r in rows)
         res.disagree = [r.name for r in rows if not r.passed]
-        res.dropped = self.dropped(scene)
+        res.dropped = self.dropped(scene, build)
         if self.reference is not None:
-            res.vs_reference = self.vs_reference(scene, renders)
-        bound, parts = self.bounds(scene, f64, blends)
-        rows = compare_with_f64(self.compiled, scene, renders, f64, bound, blends)
+            res.vs_reference = self.vs_reference(scene, renders, compiled)
+        bound, parts = build.bound.bounds(scene, f64, blends)
+        rows = compare_with_f64(compiled, scene, renders, f64, bound, blends)
         res.targets = [row for b in BACKENDS for row in rows[b]]
         from pipegen.proof.why import why_over
         said = f"{case.name} ({case.description})" if case.description else case.name
-        res.why = [w for w in (why_over(t, self.bound.part_maps, self.info, said)
+        res.why = [w for w in (why_over(t, build.bound.part_maps, build.info, said)
                                for t in res.targets) if w]
         if keep_images:
             res.images = {"gl": renders["gl"], "f64": f64, "bound": bound, "parts": parts}

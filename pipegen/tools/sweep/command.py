@@ -68,6 +68,8 @@ def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run renders on a Dask distributed cluster, e.g. tcp://HOST:8786 "
                         "(pip install 'pipegen[dask]')")
+    from pipegen.compiler.driver import GENERAL_HELP
+    p.add_argument("--general", action="store_true", help=GENERAL_HELP)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.add_argument("--force", action="store_true",
                    help="write into an output folder that holds files pipegen did not write")
@@ -102,6 +104,8 @@ def command_line(args) -> str:
         value = getattr(args, flag, None)
         if value is not None and not (flag == "reference_samples" and value == 1):
             words += ["--" + flag.replace("_", "-"), str(value)]
+    if getattr(args, "general", False):
+        words += ["--general"]
     words += ["-o", str(args.out)]
     return " ".join(shlex.quote(w) for w in words)
 
@@ -124,7 +128,7 @@ def cmd_sweep(args) -> int:
     result = run_sweep(args.files, args.scene, args.size, axes, args.backend, args.frames,
                        args.jobs, args.scheduler, max(1, args.threads),
                        progress=not args.no_progress, reference=args.reference,
-                       reference_samples=args.reference_samples)
+                       reference_samples=args.reference_samples, general=args.general)
     result.command = command_line(args)
     write_outputs(result, out)
     print(result.summary(), end="")

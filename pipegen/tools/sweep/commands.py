@@ -17,9 +17,10 @@ def _path(p: str) -> str:
 
 def row_command(file: str, params: tuple, backend: str, spec: dict, size: tuple[int, int],
                 frames: int, reference: Optional[str] = None,
-                reference_samples: int = 1) -> str:
-    """``pipegen sweep FILE --scene S --size WxH -p k=v ... --backend B --frames N -o DIR``;
-    a scene given as a loaded ``Scene`` has no path: ``--scene`` then names a placeholder."""
+                reference_samples: int = 1, general: bool = False) -> str:
+    """``pipegen sweep FILE --scene S --size WxH -p k=v ... --backend B --frames N -o DIR``
+    (and ``--general`` when the row is of the general build); a scene given as a loaded
+    ``Scene`` has no path: ``--scene`` then names a placeholder."""
     from pipegen.tools.sweep.variants import value_text
     args = ["pipegen", "sweep", _path(file)]
     if spec.get("path"):
@@ -34,5 +35,7 @@ def row_command(file: str, params: tuple, backend: str, spec: dict, size: tuple[
         args += ["--reference", reference]
     if reference_samples and reference_samples > 1:
         args += ["--reference-samples", str(reference_samples)]
+    if general:
+        args += ["--general"]
     args += ["-o", "out/sweep-row"]
     return " ".join(shlex.quote(a) for a in args)

@@ -117,22 +117,25 @@ def render_job(job: dict) -> dict:
     """Render one variant on each backend and measure it (``pipegen.tools.sweep``, phase 1).
 
     ``job``: ``file``, ``params`` ({name: value}), ``scene`` (``scene_spec``), ``backends``,
-    ``f64`` (ask for the f64 evaluation), ``reference`` (``reference_data``).  Returns plain
+    ``f64`` (ask for the f64 evaluation), ``reference`` (``reference_data``), ``general``
+    (render the general build; else the variant compiled for the scene, as ``pipegen run``:
+    compiled here, once per process and facts).  Returns plain
     data: ``metrics`` {backend: {...}, the *_scene errors against the reference, ``worst``,
     ``targets``: the intermediate targets' errors (``intermediate_errors``)},
     ``agree`` (None with fewer than both backends), ``disagree`` (targets over tolerance),
     ``maps`` {backend: PNG bytes of the error map}, ``images`` {backend: PNG bytes of the
     output}, ``notes``, ``clamps`` (the CL frame's ``Clamp`` records as dicts, ``warned``
-    added: not the output's highlights).
+    added: not the output's highlights), ``technique`` (the IR of the variant rendered, for
+    its memory and bandwidth figures; None for the general build, which the parent has).
     """
     from pipegen.proof import accuracy
-    from pipegen.compiler.driver import compile_file
-
     scene = load_spec_scene(job["scene"])
-    compiled = compile_file(job["file"], job["params"] or None)
-    ref = job_reference(job, compiled)
+    general = compile_variant(job["file"], job["params"], scene, True)
+    ref = job_reference(job, general)
     ref_rgb = ref.output_rgb(scene)            # float64, top row first: errors against it
-    notes = [m.message for m in compiled.mismatches(scene)]
+    notes = [m.message for m in general.mismatches(scene)]   # worded as run words them
+    compiled = compile_variant(job["file"], job["params"], scene, job.get("general", False),
+                               general)
     renders, pipes = {}, {}
     try:
         for b in job["backends"]:
@@ -182,7 +185,18 @@ def render_job(job: dict) -> dict:
     from pipegen.proof.clamps import record
     output = compiled.technique.output
     return dict(metrics=metrics, agree=agree, disagree=disagree, maps=maps, images=images,
-                notes=notes, clamps=[record(c, output) for c in clamps])
+                notes=notes, clamps=[record(c, output) for c in clamps],
+                technique=compiled.technique if compiled is not general else None)
+
+
+def compile_variant(file: str, params: Optional[dict], scene, general: bool, base=None):
+    """What a sweep renders of ``file`` with ``params`` on ``scene``: the variant compiled for
+    the scene (``driver.for_scene``, cached in this process by facts, its light table shrunk
+    from the file), or with ``general`` the general build.  ``base``: the general build,
+    when already compiled."""
+    from pipegen.compiler.driver import compile_file, for_scene
+    base = base or compile_file(file, params or None)
+    return for_scene(base, scene, general, file)
 
 
 def intermediate_errors(compiled, targets: dict, ref, scene, f64_values) -> tuple[list, list]:
@@ -218,7 +232,8 @@ RENDER_ENV = {"LP_NUM_THREADS": "1", "POCL_MAX_PTHREAD_COUNT": "1"}
 
 def time_job(job: dict) -> dict:
     """Time every variant in one fresh Python process (``pipegen.tools.sweep``, phase 2).
-    ``job``: ``variants`` [{file, params}], ``scene``, ``backends``, ``frames``, ``threads``.
+    ``job``: ``variants`` [{file, params}], ``scene``, ``backends``, ``frames``, ``threads``,
+    ``general`` (time the general builds; else each variant compiled for the scene).
     Returns ``{"ms": [{backend: median ms}, ...] (per variant), "q1", "q3" (the quartiles,
     alike), "cpu_ms", "how": text}``."""
     env = child_env(LP_NUM_THREADS=str(job["threads"]),
@@ -292,14 +307,13 @@ def timing_main() -> int:
     pinned = cpus[:threads]
     if pinned:
         os.sched_setaffinity(0, pinned)
-    from pipegen.compiler.driver import compile_file
     scene = load_spec_scene(job["scene"])
     backends, frames = job["backends"], int(job["frames"])
     pipes = []                                  # per variant {backend: (pipeline, frame fn)}
     bar = progress_bar(len(job["variants"]) * len(backends) * (frames + 1), "timing",
                        job.get("progress", True))
     for v in job["variants"]:
-        compiled = compile_file(v["file"], v["params"] or None)
+        compiled = compile_variant(v["file"], v["params"], scene, job.get("general", False))
         row = {}
         for b in backends:
             p = compiled.pipeline(b)

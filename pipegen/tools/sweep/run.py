@@ -28,6 +28,14 @@ F64_NOTE = ("f64 columns are empty: this compiler's Compiled.pipeline does not t
             "precision='f64' yet")
 
 
+BUILD_NOTE = {
+    False: "every variant rendered and timed as compiled for the scene (culled passes, "
+           "targets and branches never run, as pipegen run renders it; --general: the general "
+           "builds)",
+    True: "every variant rendered and timed as its general build (--general), not as "
+          "compiled for the scene"}
+
+
 def f64_supported() -> bool:
     """Does ``Compiled.pipeline`` take ``precision`` (the f64 evaluation)?"""
     import inspect
@@ -39,7 +47,8 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
               axes: Optional[dict] = None, backends=BACKEND_ORDER, frames: int = 5,
               jobs: Optional[int] = None, scheduler: Optional[str] = None,
               threads: int = DEFAULT_THREADS, progress: bool = True,
-              reference: Optional[str] = None, reference_samples: int = 1) -> SweepResult:
+              reference: Optional[str] = None, reference_samples: int = 1,
+              general: bool = False) -> SweepResult:
     """Sweep ``files`` (the package docstring) and return the rows; nothing is written.
 
     ``files``: technique paths (str or Path); ``scene``: a scene path, a loaded ``Scene``
@@ -47,7 +56,9 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
     or None for the scene's; ``axes``: {name: [values]} (``variants.parse_axes``) or None for
     the declared ones; ``reference``: what the errors are measured against, ``scene``,
     ``self`` or ``FILE.pipe[:name=value,...]`` (``proof.references``; None: each technique's
-    default), evaluated at ``reference_samples`` x ``reference_samples`` per pixel.  Works
+    default), evaluated at ``reference_samples`` x ``reference_samples`` per pixel;
+    ``general``: render and time the general builds (else, as ``pipegen run``, each variant
+    compiled for the scene, in the render and timing processes).  Works
     from a notebook or a script on standard input: the render processes import only pipegen
     (``worker.py``)."""
     backends = tuple(backends)
@@ -58,7 +69,7 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
     spec = scene_spec(scene, size)
     s = load_spec_scene(spec, say=lambda text: print(text, file=sys.stderr))
     use_f64 = f64_supported()
-    notes = []
+    notes = [BUILD_NOTE[general]]
     if not use_f64:
         notes.append(F64_NOTE)
     if 0 < frames < 3:
@@ -69,7 +80,8 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
     if FLIP_NOTE:
         notes.append(FLIP_NOTE)
     job_list = [dict(file=v.file, params=dict(v.params), scene=spec, backends=list(backends),
-                     f64=use_f64, reference=reference_data(refs[v.technique].spec))
+                     f64=use_f64, reference=reference_data(refs[v.technique].spec),
+                     general=general)
                 for v in variants]
     pool = DaskPool(scheduler) if scheduler else \
         LocalPool(max(1, jobs or len(available_cpus())))
@@ -84,7 +96,7 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
             timing = pool.run_alone(time_job, dict(
                 variants=[dict(file=v.file, params=dict(v.params)) for v in variants],
                 scene=spec, backends=list(backends), frames=frames, threads=threads,
-                progress=progress))
+                progress=progress, general=general))
             ms, cpu_ms, how = timing["ms"], timing["cpu_ms"], timing["how"]
             q1, q3 = timing["q1"], timing["q3"]
             how = how.replace("in one fresh process", "after every render job had finished, "
@@ -98,7 +110,7 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
 
     rows, maps, images = [], {}, {}
     for v, res in zip(variants, results):
-        tech = compiled[v.index].technique
+        tech = res.get("technique") or compiled[v.index].technique   # the build rendered
         tb = technique_bytes(tech, s.width, s.height)
         memory = {b: technique_memory(tech, s.width, s.height, SHARING[b]) for b in backends}
         bandwidth = frame_bandwidth(tech, s)
@@ -116,7 +128,7 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
                        notes="; ".join(res["notes"]), reference=refs[v.technique].label,
                        error_map=f"errors/{name}", image=f"images/{name}", worst=[],
                        command=row_command(v.file, v.params, b, spec, (s.width, s.height),
-                                           frames, reference, reference_samples))
+                                           frames, reference, reference_samples, general))
             row.update({k: m[k] for k in m})
             row["target_errors"] = target_errors_text(m.get("targets", []))
             if b == "cl":               # the CL backend counts what the formats clamp

@@ -57,6 +57,8 @@ def add_parser(sub, size_arg, output_note: str):
                    help="timed frames per configuration, median taken (default: 5)")
     p.add_argument("--stress", default="quick", metavar="CASES",
                    help="stress cases run at the pick (default: quick; none: skip)")
+    from pipegen.compiler.driver import GENERAL_HELP
+    p.add_argument("--general", action="store_true", help=GENERAL_HELP)
     p.add_argument("-o", "--out", metavar="DIR", help="write DIR/tune.json")
     p.add_argument("--force", action="store_true",
                    help="write into an output folder that holds files pipegen did not write")
@@ -87,11 +89,11 @@ def cmd_tune(args) -> int:
         from pipegen.tools.sweep.variants import parse_axes
         axes = parse_axes(args.param)
     r = tune(args.file, list(args.scene), budget, args.reference, args.minimise,
-             args.backend, args.size, args.frames, axes=axes, say=say)
+             args.backend, args.size, args.frames, axes=axes, say=say, general=args.general)
     print(report(r))
     stress = None
     if r.pick is not None and args.stress != "none":
-        stress = run_stress(r, args.scene[0], args.stress, say)
+        stress = run_stress(r, args.scene[0], args.stress, say, args.general)
         print(stress["line"])
     if out is not None:
         with out.staging() as tmp:
@@ -100,12 +102,14 @@ def cmd_tune(args) -> int:
     return 0 if r.pick is not None else 1
 
 
-def run_stress(r: TuneResult, scene_file: str, cases: str, say) -> dict:
-    """``stress`` at the pick on the first scene: counts by status and the failing cases."""
+def run_stress(r: TuneResult, scene_file: str, cases: str, say, general: bool = False) -> dict:
+    """``stress`` at the pick on the first scene: counts by status and the failing cases
+    (each case rendered by its scene's variant, or with ``general`` the general build)."""
     from pipegen.scene.load import load_scene
     from pipegen.tools.stress import DEFAULT_SIZE, stress
     try:
-        results = stress(r.compiled_pick, load_scene(scene_file), cases=cases, progress=say)
+        results = stress(r.compiled_pick, load_scene(scene_file), cases=cases, progress=say,
+                         general=general, path=r.file)
     except RuntimeError as exc:          # a backend that cannot build the pick: said, and the
         first = str(exc).splitlines()[0]  # answer above stands
         return dict(cases=cases, counts={}, failed=[], error=first,
@@ -118,7 +122,8 @@ def run_stress(r: TuneResult, scene_file: str, cases: str, say) -> dict:
             f"{DEFAULT_SIZE[0]}x{DEFAULT_SIZE[1]}): "
             + ", ".join(f"{n} {s}" for s, n in counts.items())
             + (f"; bound broken in {', '.join(failed)} (pipegen stress {r.file} "
-               f"{_params_flags(r.pick.params)} --cases {','.join(failed)})" if failed else ""))
+               f"{_params_flags(r.pick.params)} --cases {','.join(failed)}"
+               f"{' --general' if general else ''})" if failed else ""))
     return dict(cases=cases, counts=counts, failed=failed, line=line)
 
 

@@ -2,7 +2,9 @@
 each scene (every render counted), its output's error against the reference, the lights its
 light-index packings drop, its target memory and, when asked, its frame time.
 
-Target memory (``ir.memory.technique_bytes`` at the first scene's size) and the lights dropped
+Each scene is rendered, as ``pipegen run`` renders it, by the variant compiled for it
+(``driver.for_scene``; the general build with ``general``).  Target memory (``ir.memory.
+technique_bytes`` of the build rendered on the first scene, at its size) and the lights dropped
 by a light-index packing (a float64 rasterisation of the scene: how many lights reach each
 pixel against what the packing holds) need no render; the error figures do.
 """
@@ -90,10 +92,10 @@ class Evaluator:
     frames timed."""
 
     def __init__(self, file: str, scenes: list, reference: Reference, backend: str = "gl",
-                 frames: int = 5):
+                 frames: int = 5, general: bool = False):
         from pipegen.compiler.driver import compile_file
         self.file, self.scenes, self.reference = file, scenes, reference
-        self.backend, self.frames = backend, frames
+        self.backend, self.frames, self.general = backend, frames, general
         self.compile = compile_file
         self.renders = 0
         self.timed_frames = 0
@@ -107,6 +109,12 @@ class Evaluator:
             self._compiled[k] = self.compile(self.file, dict(params) or None)
         return self._compiled[k]
 
+    def rendered(self, params: dict, scene):
+        """The build that renders ``scene``: the variant compiled for it (cached per process
+        by facts), or the general build with ``general``."""
+        from pipegen.compiler.driver import for_scene
+        return for_scene(self.compiled(params), scene, self.general, self.file)
+
     # -- free figures ----------------------------------------------------------------------
     def measured(self, key: tuple, params: dict) -> Measured:
         """The configuration with what needs no render: memory and (index packings) lights
@@ -115,7 +123,8 @@ class Evaluator:
             from pipegen.ir.memory import technique_bytes
             c = self.compiled(params)
             s0 = self.scenes[0]
-            m = Measured(key, dict(params), technique_bytes(c.technique, s0.width, s0.height))
+            m = Measured(key, dict(params), technique_bytes(self.rendered(params, s0).technique,
+                                                            s0.width, s0.height))
             dropped = self.index_dropped(c)
             if dropped is not None:
                 m.figures["lights_dropped"] = dropped
@@ -159,10 +168,10 @@ class Evaluator:
         if m.rendered:
             return m
         from pipegen.proof import accuracy
-        c = self.compiled(params)
         slot_lost = 0
         for scene in self.scenes:
-            notes = [x.message for x in c.mismatches(scene)]
+            notes = [x.message for x in self.compiled(params).mismatches(scene)]
+            c = self.rendered(params, scene)
             pipe = c.pipeline(self.backend)
             try:
                 targets = pipe.render(scene)
@@ -205,7 +214,7 @@ class Evaluator:
         pipes, fns = [], {}
         try:
             for m in measured:
-                p = self.compiled(m.params).pipeline(self.backend)
+                p = self.rendered(m.params, scene).pipeline(self.backend)
                 pipes.append(p)
                 fns[m.key] = (lambda p=p: p.frame(scene)) if hasattr(p, "frame") else \
                     (lambda p=p: p.render(scene))

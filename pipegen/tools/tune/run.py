@@ -34,12 +34,13 @@ def load_scenes(scenes: list, size: Optional[tuple] = None, say=None) -> list:
 def tune(file: str, scenes: list, budget, reference: Optional[str] = None,
          minimise: str = "memory", backend: str = "gl", size: Optional[tuple] = None,
          frames: int = 5, samples: int = 1, axes: Optional[dict] = None,
-         say: Callable[[str], None] = lambda text: None) -> TuneResult:
+         say: Callable[[str], None] = lambda text: None, general: bool = False) -> TuneResult:
     """The cheapest configuration of ``file``'s declared parameter values within ``budget``
     (text or ``budget.Budget``) on every scene (search.py's docstring).  ``axes``: {name:
-    [values]} searched instead of a parameter's declared values.  Nothing is written."""
+    [values]} searched instead of a parameter's declared values; ``general``: render the
+    general builds (else each scene's variant, as ``pipegen run``).  Nothing is written."""
     search = _search(file, scenes, budget, reference, minimise, backend, size, frames,
-                     samples, axes, say)
+                     samples, axes, say, general)
     return _finish(search, search.run())
 
 
@@ -58,7 +59,7 @@ def exhaustive(file: str, scenes: list, budget, reference: Optional[str] = None,
 
 
 def _search(file, scenes, budget, reference, minimise, backend, size, frames, samples, axes,
-            say) -> Search:
+            say, general: bool = False) -> Search:
     from pipegen.compiler.driver import compile_file
     from pipegen.tools.sweep.variants import declared_axes
     if minimise not in MINIMISE:
@@ -80,7 +81,7 @@ def _search(file, scenes, budget, reference, minimise, backend, size, frames, sa
                            hint="declare them: param x = a in {a, b, c}")
     loaded = load_scenes(scenes, size, say)
     ref = Reference(reference, base, samples)
-    ev = Evaluator(file, loaded, ref, backend, frames)
+    ev = Evaluator(file, loaded, ref, backend, frames, general)
     search = Search(ev, axes, budget, minimise, say)
     search.loaded, search.ref = loaded, ref
     return search
@@ -90,6 +91,9 @@ def _finish(search: Search, result: TuneResult) -> TuneResult:
     ev, ref, loaded, file = search.ev, search.ref, search.loaded, search.ev.file
     base = ev.compiled({})
     result.notes += [f"reference: {ref.describe}"] + ([ref.why] if ref.why else [])
+    result.notes.append("each scene rendered by the general build (--general)" if ev.general
+                        else "each scene rendered by the variant compiled for it, as pipegen "
+                             "run renders it (--general: the general build)")
     result.technique, result.file, result.reference = base.name, str(file), ref.label
     result.scenes = [f"{s.name} ({s.width}x{s.height})" for s in loaded]
     result.backend = ev.backend
