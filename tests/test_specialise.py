@@ -363,3 +363,18 @@ def test_a_variant_without_the_shrunk_table_is_not_reused_for_one_with_it():
     assert shrunk.technique.lights.capacity == 4 and not shrunk.specialisation.reused
     again = compile_file(ROOT / "pipelines/forward.pipe").specialise(small)
     assert again.technique.lights.capacity == 128 and again.specialisation.reused
+
+
+def test_a_pass_looping_over_the_light_table_reaches_every_light_type():
+    """StarCraft II's layout forward-lits directional lights in its G-buffer pass (a loop over
+    the light table) and draws volumes for the rest: no light type is reported undrawn.  A
+    LIDR's loop over the indices its packing holds is not such a loop: its directional lights
+    are covered by their own index buffer, not by this rule."""
+    from pipegen.compiler.capabilities import _table_loop_passes, capabilities
+    from pipegen.compiler.driver import compile_file
+    root = Path(__file__).resolve().parents[1]
+    sc2 = compile_file(str(root / "examples/techniques/starcraft2_gbuffer.pipe")).technique
+    assert [p.name for p in _table_loop_passes(sc2)] == ["gbuffer"]
+    assert dict(capabilities(sc2).light_types)["directional"] == "rendered"
+    lidr = compile_file(str(root / "pipelines/lidr_bitplanes.pipe")).technique
+    assert _table_loop_passes(lidr) == []

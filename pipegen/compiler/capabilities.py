@@ -67,18 +67,57 @@ def _light_fields_read(tech: ir.Technique, passes) -> set[str]:
     return fields
 
 
+def _loop_vars(stmts) -> set[str]:
+    """The variables of the ``for`` loops in a statement list, nested ones included."""
+    found: set[str] = set()
+    for st in stmts:
+        if isinstance(st, ir.For):
+            found.add(st.var)
+            found |= _loop_vars(st.body)
+        elif isinstance(st, ir.If):
+            found |= _loop_vars(st.then) | _loop_vars(st.other)
+    return found
+
+
+def _indexes_by(e: Optional[ir.Expr], names: set[str]) -> bool:
+    """``e`` is one of ``names``, or a conversion of one (``lights[uint(i)]``)."""
+    while isinstance(e, ir.Construct) and len(e.args) == 1:
+        e = e.args[0]
+    return isinstance(e, ir.Var) and e.name in names
+
+
+def _table_loop_passes(tech: ir.Technique) -> list[ir.Pass]:
+    """Passes that are not light draws and loop over the light table itself (``for (int i
+    ...) ... lights[i]``, in the pass or a function it calls): every light reaches their
+    pixels, whatever light volumes other passes draw (a G-buffer pass that forward-lits the
+    directional lights, StarCraft II's).  A loop over indices a packing holds (the LIDRs'
+    ``lights[unpack(...)]``) is not one."""
+    out = []
+    for p in tech.passes:
+        if p.draw.kind is ir.DrawKind.LIGHTS:
+            continue
+        for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]:
+            loops = _loop_vars(stmts)
+            if loops and any(isinstance(e, ir.LightField) and _indexes_by(e.index, loops)
+                             for e in irwalk.walk_exprs(stmts)):
+                out.append(p)
+                break
+    return out
+
+
 def capabilities(tech: ir.Technique) -> Capabilities:
     has_table = bool(tech.lights.fields)
     volumes = [p for p in tech.passes if p.draw.kind is ir.DrawKind.LIGHTS]
     repeats = [p for p in tech.passes if p.repeat_per_light and p.draw.kind is not
                ir.DrawKind.LIGHTS]
     fields = _light_fields_read(tech, tech.passes)
+    table_loops = _table_loop_passes(tech)
     out = []
     for t in LIGHT_TYPES:
         if volumes:       # light volumes decide which pixels a light reaches
             covered = any(_types_match(p.draw.light_types, t) and _types_match(p.repeat_types, t)
                           and _volume_fills(p.draw.volume, t) for p in volumes) or any(
-                _types_match(p.repeat_types, t) for p in repeats)
+                _types_match(p.repeat_types, t) for p in repeats) or bool(table_loops)
         else:             # light-table loops and per-light full passes reach every pixel
             covered = has_table
         if not has_table:
