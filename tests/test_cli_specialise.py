@@ -101,8 +101,8 @@ def test_compile_with_a_scene_writes_the_reasons(capsys, tmp_path):
     assert main(["compile", tech("inferred"), "--scene", scene("small"), "-o", str(out)]) == 0
     report = (out / "report.txt").read_text()
     assert "scene specialisation" in report
-    assert ("pass `translucent` culled: it draws scene.translucent and the scene has no "
-            "translucent objects") in report
+    assert ("pass `translucent` culled: it draws scene.translucent back_to_front and the "
+            "scene has no translucent objects") in report
     assert "table `lights` shrunk: 128 -> 4" in report
     assert "passes: 6 -> 3 (geometry, lighting, material)" in report
     assert report in capsys.readouterr().out
@@ -265,9 +265,9 @@ def test_graph_writes_dot_text_with_culled_passes_greyed(capsys, tmp_path):
     assert text.startswith('digraph "inferred" {')
     line = next(l for l in text.splitlines() if l.strip().startswith('"pass:translucent" ['))
     assert f'fillcolor="{graph.FAINT}"' in line and "dashed" in line
-    assert "culled: it draws scene.translucent and the" in line
-    assert 'tooltip="it draws scene.translucent and the scene has no translucent objects"' \
-        in line
+    assert "culled: it draws scene.translucent back_to_front and the" in line
+    assert ('tooltip="it draws scene.translucent back_to_front and the scene has no '
+            'translucent objects"') in line
     live = next(l for l in text.splitlines() if l.strip().startswith('"pass:geometry" ['))
     assert "culled" not in live
     assert '"pass:lighting" -> "target:lbuf"' in text           # a write
