@@ -69,3 +69,25 @@ def test_profile_drains_each_pass_and_changes_nothing():
     assert [(name, light) for name, light, _, _ in pipe.profile] == [
         (pipe.plan.passes[k].name, light) for k, light in runs]
     assert all(host >= 0 and dev >= 0 for _, _, host, dev in pipe.profile)
+
+
+def test_vector_scalars_are_declared_and_reach_the_kernel():
+    """``cltypes.make_int2`` values (0-d arrays) are declared with their vector type, as numpy
+    scalars are (undeclared, pyopencl probes them at every call), and arrive intact."""
+    import pyopencl as cl
+    from pipegen.runtime.cl import context as cl_context
+    ctx, queue = cl_context.get_context()
+    kern = cl.Kernel(cl_context.build_program(
+        "__kernel void k(__global int *o, const int2 s, const int n) "
+        "{ o[0] = s.x; o[1] = s.y; o[2] = n; }"), "k")
+    declared = []
+    declare = kern.set_scalar_arg_dtypes
+    kern.set_scalar_arg_dtypes = lambda dtypes: (declared.append(list(dtypes)), declare(dtypes))
+    out = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=64)
+    size = cl.cltypes.make_int2(7, -3)
+    cl_context.set_args(kern, out, size, np.int32(5))
+    assert declared == [[None, size.dtype, np.dtype(np.int32)]]
+    cl.enqueue_nd_range_kernel(queue, kern, (1,), (1,))
+    got = np.zeros(3, np.int32)
+    cl.enqueue_copy(queue, got, out)
+    assert got.tolist() == [7, -3, 5]

@@ -114,7 +114,9 @@ def set_args(kernel, *args) -> None:
     first call's arguments (numpy scalars; buffers and None: pointers).  pyopencl then packs
     the scalars with a generated invoker: ~1.5 us for 16 arguments, against ~90 us when it
     probes the type of every argument of an undeclared kernel (a light pre-pass frame sets
-    ~70 scalars: ~0.7 ms of host time before its first raster kernel)."""
+    ~70 scalars: ~0.7 ms of host time before its first raster kernel).  Vector scalars
+    (``cltypes.make_int2``: 0-d arrays) are declared too: undeclared, each cost ~20 us a call
+    (deferred's light pass reads five targets: 48 us against 5 us a launch, 81 a frame)."""
     if not getattr(kernel, "_pg_typed", False):
         import numpy as np
         dtypes = []
@@ -122,7 +124,8 @@ def set_args(kernel, *args) -> None:
             if isinstance(a, (bool, int, float)):
                 raise TypeError("kernel scalars are numpy scalars (their type is the "
                                 f"kernel's argument type), not {type(a).__name__}")
-            dtypes.append(a.dtype if isinstance(a, np.generic) else None)
+            scalar = isinstance(a, np.generic) or (isinstance(a, np.ndarray) and a.ndim == 0)
+            dtypes.append(a.dtype if scalar else None)
         kernel.set_scalar_arg_dtypes(dtypes)
         kernel._pg_typed = True
     kernel.set_args(*args)
