@@ -265,7 +265,7 @@ def test_graph_writes_dot_text_with_culled_passes_greyed(capsys, tmp_path):
     assert text.startswith('digraph "inferred" {')
     line = next(l for l in text.splitlines() if l.strip().startswith('"pass:translucent" ['))
     assert f'fillcolor="{graph.FAINT}"' in line and "dashed" in line
-    assert "culled: it draws scene.translucent back_to_front and the" in line
+    assert "culled: it draws scene.translucent\\nback_to_front and the" in line
     assert ('tooltip="it draws scene.translucent back_to_front and the scene has no '
             'translucent objects"') in line
     live = next(l for l in text.splitlines() if l.strip().startswith('"pass:geometry" ['))
