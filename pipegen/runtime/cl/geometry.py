@@ -15,7 +15,8 @@ frame's ``FrameState`` (so it does not import the pipeline, which imports it).
 ``$PIPEGEN_CL_SHARE_SETUP=0`` (read when a pipeline is made; ``DrawGeometry.share``) turns the
 sharing off, for comparisons: every pass execution then runs its own vertex kernel, set-up
 and binning, of its own varyings only (a light draw still sets up its light list at once), and
-nothing is kept from one execution or frame to the next.  Sharing changes no value:
+its own raster launch (``CLPipeline._batched``), and nothing is kept from one execution or
+frame to the next.  Sharing changes no value:
 ``tests/test_cl_setup_reuse.py`` renders every shipped technique both ways.
 """
 

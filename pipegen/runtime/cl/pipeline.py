@@ -410,7 +410,10 @@ class CLPipeline:
     def _batched(self, runs: list) -> list:
         """The schedule's pass executions ``(k, light)``, a run of consecutive executions of a
         pass whose kernel draws a run of lights in one launch (``programs.batches_lights``)
-        as one ``(k, (light, ...))``."""
+        as one ``(k, (light, ...))``; with sharing off (``$PIPEGEN_CL_SHARE_SETUP=0``,
+        ``DrawGeometry.share``) every execution on its own."""
+        if not self.geometry.share:
+            return list(runs)
         out: list = []
         for k, light in runs:
             if self._batches[k] and out and out[-1][0] == k:
