@@ -222,6 +222,7 @@ class DrawGeometry:
         # share set-ups and bins between pass executions (the module docstring)
         self.share = os.environ.get("PIPEGEN_CL_SHARE_SETUP", "1") != "0"
         self.only: Optional[int] = None    # unshared: the pass whose set-up is being made
+        self.raster_keys: dict = {}    # (id(pass), width, height) -> ``_raster_key``
 
     def begin_frame(self, state: FrameState) -> None:
         """A new frame, ``state``: the last frame's set-ups and bins are dropped and their
@@ -298,9 +299,7 @@ class DrawGeometry:
     def _light_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
                          lights: list):
         cache = self.frame
-        batch = tuple(self.frame_state.selection.of(p.draw))
-        if not set(lights) <= set(batch):
-            batch = tuple(lights)
+        batch = self._light_batch(k, p, lights)
         geo = self._geometry(k, p, width, height, timing, batch)
         if geo is None:
             return None
@@ -436,7 +435,16 @@ class DrawGeometry:
                                self.tile, triangles, geo.index, pool)
 
     def _raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
-        """What the set-up triangles of a pass's draw depend on besides its varyings."""
+        """What the set-up triangles of a pass's draw depend on besides its varyings (a
+        function of the pass and the size: kept, by the pass's identity, as the plan keeps
+        its passes; deferred asked ~330 times a frame, 40 us each)."""
+        got = self.raster_keys.get((id(p), width, height))
+        if got is None:
+            got = self.raster_keys[(id(p), width, height)] = self._make_raster_key(
+                p, width, height)
+        return got
+
+    def _make_raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
         draw = p.draw
         depth_clamp = p.state.depth.clamp
         dfmt = p.depth_target and self.plan.target(p.depth_target).format.name
@@ -449,6 +457,17 @@ class DrawGeometry:
                     offset, depth_clamp, width, height, dfmt, center)
         return (draw.kind.value, draw.material, draw.order, p.state.cull.value, offset,
                 depth_clamp, width, height, dfmt, center, draw.shadow_tiles)
+
+    def _light_batch(self, k: int, p: PassPlan, lights: list) -> tuple:
+        """The lights a light draw of pass ``k`` sets up at once: its light list this frame
+        (``selection.of``, found once a frame per pass), or ``lights`` where they are not all
+        in it."""
+        got = self.frame.get(("light list", k))
+        if got is None:
+            batch = tuple(self.frame_state.selection.of(p.draw))
+            got = self.frame[("light list", k)] = (batch, frozenset(batch))
+        batch, members = got
+        return batch if members.issuperset(lights) else tuple(lights)
 
     def _scene_group(self, key: tuple) -> tuple:
         """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
@@ -592,9 +611,7 @@ class DrawGeometry:
         kind = p.draw.kind
         key = self._raster_key(p, width, height)
         if kind is ir.DrawKind.LIGHTS:
-            batch = tuple(self.frame_state.selection.of(p.draw))
-            if not set(lights) <= set(batch):
-                batch = tuple(lights)
+            batch = self._light_batch(k, p, lights)
             key, lights = key + (batch,), batch
         elif shadow is not None:
             key = key + ("shadow", shadow.light)
