@@ -131,6 +131,21 @@ def set_args(kernel, *args) -> None:
     kernel.set_args(*args)
 
 
+_INVOKER_SOURCES = "<generated: 'pyopencl invoker for "
+
+
+def forget_invoker_sources() -> int:
+    """Drop the source text pyopencl (through pytools) files in ``linecache`` for each
+    kernel's generated argument setter: one entry per ``cl.Kernel`` made, never removed, so a
+    process building pipelines for hours grew by about 140 KiB a pipeline (issue 29's soak).
+    The text only serves tracebacks inside those setters.  Returns how many were dropped."""
+    import linecache
+    stale = [k for k in linecache.cache if isinstance(k, str) and k.startswith(_INVOKER_SOURCES)]
+    for k in stale:
+        linecache.cache.pop(k, None)
+    return len(stale)
+
+
 def describe() -> str:
     ctx, _ = get_context()
     dev = ctx.devices[0]

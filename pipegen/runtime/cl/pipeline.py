@@ -208,6 +208,25 @@ class CLPipeline:
             if hasattr(self, name):
                 setattr(self, name, None)
         self._scene = None
+        from pipegen.runtime.cl.context import forget_invoker_sources
+        forget_invoker_sources()
+
+    # a pipeline is a resource: ``with compiled.pipeline("cl") as p:`` or ``p.close()``
+    def close(self) -> None:
+        """``release``: what a pipeline holds is freed now, not when it is collected."""
+        self.release()
+
+    def __enter__(self) -> "CLPipeline":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
+
+    def __del__(self):  # pragma: no cover - best effort at collection / interpreter exit
+        try:
+            self.release()
+        except Exception:
+            pass
 
     # -- programs ---------------------------------------------------------------------------------
     @property

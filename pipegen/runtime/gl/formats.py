@@ -125,13 +125,12 @@ def create_texture(name: str, width: int, height: int, samples: int = 1) -> int:
     """An immutable texture of format ``name`` (multisampled when ``samples > 1``)."""
     get_context()
     g = gl_format(name)
-    ids = np.zeros(1, np.uint32)
+    from pipegen.runtime.gl import names
     if samples > 1:
-        GL.glCreateTextures(GL.GL_TEXTURE_2D_MULTISAMPLE, 1, ids)
-        GL.glTextureStorage2DMultisample(int(ids[0]), samples, g.internal, width, height, True)
+        tex = names.create_texture_name(GL.GL_TEXTURE_2D_MULTISAMPLE)
+        GL.glTextureStorage2DMultisample(tex, samples, g.internal, width, height, True)
     else:
-        GL.glCreateTextures(GL.GL_TEXTURE_2D, 1, ids)
-        tex = int(ids[0])
+        tex = names.create_texture_name(GL.GL_TEXTURE_2D)
         GL.glTextureStorage2D(tex, 1, g.internal, width, height)
         # Texture parameters are overridden by the runtime's sampler objects; these defaults
         # make a texture complete and sane for anyone binding it without one.
@@ -143,11 +142,12 @@ def create_texture(name: str, width: int, height: int, samples: int = 1) -> int:
             GL.glTextureParameteri(tex, GL.GL_DEPTH_STENCIL_TEXTURE_MODE, GL.GL_DEPTH_COMPONENT)
         if not g.fmt.is_color:
             GL.glTextureParameteri(tex, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_NONE)
-    return int(ids[0])
+    return tex
 
 
 def delete_texture(tex: int) -> None:
-    GL.glDeleteTextures(np.array([tex], np.uint32))
+    from pipegen.runtime.gl import names
+    names.delete_textures(tex)
 
 
 def _pack_transfer(name: str, codes: np.ndarray) -> np.ndarray:

@@ -59,6 +59,7 @@ from pipegen.runtime import draws
 from pipegen.runtime.aliasing import FrameClears
 from pipegen.runtime.gl import formats as GF
 from pipegen.runtime.gl import state as GS
+from pipegen.runtime.gl import names
 from pipegen.runtime.gl import transitions as GT
 from pipegen.runtime.common import check_param_overrides, check_scene
 from pipegen.runtime.light_table import light_rows
@@ -179,13 +180,13 @@ class _Target:
 
     def release(self) -> None:
         if self.fbo_clear is not None:
-            GL.glDeleteFramebuffers(1, np.array([self.fbo_clear], np.uint32))
+            names.delete_framebuffers(self.fbo_clear)
         if not self.owner:
             return
         GF.delete_texture(self.tex)
         if self.samples > 1:
             GF.delete_texture(self.resolved)
-            GL.glDeleteFramebuffers(2, np.array([self.fbo_ms, self.fbo_resolved], np.uint32))
+            names.delete_framebuffers(self.fbo_ms, self.fbo_resolved)
 
 
 def _unwrapped(fn):
@@ -203,9 +204,7 @@ _BLIT_DEPTH = GT.pass_vector(ir.PassState(), [], label="blit depth")
 
 
 def _framebuffer(attachments: Sequence[tuple[int, int]]) -> int:
-    ids = np.zeros(1, np.uint32)
-    GL.glCreateFramebuffers(1, ids)
-    fbo = int(ids[0])
+    fbo = names.create_framebuffer()
     for point, tex in attachments:
         GL.glNamedFramebufferTexture(fbo, point, tex, 0)
     return fbo
@@ -270,7 +269,7 @@ class _Pass:
             self.instance_buffer.release()
         self.program.release()
         if self.fbo is not None:
-            GL.glDeleteFramebuffers(1, np.array([self.fbo], np.uint32))
+            names.delete_framebuffers(self.fbo)
 
 
 class GLPipeline:
@@ -324,9 +323,7 @@ class GLPipeline:
     # -- resources -------------------------------------------------------------------------
     @staticmethod
     def _sampler(mode: str) -> int:
-        ids = np.zeros(1, np.uint32)
-        GL.glCreateSamplers(1, ids)
-        s = int(ids[0])
+        s = names.create_sampler()
         f = GL.GL_LINEAR if mode == "linear" else GL.GL_NEAREST
         GL.glSamplerParameteri(s, GL.GL_TEXTURE_MIN_FILTER, f)
         GL.glSamplerParameteri(s, GL.GL_TEXTURE_MAG_FILTER, f)
@@ -366,7 +363,7 @@ class GLPipeline:
         self.targets = {spec.name: self.targets[spec.name] for spec in plan.targets}
         for p in self.passes:
             if p.fbo is not None:
-                GL.glDeleteFramebuffers(1, np.array([p.fbo], np.uint32))
+                names.delete_framebuffers(p.fbo)
             attached = [self.targets[w] for w in p.writes]
             att = [(GF.gl_format(t.format).attachment + k, t.tex) for k, t in enumerate(attached)]
             if p.depth_target:
@@ -410,7 +407,18 @@ class GLPipeline:
         for buf in self._meshes.values():
             buf.release()
         GF.delete_texture(self.light_tex)
-        GL.glDeleteSamplers(2, np.array(list(self._samplers.values()), np.uint32))
+        names.delete_samplers(*self._samplers.values())
+
+    # a pipeline is a resource: ``with compiled.pipeline("gl") as p:`` or ``p.close()``
+    def close(self) -> None:
+        """``release``: the GL objects are deleted now, not when the pipeline is collected."""
+        self.release()
+
+    def __enter__(self) -> "GLPipeline":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
 
     def __del__(self):  # pragma: no cover - best effort at interpreter exit
         try:

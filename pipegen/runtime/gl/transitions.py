@@ -132,16 +132,22 @@ def calls(slot, value, old=None) -> list[tuple[Callable, tuple]]:
 
 
 class StateVector:
-    """The slot values one pass (or one clear, one blit) depends on; ``id`` is unique."""
+    """The slot values one pass (or one clear, one blit) depends on.  ``id`` names the values:
+    vectors of equal values share it, so the process-wide transition table (keyed on state and
+    vector ids) holds one entry per distinct transition however many pipelines are built (a
+    fresh id per vector made it grow with every pipeline, about 40 KiB each, until its limit)."""
 
     __slots__ = ("id", "items", "label")
-    _next = 0
+    _ids: dict = {}                  # items -> id
 
     def __init__(self, items: Sequence[tuple[Any, Any]], label: str = ""):
         self.items = tuple(sorted(((_INDEX[s], v) for s, v in items), key=lambda kv: kv[0]))
         self.label = label
-        self.id = StateVector._next
-        StateVector._next += 1
+        try:
+            self.id = StateVector._ids.setdefault(self.items, len(StateVector._ids))
+        except TypeError:            # an unhashable value: a vector of its own
+            self.id = -1 - len(StateVector._ids)
+            StateVector._ids[object()] = self.id
 
     def as_dict(self) -> dict:
         return {SLOTS[k]: v for k, v in self.items}
