@@ -9,9 +9,9 @@ gives the same tile lists: the same (triangle, tile) pairs, each tile's triangle
 submission order (tests/test_cl_bin.py compares them with the numpy binning's).
 
 ``DeviceBinner(ctx, queue).bin(...)`` queues the kernels and a read of two numbers (the tiles
-with triangles, the entries) that does not wait (``transfers.Readback``), and returns
-``DeviceBins`` at once: the host waits only when it launches the raster kernel, which needs
-the number of tiles, after every pass of the frame is prepared.  ``$PIPEGEN_CL_DEVICE_BIN=0``
+with triangles, the entries), and returns ``DeviceBins``: the host reads them when it
+launches the raster kernel, which needs the number of tiles (on PoCL 3.0 the read itself
+waits for the queue: ``transfers``'s docstring).  ``$PIPEGEN_CL_DEVICE_BIN=0``
 bins every draw in numpy instead, for comparisons.
 """
 
@@ -25,7 +25,6 @@ import numpy as np
 from pipegen.backends.opencl import programs as cl_programs
 from pipegen.backends.opencl.abi import SUBPIXEL
 from pipegen.runtime.cl import context as cl_context
-from pipegen.runtime.cl.transfers import Readback
 
 __all__ = ["DeviceBinner", "DeviceBins", "enabled"]
 
@@ -153,6 +152,6 @@ class DeviceBinner:
         cl_context.set_args(write_k, *head, counts, tile_tris)
         cl.enqueue_nd_range_kernel(self.queue, write_k, (runs,), (1,))
         summary = np.zeros(2, np.int32)
-        event = Readback(self.queue, summary, summary_buf)
+        event = cl.enqueue_copy(self.queue, summary, summary_buf, is_blocking=False)
         return DeviceBins(self.queue, tiles_x, triangles, tile_list, tile_start, tile_tris,
                           summary, event, index, ntiles)

@@ -37,7 +37,7 @@ from pipegen.runtime.cl import (
 from pipegen.runtime import draws
 from pipegen.runtime.cl.device import Device
 from pipegen.runtime.cl.setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
-from pipegen.runtime.cl.transfers import Readback, write
+from pipegen.runtime.cl.transfers import write
 
 
 def f4(a: np.ndarray) -> np.ndarray:
@@ -708,14 +708,15 @@ class DrawGeometry:
             gsize = ((nverts + 63) // 64) * 64
             v.kernels.append(cl.enqueue_nd_range_kernel(dev.queue, kern, (gsize,), (64,)))
             if i == 0 and not on_device:
-                v.copies.append(Readback(dev.queue, v.clip, clip_buf))
+                v.copies.append(cl.enqueue_copy(dev.queue, v.clip, clip_buf, is_blocking=False))
                 if self.f64:
-                    v.copies.append(Readback(dev.queue, v.clip64, clip64_buf))
+                    v.copies.append(cl.enqueue_copy(dev.queue, v.clip64, clip64_buf,
+                                                    is_blocking=False))
             if S:
                 out = None
                 if not on_device:
                     out = np.empty((S, nverts, 4), np.float32)
-                    v.copies.append(Readback(dev.queue, out, vbuf))
+                    v.copies.append(cl.enqueue_copy(dev.queue, out, vbuf, is_blocking=False))
                 v.outs.append((have, out))
                 v.vbufs.append(vbuf)
                 if have == v.names:

@@ -36,7 +36,7 @@ import numpy as np
 from pipegen.backends.opencl import programs as cl_programs
 from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime.cl.setup import Triangles, setup_triangles
-from pipegen.runtime.cl.transfers import Readback, write
+from pipegen.runtime.cl.transfers import write
 
 __all__ = ["DeviceRows", "DeviceSetup", "supports"]
 
@@ -161,9 +161,9 @@ class DeviceSetup:
         out = {name: np.empty((ntris,) + layout[name][1], layout[name][0])
                for name in HOST_FIELDS}
         if ntris:
-            events.append(Readback(self.queue, status, status_buf))
+            events.append(cl.enqueue_copy(self.queue, status, status_buf, is_blocking=False))
             for name, arr in out.items():
-                events.append(Readback(self.queue, arr, bufs[name]))
+                events.append(cl.enqueue_copy(self.queue, arr, bufs[name], is_blocking=False))
         params = dict(width=W, height=H, cull=cull, depth_clamp=depth_clamp, flat=flat,
                       scissor=scissor, samples=samples, smooth=list(smooth),
                       pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
@@ -288,13 +288,14 @@ class DeviceSetup:
         cl.enqueue_nd_range_kernel(self.queue, job.clip_kernel, (((nh + 63) // 64) * 64,),
                                    (64,))
         fan = np.empty(_FANS * nh, np.uint8)
-        events = [Readback(self.queue, fan, fan_buf)]
+        events = [cl.enqueue_copy(self.queue, fan, fan_buf, is_blocking=False)]
         fields = {}
         for name, arr in job.out.items():
             row = arr.nbytes // max(T, 1)
             host = np.empty((_FANS * nh,) + arr.shape[1:], arr.dtype)
             if host.size:
-                events.append(Readback(self.queue, host, bufs[name], src_offset=T * row))
+                events.append(cl.enqueue_copy(self.queue, host, bufs[name],
+                                              src_offset=T * row, is_blocking=False))
             fields[name] = host
         job.clipping.update(events=events, fan=fan, fields=fields, nv_out=nv_out,
                             vary_out=vary_out, keep=[fan_buf, hard_buf])
