@@ -25,6 +25,12 @@ Rules:
   manifest lists is ever removed.
 - The output path being a file, or a parent that cannot be created, is reported before any
   work as a ``PipegenError`` (exit status 1 on the command line).
+- Long runs (``pipegen sweep``) also commit as they go (``commit_files``): each file is written
+  beside its destination and moved in with ``os.replace``; the manifest first lists it with its
+  new digest and, under ``"pending"``, the digest of the file it replaces, and is rewritten
+  without ``pending`` once the move is done.  A process killed in between leaves a file whose
+  content is one of the two: ``read_manifest`` takes either as pipegen's, so the folder stays
+  owned and the next run (or ``--resume``) may write into it.
 """
 
 from __future__ import annotations
@@ -157,6 +163,44 @@ class OutputDir:
             shutil.rmtree(stage, ignore_errors=True)
             self.release()
 
+    def commit_files(self, files: dict[str, bytes]) -> None:
+        """Write ``{relative path: content}`` into the folder now, each file atomically (the
+        module docstring), adding them to the manifest; files not named are left alone.  For
+        outputs that grow while a long run goes on (a sweep's rows as they finish)."""
+        if self.lock is None or not self.lock.held:
+            self.lock = FolderLock(self.path, self.command)
+        out = self.path
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise _error(f"cannot create output folder '{out}': {e.strerror or e}") from None
+        owned = read_manifest(out) or {}
+        new = {rel: hashlib.sha256(data).hexdigest() for rel, data in files.items()}
+        for rel in new:
+            assert _is_relative(rel) and rel != MANIFEST, rel
+            dest = out / rel
+            if (dest.exists() or dest.is_symlink()) and not self.force and \
+                    owned.get(rel) != _sha256(dest):
+                raise _error(f"output folder '{out}': pipegen would overwrite a file it did not "
+                             f"write ({rel})", "move it away, pass another folder, or add --force")
+        pending = {rel: owned[rel] for rel in new if rel in owned and owned[rel] != new[rel]}
+        _write_manifest(out, self.command, {**owned, **new}, pending)
+        for rel, data in files.items():
+            dest = out / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=STAGE_MARK, dir=dest.parent)
+            try:
+                with os.fdopen(fd, "wb") as f:
+                    f.write(data)
+                    f.flush()
+                    os.fsync(f.fileno())
+                os.replace(tmp, dest)
+            except BaseException:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+                raise
+        _write_manifest(out, self.command, {**owned, **new})
+
     def _commit(self, stage: Path) -> None:
         files = sorted(f.relative_to(stage).as_posix() for f in stage.rglob("*")
                        if f.is_file() or f.is_symlink())
@@ -227,7 +271,13 @@ def read_manifest(folder: Path) -> Optional[dict[str, str]]:
         files = data["files"]
         if isinstance(files, dict) and all(isinstance(k, str) and isinstance(v, str)
                                            for k, v in files.items()):
-            return {k: v for k, v in files.items() if _is_relative(k)}
+            owned = {k: v for k, v in files.items() if _is_relative(k)}
+            # a commit_files cut short: the file is still the one it was replacing
+            for rel, before in (data.get("pending") or {}).items():
+                if rel in owned and isinstance(before, str) and \
+                        _sha256(Path(folder) / rel) == before:
+                    owned[rel] = before
+            return owned
     except (OSError, ValueError, KeyError, TypeError):
         pass
     return None
@@ -297,11 +347,14 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def _write_manifest(folder: Path, command: str, files: dict[str, str]) -> None:
+def _write_manifest(folder: Path, command: str, files: dict[str, str],
+                    pending: Optional[dict[str, str]] = None) -> None:
     from pipegen.core.defaults import version
     data = {"written_by": f"pipegen {version()}", "command": command,
             "note": "files pipegen wrote here; it replaces or removes only these",
             "files": dict(sorted(files.items()))}
+    if pending:                     # commit_files: the digests of the files being replaced
+        data["pending"] = dict(sorted(pending.items()))
     fd, tmp = tempfile.mkstemp(prefix=STAGE_MARK, dir=folder)
     try:
         with os.fdopen(fd, "w") as f:

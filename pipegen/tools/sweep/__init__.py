@@ -5,7 +5,7 @@ float64 reference.
     pipegen sweep FILE [FILE ...] [--scene S] [--size WxH] [-p NAME=V1,V2,...]...
                   [--backend gl,cl] [--frames N] [--jobs N] [--threads T]
                   [--reference R] [--reference-samples N] [--scheduler tcp://HOST:PORT]
-                  -o DIR [--force]
+                  -o DIR [--resume] [--force]
 
 Variants.  ``-p NAME=V1,V2`` gives an axis (repeatable); without any ``-p`` every parameter
 with declared allowed values (``param x = a in {a, b}``) is an axis, and so is every ``bool``
@@ -40,7 +40,11 @@ explore, ``report_html.py``), ``results.csv`` and ``results.json`` (one row per 
 backend, ``result.COLUMNS`` then ``EXTRA_COLUMNS``; the JSON adds ``JSON_ONLY`` per row),
 ``table.txt`` (the printed table), ``pareto.png`` (frame time against error per backend, the
 Pareto front and its ties drawn), ``errors/NN_<variant>_<backend>.png`` (error maps against the
-reference, 0 black to ``accuracy.ERROR_MAP_VMAX`` codes white) and ``images/`` (the outputs).
+reference, 0 black to ``accuracy.ERROR_MAP_VMAX`` codes white), ``images/`` (the outputs) and
+``rows.jsonl`` (the journal).  Each variant's files and rows are committed as its render job
+finishes (``journal.py``): the folder is valid after any row, Ctrl-C exits 130 with the rows so
+far and the command to resume, and ``--resume`` renders only the variants missing, then times
+every variant again.
 
 The modules:
 
@@ -51,7 +55,8 @@ The modules:
 - ``pools.py``: the local pool and the Dask cluster; ``worker.py``: the local pool's
   processes; ``progress.py``: progress bars;
 - ``result.py``: ``SweepResult``, the columns and the printed table;
-- ``run.py``: ``run_sweep``, the two phases in memory; ``commands.py``: each row's command;
+- ``run.py``: ``run_sweep``, the two phases; ``commands.py``: each row's command;
+- ``journal.py``: ``rows.jsonl``, the rows committed as they finish, ``--resume``;
 - ``outputs.py``: ``results.csv``, ``results.json``, ``write_outputs``, ``load_result``;
   ``pareto.py``: ``pareto_front`` (with ties), ``pareto.png``; ``plot_svg.py`` and
   ``report_html.py``: ``index.html``;

@@ -4,10 +4,12 @@ the ``pipegen`` parser) and ``cmd_sweep``, which runs the sweep and writes its f
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from pipegen.core.diagnostics import PipegenError
 from pipegen.proof.references import REFERENCE_HELP, SAMPLES_HELP
+from pipegen.tools.sweep.journal import Journal, SweepInterrupted
 from pipegen.tools.sweep.outputs import write_outputs
 from pipegen.tools.sweep.run import BACKEND_ORDER, DEFAULT_THREADS, run_sweep
 from pipegen.tools.sweep.variants import parse_axes
@@ -71,6 +73,10 @@ def add_parser(sub, size_arg, output_note: str, default_size_text: str, max_size
     from pipegen.compiler.driver import GENERAL_HELP
     p.add_argument("--general", action="store_true", help=GENERAL_HELP)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.add_argument("--resume", action="store_true",
+                   help="finish a sweep that was stopped (Ctrl-C, kill, a crash): render only "
+                        "the variants DIR/rows.jsonl lacks, then time them all; the files, "
+                        "options and scene must be the stopped sweep's")
     p.add_argument("--force", action="store_true",
                    help="write into an output folder that holds files pipegen did not write")
     p.set_defaults(func=cmd_sweep)
@@ -125,12 +131,20 @@ def cmd_sweep(args) -> int:
     if args.jobs == 0:
         raise PipegenError(None, "--jobs must be at least 1")
     axes = parse_axes(args.param) if args.param else None
-    result = run_sweep(args.files, args.scene, args.size, axes, args.backend, args.frames,
-                       args.jobs, args.scheduler, max(1, args.threads),
-                       progress=not args.no_progress, reference=args.reference,
-                       reference_samples=args.reference_samples, general=args.general)
-    result.command = command_line(args)
-    write_outputs(result, out)
+    journal = Journal(out, resume=args.resume, command=command_line(args))
+    try:
+        result = run_sweep(args.files, args.scene, args.size, axes, args.backend, args.frames,
+                           args.jobs, args.scheduler, max(1, args.threads),
+                           progress=not args.no_progress, reference=args.reference,
+                           reference_samples=args.reference_samples, general=args.general,
+                           journal=journal)
+    except SweepInterrupted as e:
+        what = "rendered, frame times not measured" if e.timing else "done"
+        print(f"\ninterrupted: {e.rows} of {e.total} rows {what} ({out}/results.csv, "
+              f"results.json); resume with: {journal.command} --resume", file=sys.stderr)
+        return 130
+    result.command = journal.command
+    write_outputs(result, out, journal=journal.text())
     print(result.summary(), end="")
     print(f"wrote {out}/: index.html, results.csv, results.json, table.txt, pareto.png, "
           f"errors/ ({len(result.maps)} maps), images/")

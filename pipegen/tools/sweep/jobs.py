@@ -243,7 +243,17 @@ def time_job(job: dict) -> dict:
     proc = subprocess.Popen(python_command("pipegen.tools.sweep"), stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     tail = forward_stderr(proc.stderr)          # its progress bar shows; its last lines kept
-    out, _ = proc.communicate(json.dumps(job).encode())
+    try:
+        # not communicate(): it would read stderr too, racing the thread above for its lines
+        with proc.stdin:
+            proc.stdin.write(json.dumps(job).encode())
+        with proc.stdout:
+            out = proc.stdout.read()
+        proc.wait()
+    except BaseException:                       # Ctrl-C: the timing stops with the sweep
+        proc.kill()
+        proc.wait()
+        raise
     tail.join()
     out = out.decode()
     if proc.returncode != 0:
@@ -301,6 +311,8 @@ def quartiles(xs: list) -> tuple[float, float, float]:
 
 def timing_main() -> int:
     """The timing process: JSON job on stdin, one JSON line on stdout."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C: the parent ends this process
     job = json.loads(sys.stdin.read())
     threads = int(job["threads"])
     cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []

@@ -68,10 +68,10 @@ def load_result(folder) -> SweepResult:
                        warnings=data.get("warnings", []))
 
 
-def write_outputs(result: SweepResult, out) -> Path:
+def write_outputs(result: SweepResult, out, journal: str = "") -> Path:
     """results.csv, results.json, table.txt, pareto.png, errors/, images/ and index.html into
     ``out`` (a path or an ``outdir.OutputDir``), through a staging folder like every pipegen
-    output."""
+    output; ``journal``: the text of ``rows.jsonl`` (``journal.py``), kept with them."""
     from pipegen.core.outdir import as_output_dir
     out = as_output_dir(out, "sweep")
     with out.staging() as tmp:
@@ -86,4 +86,7 @@ def write_outputs(result: SweepResult, out) -> Path:
         for name, data in result.images.items():
             (tmp / "images" / name).write_bytes(data)
         (tmp / "index.html").write_text(report_page(result), encoding="utf-8")
+        if journal:
+            from pipegen.tools.sweep.journal import JOURNAL
+            (tmp / JOURNAL).write_text(journal)
     return out.path

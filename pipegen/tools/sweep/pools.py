@@ -66,7 +66,7 @@ class LocalPool:
             t.start()
         try:
             for _ in items:
-                i, reply = done.get()
+                i, reply = _get_interruptibly(done)
                 if reply[0] == "ok":
                     yield i, reply[1]
                 elif reply[0] == "died":
@@ -83,8 +83,13 @@ class LocalPool:
     def run_alone(self, fn, arg):
         return fn(arg)                          # here, after the pool's jobs have all finished
 
-    def close(self) -> None:
+    def close(self, now: bool = False) -> None:
+        """Stop the render processes: after their current job, or, ``now`` (Ctrl-C), at
+        once."""
         self.stop.set()
+        if now:
+            for p in self.procs:
+                p.kill()
         for p in self.procs:
             try:
                 send(p.stdin, None)
@@ -99,6 +104,18 @@ class LocalPool:
                 p.wait()
             p.stdout.close()
         self.procs = []
+
+
+RETRIES = 2          # a Dask job that fails (its worker died, say) runs again up to this often
+
+
+def _get_interruptibly(q: queue.SimpleQueue):
+    """``q.get()`` in short waits, so that Ctrl-C reaches the main thread at once."""
+    while True:
+        try:
+            return q.get(timeout=0.2)
+        except queue.Empty:
+            continue
 
 
 class DaskPool:
@@ -116,13 +133,18 @@ class DaskPool:
             raise PipegenError(None, f"cannot reach the Dask scheduler at {address}: {e}",
                                hint="start one with `dask scheduler` and workers with "
                                     "`dask worker ADDRESS`") from None
+        self.futures: list = []
         n = len(self.client.scheduler_info().get("workers", {}))
         self.where = f"the Dask cluster at {address} ({n} workers)"
 
     def map_unordered(self, fn, items):
         from distributed import as_completed
-        futures = {self.client.submit(fn, x, pure=False): i for i, x in enumerate(items)}
-        for f in as_completed(list(futures)):
+        # a job is a pure function of its argument: run twice (a worker lost mid-job, its
+        # job retried elsewhere), it gives the same result, handed back once
+        futures = {self.client.submit(fn, x, pure=False, retries=RETRIES): i
+                   for i, x in enumerate(items)}
+        self.futures = list(futures)
+        for f in as_completed(self.futures):
             yield futures[f], f.result()
 
     def run_alone(self, fn, arg):
@@ -130,7 +152,11 @@ class DaskPool:
         return self.client.submit(fn, arg, pure=False, workers=workers[:1],
                                   allow_other_workers=False).result()
 
-    def close(self) -> None:
+    def close(self, now: bool = False) -> None:
+        if self.client.status == "closed":
+            return
+        if now:
+            self.client.cancel(self.futures, force=True)
         self.client.close()
 
 

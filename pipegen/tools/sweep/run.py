@@ -4,6 +4,7 @@ writes nothing."""
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import sys
@@ -14,11 +15,13 @@ from pipegen.ir.lifetimes import Sharing, technique_memory
 from pipegen.ir.memory import technique_bytes
 from pipegen.ir.traffic import frame_traffic
 from pipegen.tools.sweep.commands import row_command
+from pipegen.tools.sweep.journal import SweepInterrupted, sweep_identity, variant_key
 from pipegen.tools.sweep.jobs import (load_spec_scene, reference_data, render_job, scene_spec,
                                       spec_name, time_job)
 from pipegen.tools.sweep.pareto import mark_front_and_ties
 from pipegen.tools.sweep.pools import DaskPool, LocalPool, available_cpus
 from pipegen.tools.sweep.progress import progress_bar
+from pipegen.tools.sweep.outputs import csv_text, json_text
 from pipegen.tools.sweep.result import SweepResult
 from pipegen.tools.sweep.variants import plan_variants
 
@@ -27,6 +30,11 @@ DEFAULT_THREADS = 2
 F64_NOTE = ("f64 columns are empty: this compiler's Compiled.pipeline does not take "
             "precision='f64' yet")
 
+
+PARTIAL_TIMING = ("frame times: not measured yet (a partial sweep: the rows rendered so far; "
+                  "pipegen sweep ... --resume finishes it)")
+
+UNTIMED = dict(frame_ms=math.nan, cpu_ms=math.nan, frame_ms_q1=math.nan, frame_ms_q3=math.nan)
 
 BUILD_NOTE = {
     False: "every variant rendered and timed as compiled for the scene (culled passes, "
@@ -48,7 +56,7 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
               jobs: Optional[int] = None, scheduler: Optional[str] = None,
               threads: int = DEFAULT_THREADS, progress: bool = True,
               reference: Optional[str] = None, reference_samples: int = 1,
-              general: bool = False) -> SweepResult:
+              general: bool = False, journal=None) -> SweepResult:
     """Sweep ``files`` (the package docstring) and return the rows; nothing is written.
 
     ``files``: technique paths (str or Path); ``scene``: a scene path, a loaded ``Scene``
@@ -58,7 +66,9 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
     ``self`` or ``FILE.pipe[:name=value,...]`` (``proof.references``; None: each technique's
     default), evaluated at ``reference_samples`` x ``reference_samples`` per pixel;
     ``general``: render and time the general builds (else, as ``pipegen run``, each variant
-    compiled for the scene, in the render and timing processes).  Works
+    compiled for the scene, in the render and timing processes); ``journal``: a
+    ``journal.Journal`` that commits each variant's rows as it finishes (and, resuming, gives
+    those already rendered).  Ctrl-C raises ``journal.SweepInterrupted``.  Works
     from a notebook or a script on standard input: the render processes import only pipegen
     (``worker.py``)."""
     backends = tuple(backends)
@@ -83,15 +93,38 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
                      f64=use_f64, reference=reference_data(refs[v.technique].spec),
                      general=general)
                 for v in variants]
+    described = {t: dict(label=r.label, text=r.describe(), why=r.spec.why)
+                 for t, r in refs.items()}
+    done = journal.start(sweep_identity(variants, spec, (s.width, s.height), backends,
+                                        reference, reference_samples, general, use_f64)) \
+        if journal else {}
+    # per variant: (rows without frame times or command, error maps, images); from the
+    # journal when resuming, else as its render job finishes
+    rendered = [done.get(variant_key(v)) for v in variants]
+    todo = [v.index for v in variants if rendered[v.index] is None]
     pool = DaskPool(scheduler) if scheduler else \
         LocalPool(max(1, jobs or len(available_cpus())))
-    results: list = [None] * len(variants)
+
+    def partial_results() -> dict:
+        rows = [dict(r, **UNTIMED) for part in rendered if part for r in part[0]]
+        mark_front_and_ties(rows)
+        partial = SweepResult(rows, spec_name(spec, s), s.width, s.height, len(s.lights),
+                              backends, pool.where, PARTIAL_TIMING, notes,
+                              references=described, command=journal.command,
+                              warnings=clamp_warnings(rows))
+        return {"results.csv": csv_text(rows), "results.json": json_text(partial)}
+
+    timing_phase = False
     try:
-        bar = progress_bar(len(job_list), "renders", progress)
-        for i, res in pool.map_unordered(render_job, job_list):
-            results[i] = res
+        bar = progress_bar(len(todo), "renders", progress)
+        for k, res in pool.map_unordered(render_job, [job_list[i] for i in todo]):
+            v = variants[todo[k]]
+            rendered[v.index] = variant_rows(v, res, s, backends, refs, compiled)
+            if journal:
+                journal.record(v, *rendered[v.index], partial_results())
             bar.update(1)
         bar.close()
+        timing_phase = True
         if frames > 0:
             timing = pool.run_alone(time_job, dict(
                 variants=[dict(file=v.file, params=dict(v.params)) for v in variants],
@@ -105,44 +138,59 @@ def run_sweep(files: list, scene=None, size: Optional[tuple] = None,
         else:
             ms, how = [{} for _ in variants], "frame times: not measured (--frames 0)"
             cpu_ms = q1 = q3 = ms
+    except KeyboardInterrupt:
+        pool.close(now=True)
+        raise SweepInterrupted(sum(len(part[0]) for part in rendered if part),
+                               len(variants) * len(backends), timing_phase) from None
     finally:
         pool.close()
 
     rows, maps, images = [], {}, {}
-    for v, res in zip(variants, results):
-        tech = res.get("technique") or compiled[v.index].technique   # the build rendered
-        tb = technique_bytes(tech, s.width, s.height)
-        memory = {b: technique_memory(tech, s.width, s.height, SHARING[b]) for b in backends}
-        bandwidth = frame_bandwidth(tech, s)
-        for b in backends:
-            m = res["metrics"][b]
-            name = safe_name(f"{v.slug}_{b}", ".png")
-            row = dict(technique=v.technique, params=v.params_text, backend=b,
-                       frame_ms=ms[v.index].get(b, math.nan), target_bytes=tb,
-                       peak_bytes=memory[b].peak_bytes,
-                       allocated_bytes=memory[b].allocated_bytes, bandwidth_bytes=bandwidth,
-                       cpu_ms=cpu_ms[v.index].get(b, math.nan),
-                       frame_ms_q1=q1[v.index].get(b, math.nan),
-                       frame_ms_q3=q3[v.index].get(b, math.nan),
-                       agree=res["agree"], file=v.file, width=s.width, height=s.height,
-                       notes="; ".join(res["notes"]), reference=refs[v.technique].label,
-                       error_map=f"errors/{name}", image=f"images/{name}", worst=[],
-                       command=row_command(v.file, v.params, b, spec, (s.width, s.height),
-                                           frames, reference, reference_samples, general))
-            row.update({k: m[k] for k in m})
-            row["target_errors"] = target_errors_text(m.get("targets", []))
-            if b == "cl":               # the CL backend counts what the formats clamp
-                row["clamps"] = res.get("clamps", [])
-                row["clamped"] = sum(c["count"] for c in row["clamps"] if c["warned"])
-            rows.append(row)
-            maps[name] = res["maps"][b]
-            images[name] = res["images"][b]
+    for v, (part_rows, part_maps, part_images) in zip(variants, rendered):
+        for r in part_rows:
+            b = r["backend"]
+            rows.append(dict(r, frame_ms=ms[v.index].get(b, math.nan),
+                             cpu_ms=cpu_ms[v.index].get(b, math.nan),
+                             frame_ms_q1=q1[v.index].get(b, math.nan),
+                             frame_ms_q3=q3[v.index].get(b, math.nan),
+                             command=row_command(v.file, v.params, b, spec,
+                                                 (s.width, s.height), frames, reference,
+                                                 reference_samples, general)))
+        maps.update(part_maps)
+        images.update(part_images)
     mark_front_and_ties(rows)
     warnings = clamp_warnings(rows)
-    described = {t: dict(label=r.label, text=r.describe(), why=r.spec.why)
-                 for t, r in refs.items()}
     return SweepResult(rows, spec_name(spec, s), s.width, s.height, len(s.lights), backends,
                        pool.where, how, notes, maps, images, described, warnings=warnings)
+
+
+def variant_rows(v, res: dict, s, backends, refs: dict, compiled: dict) -> tuple:
+    """A rendered variant's rows (one per backend: phase 1's columns, no frame times or
+    command), error maps and images.  The rows pass through JSON, as the journal keeps them,
+    so that a resumed sweep and an uninterrupted one give the same values."""
+    tech = res.get("technique") or compiled[v.index].technique   # the build rendered
+    tb = technique_bytes(tech, s.width, s.height)
+    memory = {b: technique_memory(tech, s.width, s.height, SHARING[b]) for b in backends}
+    bandwidth = frame_bandwidth(tech, s)
+    rows, maps, images = [], {}, {}
+    for b in backends:
+        m = res["metrics"][b]
+        name = safe_name(f"{v.slug}_{b}", ".png")
+        row = dict(technique=v.technique, params=v.params_text, backend=b, target_bytes=tb,
+                   peak_bytes=memory[b].peak_bytes, allocated_bytes=memory[b].allocated_bytes,
+                   bandwidth_bytes=bandwidth, agree=res["agree"], file=v.file,
+                   width=s.width, height=s.height, notes="; ".join(res["notes"]),
+                   reference=refs[v.technique].label, error_map=f"errors/{name}",
+                   image=f"images/{name}", worst=[])
+        row.update({k: m[k] for k in m})
+        row["target_errors"] = target_errors_text(m.get("targets", []))
+        if b == "cl":               # the CL backend counts what the formats clamp
+            row["clamps"] = res.get("clamps", [])
+            row["clamped"] = sum(c["count"] for c in row["clamps"] if c["warned"])
+        rows.append(row)
+        maps[name] = res["maps"][b]
+        images[name] = res["images"][b]
+    return json.loads(json.dumps(rows)), maps, images
 
 
 # how each backend's runtime shares target storage when it aliases (docs/memory.md)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import signal
 import struct
 import sys
 import traceback
@@ -72,6 +73,9 @@ def _read_exactly(stream: BinaryIO, n: int) -> bytes:
 
 
 def main() -> int:
+    # Ctrl-C in a terminal reaches the whole process group: the parent stops the sweep and
+    # ends this process; on its own it would die with a traceback in the middle of a job
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     # replies go on a private copy of stdout; fd 1 (print, C libraries) now writes to stderr
     replies = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)
