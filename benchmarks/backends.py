@@ -26,6 +26,31 @@ over the lights of a repeat group, medians over ``--frames`` frames), largest fi
   then until the queue is empty), so that a pass where CL loses stands out.
 
 ``--png FILE`` also draws the GL profile as horizontal stacked bars (matplotlib, if installed).
+
+Small frames (issue 26 item 3, target CL/GL <= 1.0 at 160x90 and 320x180), measured on a
+shared 2-core machine (load 3-5; ``python benchmarks/backends.py --size 160x90 --frames 7``,
+LP_NUM_THREADS = POCL_MAX_PTHREAD_COUNT = 2).  CL/GL before (dee6b84) and after (7b93f47 and
+3f957fa, with other helpers' changes to both runtimes since) in runs a minute apart; two
+after-runs show how far one run is from the next:
+
+    160x90            before   after   after (2nd run)   320x180 after
+    forward            0.12x   0.23x   0.20x             0.16x
+    forward_multipass  0.19x   0.29x   0.30x             0.31x
+    deferred           1.79x   1.29x   1.84x             1.39x
+    lidr_cpu_sort      1.08x   1.21x   0.87x             0.66x
+    lidr_max_stencil   0.85x   0.79x   0.81x             0.56x
+    lidr_bitplanes     1.11x   0.93x   1.05x             0.76x
+    lidr_transparent   0.70x   0.62x   0.67x             0.64x
+    light_prepass      0.91x   1.34x   1.33x             1.16x
+    inferred           1.10x   1.39x   1.44x             0.86x
+    deferred_calver    0.94x   1.21x   0.95x             1.03x
+
+Runs this far apart rank nothing but deferred (>1 in every run: 81 lights, two passes each,
+165 raster launches a frame; its host work, not its device time, is the frame: 18 ms of
+kernels in a 54 ms frame).  The changes' own effects, in one process with frames
+interleaved: multi-pass forward's lights in one launch (160x90 0.65x, 320x180 0.59x, 255
+lights at 640x360 0.69x of the frame), vector kernel arguments declared (deferred's light
+pass 47.8 -> ~5 us a set_args), raster keys and light lists once a frame (deferred 0.96x).
 """
 
 from __future__ import annotations

@@ -28,6 +28,20 @@ them (``$PIPEGEN_CL_SHARE_SETUP=0``).
 Only ratios can match: the papers ran GPUs of 2007-2009 with fixed-function rasterisers and
 blenders; here rasterisation, depth test and blending are software.  ``--scale`` shrinks every
 size (0.5: 512x384 and 640x360) for a quicker run.
+
+Set-up reuse (issue 26 item 2), ``--scale 0.25 --frames 3`` (256x192 and 320x180), load 2-4,
+two runs a minute apart: CL multi-pass forward / LIDR, wall time, with ``--unshared``
+(every pass sets up, bins and launches its own) and without (f655091):
+
+    lights/px  paper      --unshared (CL)   shared (CL)     GL in the same runs
+    1          6.8x       38.7-53.8x        13.4-17.8x      17.6-40.6x
+    2          5.2x       51.8-83.3x         9.1-11.6x      11.9-44.8x
+    4          3.1x       35.4-55.3x        11.0-13.3x      15.5-36.2x
+    forward_multipass CL 2306 -> 514 ms (GL 1369 and 815 ms in the two runs)
+
+Within 2x of the paper (at most 13.6x, 10.4x and 6.2x): lidr_max_stencil at 1 and 2 lights
+per pixel (13.4x, 9.1x), nothing at 4.  Multi-pass forward still shades every visible pixel
+255 times: the set-up and the launches are no longer what it pays for (``WHY`` below).
 """
 
 from __future__ import annotations
@@ -120,14 +134,17 @@ Where and why the figures differ:
   Multi-pass forward draws the whole scene 255 times (depth equal, blended into an rgba16f
   accumulator) and shades every visible pixel for every light, out of reach or not (the shader
   computes attenuation 0).  On a GPU a pass of a 101-object scene costs little beyond its
-  pixels and blending is fixed-function; llvmpipe and the CL runtime set up and bin every
-  triangle again per pass and blend half floats in software.  LIDR draws light volumes, which
-  touch only the pixels they cover, and shades each pixel once.
+  pixels and blending is fixed-function; llvmpipe sets up and bins every triangle again per
+  pass, and both blend half floats in software.  The CL runtime sets the scene up and bins it
+  once for all 255 passes and draws them in one raster launch (runtime/cl/geometry.py,
+  programs.batches_lights), but still tests coverage and depth and shades every visible pixel
+  255 times: shading is most of its frame.  LIDR draws light volumes, which touch only the
+  pixels they cover, and shades each pixel once.
 - LIDR cost against lights per pixel: the paper loses 2.2x from 1 to 4 lights per pixel;
   llvmpipe comes close (bit planes 1.7-1.9x in our runs): bigger light volumes mean more
-  blended index writes and more lights shaded per pixel on both.  PoCL loses less (1.0-1.5x):
-  its frame also holds the read-back of every target and per-pass kernel launches, which do
-  not grow with the radius.
+  blended index writes and more lights shaded per pixel on both.  PoCL loses less (1.0-1.9x):
+  its frame also holds per-pass kernel launches and host work, which do not grow with the
+  radius.
 - Reduced L-buffer with DSF vs full resolution without (Kircher & Lawrance): llvmpipe 0.6-0.7x
   against the paper's 0.78x: the L-buffer pass is a larger share of a software frame, so
   lighting fewer pixels saves more; PoCL varies more between runs (0.6-0.9x).
