@@ -53,9 +53,13 @@ its light list at once, culled only where every pass drawing them culls the same
 each pass (each light of a repeat group) draws its lights' consecutive range of triangles
 with its own cull mode; the full-screen triangle is kept across frames.  Per-triangle
 results do not depend on which other triangles or varyings are set up with them, so sharing
-changes no value.  Bins are per pass, built on
-the device from the triangles the pass draws (its lights' ranges, the faces its cull mode
-keeps); a ``repeat per light`` group's bins are found for all its lights in one numpy sort.
+changes no value.  A pass alone in its ``repeat per light`` group that draws the scene,
+clears nothing and writes no depth or stencil (``programs.batches_lights``: multi-pass
+forward's light pass) draws the whole run of its lights in one raster launch, each light's
+draw in turn, as launches per light would (``_batched``; bit-identical, tested).  Bins are
+per pass, built on the device from the triangles the pass draws (its lights' ranges, the
+faces its cull mode keeps); a ``repeat per light`` group's bins are found for all its lights
+in one numpy sort.
 A frame does the host work of all its passes (set-up read-backs, queuing the binning)
 before it queues their clears, resolves and raster kernels in pass order, without waiting
 (on 2 cores, host work done while a raster kernel runs gets a third of them, and the next
@@ -75,7 +79,8 @@ serves all the states a parametrised test sweeps (production plans bake the stat
 ``last_timings`` holds per-pass times (ms) of the latest render: ``vertex``, ``setup``,
 ``bin``, ``raster`` (kernel times from OpenCL profiling events, read at the end of the frame;
 host stages from the clock; a pass that reused cached geometry or bins has no
-vertex/setup or bin entry), ``triangles`` and ``tile_entries``.  ``profile = []`` makes the
+vertex/setup or bin entry), ``triangles`` and ``tile_entries``; a run of lights drawn in one
+launch has one entry, with ``lights`` (their number).  ``profile = []`` makes the
 next frames append ``(pass, light, host_s, device_s)`` per pass execution, draining the queue
 around each pass as ``GLPipeline.profile`` drains the GPU: ``host_s`` from the start of the
 pass to its raster kernel's launch (the first pass of a frame also waits there for the
