@@ -49,6 +49,7 @@ from typing import Callable, Optional, Sequence, Union
 from pipegen.ir import nodes as ir
 from pipegen.core.float32 import f32, f32_str
 from pipegen.ir.light_layout import LightLayout, Place
+from pipegen.ir.material_layout import MATERIAL_IDS, technique_material_layout
 from pipegen.ir.nodes import BOOL, FLOAT, INT, VEC4, Scalar, Type
 from pipegen.backends.light_rows import RowLoad, RowPlan, plan_rows
 
@@ -304,6 +305,25 @@ class CStyleLanguage:
         local = None if self._rows is None else self._rows.local_for(self._path, e)
         row = local[0] if local else self.render_light_row(self._light_index(e.index), place.row)
         return self.field_of_row(row, place, e.type), ATOM
+
+    def _materialfield(self, e: ir.MaterialField) -> tuple[str, int]:
+        row, place = self.material_row(e.field, self.expr(e.index), e.index.type)
+        return self.field_of_row(row, place, e.type), ATOM
+
+    def material_row(self, field: str, index: str, itype: Type) -> tuple[str, Place]:
+        """The row (a vec4 expression) holding material ``field`` of object ``index`` and the
+        field's place in it.  The records follow the lights in the light table
+        (ir/material_layout.py); the id is clamped to the table's ids, so a stray id reads a
+        record, never past the table."""
+        ml = technique_material_layout(self.tech)
+        offset, place = ml.place(field)
+        if itype != INT:
+            index = self.render_construct(INT, [index], [itype])
+        record = f"clamp({index}, 0, {MATERIAL_IDS - 1})"
+        if ml.stride > 1:
+            record = f"{ml.stride} * {record}"
+        record = f"{ml.base} + {record}" + (f" + {offset}" if offset else "")
+        return self.render_light_row(record, place.row), place
 
     def _light_index(self, index: Optional[ir.Expr]) -> str:
         """A light-table index as an int expression (None: the light being drawn)."""

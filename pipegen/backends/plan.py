@@ -34,6 +34,9 @@ from pipegen.ir.facts import (
 class LightTablePlan:
     capacity: int
     fields: tuple[tuple[str, str], ...]      # (name, type) in table-column order
+    # `material { … }`: (name, type, default components), stored after the lights
+    # (ir/material_layout.py); () without a material block
+    materials: tuple[tuple[str, str, tuple[float, ...]], ...] = ()
 
 
 @record(frozen=True)
@@ -175,7 +178,9 @@ def technique_plan(tech: ir.Technique, backend: str,
         technique=tech.name, title=tech.title, backend=backend, source=tech.source,
         params={p.name: p.default for p in tech.params},
         lights=LightTablePlan(tech.lights.capacity,
-                              tuple((f.name, str(f.type)) for f in tech.lights.fields)),
+                              tuple((f.name, str(f.type)) for f in tech.lights.fields),
+                              tuple((f.name, str(f.type), f.default)
+                                    for f in (tech.materials.fields if tech.materials else ()))),
         output=tech.output,
         targets=tuple(target_plan(t) for t in tech.targets),
         passes=tuple(pass_plan(p, code, s) for p, code, s in zip(tech.passes, codes, sampled)),
@@ -208,7 +213,9 @@ def plan_to_dict(plan: Plan) -> dict:
         "technique": plan.technique, "title": plan.title, "backend": plan.backend,
         "source": plan.source, "params": dict(plan.params),
         "lights": {"capacity": plan.lights.capacity,
-                   "fields": [list(f) for f in plan.lights.fields]},
+                   "fields": [list(f) for f in plan.lights.fields],
+                   **({"materials": [[n, t, list(d)] for n, t, d in plan.lights.materials]}
+                      if plan.lights.materials else {})},
         "output": plan.output,
         "targets": [_target_to_dict(t) for t in plan.targets],
         "passes": [_pass_to_dict(p) for p in plan.passes],
@@ -311,7 +318,9 @@ def plan_from_dict(d: Union[Mapping, Plan]) -> Plan:
         backend=d.get("backend") or "", source=d.get("source") or "",
         params=dict(d.get("params") or {}),
         lights=LightTablePlan(int(lights.get("capacity") or 0),
-                              tuple((str(n), str(t)) for n, t in lights.get("fields") or [])),
+                              tuple((str(n), str(t)) for n, t in lights.get("fields") or []),
+                              tuple((str(n), str(t), tuple(float(x) for x in v))
+                                    for n, t, v in lights.get("materials") or [])),
         output=d.get("output", ""),
         targets=tuple(_target_from_dict(t) for t in d.get("targets") or []),
         passes=tuple(_pass_from_dict(p, d.get("cl_preludes") or {})

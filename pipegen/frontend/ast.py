@@ -234,6 +234,18 @@ class LightsDecl(Node):
 
 
 @record
+class MaterialFieldDecl(Node):
+    name: Name
+    type: Name
+    default: Expr
+
+
+@record
+class MaterialDecl(Node):
+    fields: list[MaterialFieldDecl]
+
+
+@record
 class SizeAbs(Node):
     width: Expr
     height: Expr

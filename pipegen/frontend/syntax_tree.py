@@ -219,6 +219,13 @@ class _ToAst(Transformer):
     def light_field(self, meta, ch):
         return ast.LightFieldDecl(self._name(ch[0]), self._name(ch[1]), span=self._span(meta))
 
+    def material(self, meta, ch):
+        return ast.MaterialDecl(_present(ch), span=self._span(meta))
+
+    def material_field(self, meta, ch):
+        return ast.MaterialFieldDecl(self._name(ch[0]), self._name(ch[1]), ch[2],
+                                     span=self._span(meta))
+
     def target(self, meta, ch):
         *options, condition = ch[2:]      # [condition] leaves a None placeholder when absent
         return ast.TargetDecl(self._name(ch[0]), self._name(ch[1]), options,
@@ -589,7 +596,8 @@ _OPERATORS = {"OROR", "ANDAND", "PIPE", "CARET", "AMP", "EQ_OP", "REL_OP", "SHIF
 _SHADER_STATEMENTS = {"if", "for", "return", "break", "continue", "discard"}
 _PASS_STATEMENTS = {"draw", "writes", "reads", "depth", "stencil", "blend", "mask", "cull",
                     "offset", "clear", "repeat", "fragment"}
-_TOP_LEVEL = {"technique", "include", "param", "lights", "target", "output", "pack", "pass"}
+_TOP_LEVEL = {"technique", "include", "param", "lights", "material", "target", "output", "pack",
+              "pass"}
 # Words that start a declaration, a target option or a pass statement: the likely intent
 # behind an unknown word at the start of one.
 _STARTERS = _PASS_STATEMENTS | _TOP_LEVEL | {"size", "samples"}
@@ -746,8 +754,8 @@ def _hint(expected: set[str], tok: Optional[Token]) -> str:
         return ("a pass holds draw, writes, reads, depth, stencil, blend, mask, cull, offset, "
                 "clear, repeat per light and fragment { … } statements")
     if len(_TOP_LEVEL & words) >= 4:
-        return ("top-level declarations are technique, include, param, lights, target, output, "
-                "pack, pass, repeat per light { … } and functions like "
+        return ("top-level declarations are technique, include, param, lights, material, target, "
+                "output, pack, pass, repeat per light { … } and functions like "
                 "`float f(float x) { … }`")
     if _COMPARE <= words:
         return "comparison functions: " + " ".join(sorted(_COMPARE))

@@ -333,6 +333,16 @@ class LightField:
 
 
 @record(frozen=True)
+class MaterialField:
+    """``material.model`` / ``materials[id].model``: one field of the material table, the
+    record of object ``index`` (a uint/int object id; ``material`` is the drawn object's)."""
+
+    index: "Expr"
+    field: str
+    type: Type
+
+
+@record(frozen=True)
 class Load:
     """Texel fetch of a target (``load(t)`` at this pixel, ``load(t, ivec2)`` elsewhere).
 
@@ -363,7 +373,7 @@ class TargetSize:
 
 
 Expr = Union[Const, Var, Unary, Binary, Ternary, Call, Construct, Swizzle, Index, LightField,
-             Load, Sample, TargetSize]
+             MaterialField, Load, Sample, TargetSize]
 
 
 @record(frozen=True)
@@ -523,6 +533,28 @@ class LightTable:
             if f.name == name:
                 return f.type
         return None
+
+
+@record(frozen=True)
+class MaterialAttr:
+    """A material field a scene object may set: its type and its default, as floats (one per
+    component; a uint/int/bool field's value is stored as its integer value)."""
+
+    name: str
+    type: Type
+    default: tuple[float, ...]
+
+
+@record(frozen=True)
+class MaterialTable:
+    """The material schema (``material { … }``): one record per object id, laid out like the
+    light table's records (``ir/light_layout.py``) and stored after the lights in its table."""
+
+    fields: tuple[MaterialAttr, ...]
+    span: Optional[Span] = field(default=None, compare=False)
+
+    def field_type(self, name: str) -> Optional[Type]:
+        return next((f.type for f in self.fields if f.name == name), None)
 
 
 class DrawKind(enum.Enum):
@@ -702,6 +734,7 @@ class Technique:
     scene: Optional[SceneFacts] = None  # scene specialisation: what every scene must satisfy
     cuts: tuple[Cut, ...] = ()          # what scene specialisation removed, with reasons
     expectations: tuple[Expectation, ...] = ()   # `expect` statements (never emitted)
+    materials: Optional[MaterialTable] = None    # `material { … }`: per-object fields
 
     def target(self, name: str) -> Target:
         for t in self.targets:

@@ -330,6 +330,10 @@ def _light_field(e: ir.LightField) -> tuple[str, int]:
     return f"lights[{expr(e.index)}].{e.field}", _ATOM
 
 
+def _material_field(e: ir.MaterialField) -> tuple[str, int]:
+    return f"materials[{expr(e.index)}].{e.field}", _ATOM
+
+
 def _load(e: ir.Load) -> tuple[str, int]:
     where = "" if e.coord is None else f", {expr(e.coord)}"
     return f"load({e.target}{where})", _ATOM
@@ -368,6 +372,7 @@ _EXPRS: dict[type, Callable[..., tuple[str, int]]] = {
     ir.Swizzle: lambda e: (f"{_operand(e.base, _UNARY)}.{e.components}", _ATOM),
     ir.Index: lambda e: (f"{_operand(e.base, _UNARY)}[{expr(e.index)}]", _ATOM),
     ir.LightField: _light_field,
+    ir.MaterialField: _material_field,
     ir.Load: _load,
     ir.Sample: lambda e: (f"sample({e.target}, {expr(e.uv)})", _ATOM),
     ir.TargetSize: lambda e: (f"size({e.target})", _ATOM),

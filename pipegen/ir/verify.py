@@ -435,6 +435,12 @@ class _Body:
         self.check(self.expr(e.index) in (ir.INT, ir.UINT), "index is not an int or uint")
         self.check(e.type == bt.element, lambda: f"element of a {bt} typed {e.type}")
 
+    def _MaterialField(self, e: ir.MaterialField) -> None:
+        table = self.v.tech.materials
+        self.check(table is not None and table.field_type(e.field) == e.type,
+                   lambda: f"material field {e.field}: {e.type}")
+        self.check(self.expr(e.index) in (ir.INT, ir.UINT), "material index type")
+
     def _LightField(self, e: ir.LightField) -> None:
         if e.field == LIGHT_INDEX:
             self.check(e.index is None and e.type == ir.UINT, "light.index")

@@ -19,7 +19,7 @@ ExprFn = Callable[[ir.Expr], ir.Expr]
 StmtFn = Callable[[ir.Stmt], Optional[list]]
 
 _EXPR_TYPES = (ir.Const, ir.Var, ir.Unary, ir.Binary, ir.Ternary, ir.Call, ir.Construct,
-               ir.Swizzle, ir.Index, ir.LightField, ir.Load, ir.Sample, ir.TargetSize)
+               ir.Swizzle, ir.Index, ir.LightField, ir.MaterialField, ir.Load, ir.Sample, ir.TargetSize)
 
 
 def is_expr(x: object) -> bool:

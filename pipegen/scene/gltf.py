@@ -24,6 +24,7 @@ Draco or meshopt compression are refused (their geometry cannot be read without 
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -32,6 +33,7 @@ import numpy as np
 
 from pipegen.scene import gltf_input, limits, meshes
 from pipegen.scene.gltf_input import GltfError
+from pipegen.scene.material_fields import MaterialSetting
 from pipegen.scene.model import (
     Camera, Light, Material, Scene, SceneObject, assign_layers, make_object, report_notes)
 
@@ -390,13 +392,31 @@ class _Materials:
                          ("emissiveTexture", m.emissiveTexture)):
             if tex is not None:
                 self.dropped_textures.add(f"{label}.{key}")
-        if m.emissiveFactor and any(float(x) > 0 for x in m.emissiveFactor):
-            self.notes.add("emissiveFactor ignored (no emission in the scene model)")
+        settings = _material_settings(m, label)
+        if settings:
+            material = dataclasses.replace(material, settings=settings)
         if mode == "MASK":
             self.notes.add("alphaMode MASK drawn opaque (alphaCutoff needs textures)")
         if m.extensions:
             self.notes.add("material extensions ignored: " + ", ".join(sorted(m.extensions)))
         return material
+
+
+def _material_settings(m, label: str) -> tuple[MaterialSetting, ...]:
+    """A glTF material's fields for a technique's material block: ``emissiveFactor`` as
+    ``emissive``, and the numbers and lists of numbers in ``extras`` under their keys.  Used
+    where the technique declares them, ignored elsewhere (``MaterialSetting.required``)."""
+    source = f"glTF material '{label}'"
+    out = []
+    # pygltflib fills an absent emissiveFactor with its default, black: only a glowing
+    # material sets the field (black leaves the technique's default)
+    if m.emissiveFactor is not None and any(float(x) != 0 for x in m.emissiveFactor):
+        out.append(MaterialSetting("emissive", [float(x) for x in m.emissiveFactor], None,
+                                   source, required=False))
+    extras = m.extras if isinstance(m.extras, dict) else {}
+    for key, value in extras.items():
+        out.append(MaterialSetting(str(key), value, None, f"{source} extras", required=False))
+    return tuple(out)
 
 
 class _NodeWalk:

@@ -83,6 +83,7 @@ import numpy as np
 
 from pipegen.scene import limits, meshes
 from pipegen.core.diagnostics import PipegenError, Span
+from pipegen.scene.material_fields import MaterialSetting
 from pipegen.scene.model import (
     LIGHT_TYPES, STIPPLE_LAYERS, Camera, Light, Material, Scene, SceneObject, assign_layers,
     make_object, report_notes, transform_matrix)
@@ -450,15 +451,33 @@ def _camera(r: _Reader, base: Optional[Camera] = None) -> Camera:
     return cam
 
 
+_MATERIAL_KEYS = ("albedo", "specular", "shininess", "alpha", "translucent")
+
+
 def _material(m: _Reader) -> Material:
-    m.check_keys({"albedo", "specular", "shininess", "alpha", "translucent"})
+    """pipegen's own material keys; any other key is a field for a technique's material block,
+    kept with its position and checked when a technique renders the scene
+    (scene/material_fields.py)."""
+    settings = tuple(_setting(m, k) for k in m.table if k not in _MATERIAL_KEYS)
     return Material(
         albedo=m.vec3("albedo"),
         specular=m.number("specular", 0.25, minimum=0.0),
         shininess=m.number("shininess", 32.0, positive=True),
         alpha=m.number("alpha", 1.0, minimum=0.0, maximum=1.0),
         translucent=m.boolean("translucent", False),
+        settings=settings,
     )
+
+
+def _setting(m: _Reader, key: str) -> MaterialSetting:
+    value = m.table[key]
+    ok = lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)  # noqa: E731
+    if not (ok(value) or isinstance(value, list) and value and all(ok(v) for v in value)):
+        m.fail(key, f"material field '{key}' in {_describe(m.path)} must be a number or a list "
+               f"of numbers, not {_show(value)}",
+               hint="pipegen's own material keys: " + ", ".join(_MATERIAL_KEYS) + "; any other "
+                    "key is a field of the technique's `material { … }` block")
+    return MaterialSetting(key, value, m.loc.find(m.path + (key,)), _describe(m.path))
 
 
 def mtl_material(m) -> Material:

@@ -15,6 +15,7 @@ import numpy as np
 
 from pipegen.scene import meshes
 from pipegen.core.diagnostics import PipegenError
+from pipegen.scene.material_fields import MaterialSetting, material_table
 
 
 LIGHT_TYPES = {"point": 0, "spot": 1, "directional": 2}
@@ -74,6 +75,8 @@ class Material:
     shininess: float = 32.0
     alpha: float = 1.0
     translucent: bool = False
+    # fields of a technique's `material { … }` block, checked when one renders the scene
+    settings: tuple[MaterialSetting, ...] = ()
 
     @property
     def kind(self) -> str:
@@ -259,6 +262,11 @@ class Scene:
         layer = np.repeat([o.layer for o in objs], counts)
         f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
         return Geometry(f32(pos), f32(nrm), f32(albedo), f32(mat), f32(ids), f32(layer))
+
+    def material_table(self, schema) -> np.ndarray:
+        """float64 (ids, fields, 4): each object id's material fields for a technique's
+        schema ((name, type, default) triples); ``scene/material_fields.py``."""
+        return material_table(self.objects, schema)
 
     def light_table(self, fields: list[tuple[str, str]], capacity: int) -> np.ndarray:
         """float32 (capacity, F, 4): field k of light i in ``[i, k]``, components first, the

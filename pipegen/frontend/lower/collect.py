@@ -25,6 +25,7 @@ class Decls:
     technique: Optional[ast.TechniqueDecl] = None
     params: list[ast.ParamDecl] = field(default_factory=list)
     lights: list[ast.LightsDecl] = field(default_factory=list)
+    materials: list[ast.MaterialDecl] = field(default_factory=list)
     targets: list[ast.TargetDecl] = field(default_factory=list)
     outputs: list[ast.OutputDecl] = field(default_factory=list)
     packs: list[ast.PackDecl] = field(default_factory=list)
@@ -81,7 +82,7 @@ class Collector:
             d.passes.append(PassItem(item, self._new_group() if repeats else None,
                                      conditions=_own_condition(item)))
         else:
-            bucket = {ast.ParamDecl: d.params, ast.LightsDecl: d.lights,
+            bucket = {ast.ParamDecl: d.params, ast.LightsDecl: d.lights, ast.MaterialDecl: d.materials,
                       ast.TargetDecl: d.targets, ast.OutputDecl: d.outputs,
                       ast.PackDecl: d.packs, ast.FunctionDef: d.functions,
                       ast.Expect: d.expects}[type(item)]

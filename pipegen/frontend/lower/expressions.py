@@ -161,6 +161,10 @@ class ExprChecker:
         return ir.Ternary(cond, then, other, then.type)
 
     def _expr_Subscript(self, e: ast.Subscript) -> ir.Expr:
+        if isinstance(e.base, ast.Name) and e.base.name == "materials" \
+                and self._lookup_local("materials") is None:
+            raise error(e.span, "a material is read by field",
+                        "e.g. materials[id].model; the `material { … }` block lists the fields")
         if isinstance(e.base, ast.Name) and e.base.name == "lights" \
                 and self._lookup_local("lights") is None:
             raise error(e.span, "a light is read by field",
@@ -189,11 +193,16 @@ class ExprChecker:
         if isinstance(base, ast.Name) and self._lookup_local(base.name) is None:
             if base.name == "light":
                 return self._light_field(None, e)
+            if base.name == "material":
+                return self._material_field(None, e)
             if base.name in self.low.pack_specs:
                 return self.low.pack_constant(base, e.name)
         if isinstance(base, ast.Subscript) and isinstance(base.base, ast.Name) \
                 and base.base.name == "lights" and self._lookup_local("lights") is None:
             return self._light_field(self._index_value(base.index), e)
+        if isinstance(base, ast.Subscript) and isinstance(base.base, ast.Name) \
+                and base.base.name == "materials" and self._lookup_local("materials") is None:
+            return self._material_field(self._index_value(base.index), e)
         value = self.expr(base)
         return self._swizzle(value, e)
 
@@ -218,6 +227,28 @@ class ExprChecker:
                                     f"the schema declares: {listing(schema)}")
             raise error(e.name.span, f"lights have no field '{name}'", hint)
         return ir.LightField(index, name, t)
+
+    def _material_field(self, index: Optional[ir.Expr], e: ast.Field) -> ir.Expr:
+        """``material.FIELD`` (the drawn object's record: index None) or
+        ``materials[id].FIELD`` (any object's, e.g. an id a G-buffer stored)."""
+        name = e.name.name
+        table = self.low.materials
+        if table is None:
+            raise error(e.span, "this technique declares no material fields",
+                        f"declare them at the top level, e.g. `material {{ {name}: float = 0 }}`")
+        t = table.field_type(name)
+        if t is None:
+            schema = [f.name for f in table.fields]
+            raise error(e.name.span, f"materials have no field '{name}'",
+                        did_you_mean(name, schema, f"the material block declares: {listing(schema)}"))
+        if index is None:
+            if self.ctx.in_pass and self.ctx.draw is not ir.DrawKind.SCENE:
+                raise error(e.base.span, f"`material` is the drawn object's, and "
+                            f"{self.ctx.describe()} does not draw the scene",
+                            "store object_id in a target in a scene pass and read "
+                            "materials[id].FIELD here")
+            index = self._stage_input(ast.Name("object_id", span=e.base.span))
+        return ir.MaterialField(index, name, t)
 
     def _swizzle(self, value: ir.Expr, e: ast.Field) -> ir.Expr:
         name = e.name.name

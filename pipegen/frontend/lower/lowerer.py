@@ -45,6 +45,7 @@ from pipegen.packing.base import SCHEMES as SCHEME_NAMES
 from pipegen.frontend.lower.collect import Collector, Decls, PassItem
 from pipegen.frontend.lower.conditions import holds, spelling
 from pipegen.frontend.lower.expectations import lower_expectations
+from pipegen.frontend.lower.materials import lower_material_table
 from pipegen.frontend.lower.names import (
     SAMPLE_COUNTS, Loader, a_or_an, Context, did_you_mean, error, generated_by, Global, listing,
     param_type_name, reserved_meaning, shader_type, show_number, Signature, Uses)
@@ -76,6 +77,7 @@ class _Lowerer:
         self.params: dict[str, ir.Param] = {}
         self.targets: dict[str, ir.Target] = {}
         self.lights = ir.LightTable((), 0)
+        self.materials: Optional[ir.MaterialTable] = None
         self.packs: dict[str, ast.PackDecl] = {}
         self.pack_specs: dict[str, object] = {}
         self.pack_options: dict[str, dict] = {}
@@ -93,6 +95,7 @@ class _Lowerer:
             self._declare(name, kind)
         params = self._params(d.params)
         self._lights(d.lights)
+        self.materials = lower_material_table(d.materials, self.lights)
         targets = self._targets(d.targets)
         output = self._output(d.outputs, tech)
         self._packings(d.packs)
@@ -103,7 +106,7 @@ class _Lowerer:
             name=tech.name.name, title=tech.title, params=params, targets=targets,
             lights=self.lights, packings=self._ir_packings(),
             functions=self._ir_functions(user=True), passes=passes, output=output,
-            source=self.filename,
+            source=self.filename, materials=self.materials,
             expectations=lower_expectations(d.expects, (t.name for t in targets)))
 
     def _declare(self, name: ast.Name, kind: str) -> None:

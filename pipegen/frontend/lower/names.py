@@ -182,6 +182,7 @@ class Lowering(Protocol):
     params: dict[str, ir.Param]
     targets: dict[str, ir.Target]
     lights: ir.LightTable
+    materials: Optional[ir.MaterialTable]
     packs: dict[str, ast.PackDecl]
     pack_specs: dict[str, object]
     pack_options: dict[str, dict]

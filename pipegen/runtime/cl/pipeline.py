@@ -405,7 +405,7 @@ class CLPipeline:
         self.geometry.use_scene()
         capacity = max(1, self.plan.lights.capacity)
         fields = self.plan.lights.fields
-        table = (light_rows(scene, fields, capacity) if fields      # ir/light_layout.py
+        table = (light_rows(scene, fields, capacity, self.plan.lights.materials) if fields
                  else np.zeros((0, 4), np.float32))
         self._lights_buf = self.device.buffer(table.reshape(-1, 4) if table.size
                                               else np.zeros((1, 4), np.float32))

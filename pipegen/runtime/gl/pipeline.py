@@ -62,7 +62,7 @@ from pipegen.runtime.gl import state as GS
 from pipegen.runtime.gl import names
 from pipegen.runtime.gl import transitions as GT
 from pipegen.runtime.common import check_param_overrides, check_scene
-from pipegen.runtime.light_table import light_rows
+from pipegen.runtime.light_table import light_rows, table_records
 from pipegen.runtime.gl.context import (
     GL, check_error, clear_stale_errors, debug_enabled, get_context)
 
@@ -308,9 +308,11 @@ class GLPipeline:
         self._clears: Optional[FrameClears] = None
         self.capacity = max(1, plan.lights.capacity)
         self.fields = list(plan.lights.fields)
-        # a texel column per row of a light's record, a line per light (ir/light_layout.py)
+        self.materials = plan.lights.materials
+        # a texel column per row of a light's record, a line per light (ir/light_layout.py),
+        # then the material records (ir/material_layout.py)
         self.light_tex = GF.create_texture("rgba32f", max(1, schema_layout(self.fields).rows),
-                                           self.capacity)
+                                           table_records(plan.lights))
         self._samplers = {mode: self._sampler(mode) for mode in ("nearest", "linear")}
         self._meshes: dict[str, moderngl.Buffer] = {}
         self._scene = None
@@ -442,7 +444,7 @@ class GLPipeline:
         self._lights = lights
         if self.fields:
             GF.write_texture(self.light_tex, "rgba32f",
-                             light_rows(scene, self.fields, self.capacity))
+                             light_rows(scene, self.fields, self.capacity, self.materials))
         self._scene = scene
 
     def _scene_vbo(self, draw: ir.Draw) -> tuple[moderngl.Buffer, int]:

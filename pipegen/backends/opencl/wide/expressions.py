@@ -229,6 +229,14 @@ class WideExpressions:
         place = self.lang.light_layout.place(e.field)
         return self._row_field(self.lang.render_light_row(index, place.row), place, e.type)
 
+    def _materialfield(self, e: ir.MaterialField) -> Val:
+        iv = self.expr(e.index)
+        if iv.varying:
+            # each lane its own object: a gather per lane, like a varying light index
+            raise Unsupported("varying material index")
+        row, place = self.lang.material_row(e.field, iv.comps[0], e.index.type)
+        return self._row_field(row, place, e.type)
+
     def _row_field(self, row: str, place, t: Type) -> Val:
         """The components of a light field at ``place`` of ``row`` (uniform)."""
         comps = []
