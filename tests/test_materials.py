@@ -260,3 +260,37 @@ def test_model_one_is_wrapped_diffuse_without_a_lobe(backend):
 def test_gl_and_cl_agree_on_the_material_scene():
     gl, cl = render("gl"), render("cl")
     np.testing.assert_allclose(gl["color"].astype(np.float64), cl["color"], atol=2e-3)
+
+
+FORWARD = """technique fwd "material.FIELD in a scene draw"
+lights[4] { position: vec3, radius: float, color: vec3 }
+material { model: uint = 0, emissive: vec3 = vec3(0), rim: float = 0, wrap: float = 0.5 }
+target color : rgba32f clear 0
+target ids : rgba32f clear 0
+target ds : d24s8 clear depth 1.0
+output color
+pass p {
+  draw scene
+  writes color, ids
+  depth ds less write
+  fragment {
+    color = vec4(material.emissive, float(material.model) + material.rim + material.wrap);
+    ids = vec4(float(object_id));
+  }
+}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_material_fields_of_the_drawn_object_in_a_scene_draw(backend):
+    """Each object's pixels hold exactly its fields (rgba32f: the float32 values themselves)."""
+    out = compile_source(FORWARD, "fwd.pipe").pipeline(backend).render(load_scene(SCENE))
+    table = load_scene(SCENE).material_table(SCHEMA).astype(np.float32)
+    ids = out["ids"][..., 0].astype(int)
+    for object_id in range(1, 6):
+        on = ids == object_id
+        assert on.sum() > 10
+        fields = table[object_id]
+        want = [*fields[1, :3], fields[0, 0] + fields[2, 0] + fields[3, 0]]
+        np.testing.assert_array_equal(out["color"][on], np.broadcast_to(np.float32(want),
+                                                                        out["color"][on].shape))
