@@ -294,3 +294,13 @@ def test_material_fields_of_the_drawn_object_in_a_scene_draw(backend):
         want = [*fields[1, :3], fields[0, 0] + fields[2, 0] + fields[3, 0]]
         np.testing.assert_array_equal(out["color"][on], np.broadcast_to(np.float32(want),
                                                                         out["color"][on].shape))
+
+
+def test_the_ir_printer_writes_the_block_as_declared():
+    from pipegen.frontend import parse as syntax
+    from pipegen.ir.printer import print_technique
+    text = print_technique(compile_file(PIPE).technique)
+    assert ("material { model: uint = 0, emissive: vec3 = vec3(0.0, 0.0, 0.0), rim: float = 0.0,"
+            in text)
+    assert "materials[id].emissive" in text
+    syntax.parse(text, "two.ir")                     # reads like .pipe

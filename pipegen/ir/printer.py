@@ -43,6 +43,9 @@ def print_technique(tech: ir.Technique) -> str:
     if tech.lights.fields:
         out += _wrapped(f"lights[{tech.lights.capacity}] {{ ",
                         [f"{f.name}: {f.type}" for f in tech.lights.fields], " }")
+    if tech.materials is not None:
+        out += _wrapped("material { ", [f"{f.name}: {f.type} = {_material_default(f)}"
+                                        for f in tech.materials.fields], " }")
     out.append("")
     out += [target(t) for t in tech.targets]
     out.append(f"output {tech.output}")
@@ -108,6 +111,13 @@ def packing(k: ir.Packing) -> list[str]:
 def function(f: ir.Function) -> list[str]:
     params = [f"{t} {name}" for name, t in f.params]
     return [*_wrapped(f"{f.ret} {f.name}(", params, ") {"), *block(f.body, 1), "}"]
+
+
+def _material_default(f: ir.MaterialAttr) -> str:
+    """A material field's default as the declaration writes it (``0``, ``0.5``, ``vec3(0, 1, 0)``)."""
+    integer = f.type.scalar is not ir.Scalar.FLOAT
+    values = [str(int(v)) if integer else repr(v) for v in f.default]
+    return values[0] if len(values) == 1 else f"{f.type}({', '.join(values)})"
 
 
 def _wrapped(head: str, items: list[str], tail: str) -> list[str]:
