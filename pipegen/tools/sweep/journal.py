@@ -18,15 +18,15 @@ figures come from the same conditions (timings of an earlier process are never m
 
 from __future__ import annotations
 
-import contextlib
-import hashlib
 import json
-import signal
-import threading
 from pathlib import Path
 from typing import Optional
 
-from pipegen.core.diagnostics import PipegenError
+from pipegen.core.journal import (absolute as _absolute, check_identity, file_sha256,
+                                  interrupts_deferred, read_back, read_journal)
+
+__all__ = ["JOURNAL", "Journal", "SweepInterrupted", "file_sha256", "interrupts_deferred",
+           "sweep_identity", "variant_key"]
 
 JOURNAL = "rows.jsonl"
 FORMAT = 1
@@ -39,13 +39,6 @@ class SweepInterrupted(Exception):
     def __init__(self, rows: int, total: int, timing: bool):
         super().__init__(f"interrupted: {rows} of {total} rows done")
         self.rows, self.total, self.timing = rows, total, timing
-
-
-def file_sha256(path) -> Optional[str]:
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return None
 
 
 def sweep_identity(variants: list, spec: dict, size: tuple, backends, reference: Optional[str],
@@ -63,10 +56,6 @@ def sweep_identity(variants: list, spec: dict, size: tuple, backends, reference:
 
 def variant_key(v) -> str:
     return json.dumps([_absolute(v.file), v.params_text])
-
-
-def _absolute(path) -> str:
-    return str(Path(path).resolve())
 
 
 class Journal:
@@ -87,23 +76,12 @@ class Journal:
         path = Path(self.out.path) / JOURNAL
         if not self.resume or not path.is_file():
             return done
-        lines = path.read_text().splitlines()
-        try:
-            entries = [json.loads(line) for line in lines]
-            before = entries[0]["sweep"]
-        except (ValueError, KeyError, IndexError, TypeError):
-            raise PipegenError(None, f"--resume: '{path}' is not a sweep journal pipegen can "
-                                     f"read", hint="run the sweep again without --resume")
-        differ = [k for k in sorted(set(identity) | set(before))
-                  if identity.get(k) != before.get(k)]
-        if differ:
-            raise PipegenError(None, f"--resume: this sweep is not the one in "
-                                     f"'{self.out.path}': {', '.join(map(_what, differ))} "
-                                     f"differ{'s' if len(differ) == 1 else ''}",
-                               hint="give the same files, options and scene as the partial "
-                                    "run (its command is in results.json), or run without "
-                                    "--resume to start again")
-        for line, entry in zip(lines[1:], entries[1:]):
+        before, lines, entries = read_journal(path, "sweep", "sweep")
+        check_identity(identity, before, self.out.path, WHAT, "sweep",
+                       hint="give the same files, options and scene as the partial run (its "
+                            "command is in results.json), or run without --resume to start "
+                            "again")
+        for line, entry in zip(lines, entries):
             names = entry["names"]
             done[json.dumps(entry["variant"])] = (
                 entry["rows"], self._read_back("errors", names), self._read_back("images", names))
@@ -111,15 +89,8 @@ class Journal:
         return done
 
     def _read_back(self, folder: str, names: list) -> dict:
-        out = {}
-        for name in names:
-            try:
-                out[name] = (Path(self.out.path) / folder / name).read_bytes()
-            except OSError:
-                raise PipegenError(None, f"--resume: '{folder}/{name}' of a rendered variant "
-                                         f"is missing from '{self.out.path}'",
-                                   hint="run the sweep again without --resume") from None
-        return out
+        return {name: read_back(self.out.path, f"{folder}/{name}", "sweep",
+                                "a rendered variant") for name in names}
 
     def record(self, v, rows: list, maps: dict, images: dict, results: dict) -> None:
         """Commit a rendered variant: its journal line, its error maps and images, and
@@ -140,26 +111,8 @@ class Journal:
         return "\n".join(self.lines) + "\n"
 
 
-def _what(key: str) -> str:
-    return {"files": "the technique files (or their contents)", "variants": "the variants (-p)",
-            "scene": "the scene", "scene_sha256": "the scene file's content",
-            "size": "the size", "reference_samples": "--reference-samples",
-            "general": "--general", "f64": "the f64 evaluation",
-            "backends": "the backends", "reference": "--reference"}.get(key, key)
-
-
-@contextlib.contextmanager
-def interrupts_deferred():
-    """Hold back SIGINT (Ctrl-C) in the block and raise KeyboardInterrupt after it, so that a
-    commit is never cut short by this process's own handler (in the main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught = []
-    previous = signal.signal(signal.SIGINT, lambda *a: caught.append(a))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    if caught:
-        raise KeyboardInterrupt
+WHAT = {"files": "the technique files (or their contents)", "variants": "the variants (-p)",
+        "scene": "the scene", "scene_sha256": "the scene file's content",
+        "size": "the size", "reference_samples": "--reference-samples",
+        "general": "--general", "f64": "the f64 evaluation",
+        "backends": "the backends", "reference": "--reference"}
