@@ -218,7 +218,8 @@ def _every_node() -> list:
         ir.Ternary(ir.Const(ir.BOOL, True), x, x, ir.FLOAT),
         ir.Call("sqrt", (x,), ir.FLOAT), ir.Construct(ir.VEC4, (x,)),
         ir.Swizzle(v, "xyz", ir.VEC3), ir.Index(v, i, ir.FLOAT),
-        ir.LightField(i, "radius", ir.FLOAT), ir.Load("t", None, ir.VEC4),
+        ir.LightField(i, "radius", ir.FLOAT), ir.MaterialField(i, "rim", ir.FLOAT),
+        ir.Load("t", None, ir.VEC4),
         ir.Sample("t", ir.Var("uv", ir.VEC2), ir.VEC4), ir.TargetSize("t", ir.IVEC2)]
     stmts = [
         ir.Declare("y", ir.FLOAT, x), ir.Assign(x, "+=", x), ir.Output("t", v),
@@ -235,7 +236,7 @@ def test_the_printer_prints_every_expression_and_statement_kind():
     text = "\n".join(expr(n) if type(n) in typing.get_args(ir.Expr) else
                      "\n".join(statement(n)) for n in nodes)
     for piece in ("-1.5", "-x", "x + (x - 1.0)", "true ? x : x", "sqrt(x)", "vec4(x)",
-                  "v.xyz", "v[i]", "lights[i].radius", "load(t)", "sample(t, uv)", "size(t)",
+                  "v.xyz", "v[i]", "lights[i].radius", "materials[i].rim", "load(t)", "sample(t, uv)", "size(t)",
                   "float y = x;", "x += x;", "t = v;", "} else {", "continue;",
                   "for (int k = 0; k < 4; k++) {", "discard;", "return;", "f();"):
         assert piece in text, piece
