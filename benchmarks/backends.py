@@ -1,7 +1,8 @@
 """GL (llvmpipe) vs CL (PoCL) frame time per technique, measured in one run.
 
     python benchmarks/backends.py [--scene examples/scenes/many_lights.toml] [--size 640x360]
-        [--frames 3] [--threads 2] [--general] [--profile] [--png FILE] [technique[:param=value,...] ...]
+        [--frames 3] [--threads 2] [--general] [--profile] [--png FILE]
+        [technique[:param=value,...] ...]
 
 By default each technique is compiled for the scene (the variant `pipegen run` renders);
 ``--general`` times the general build.
