@@ -304,3 +304,8 @@ def test_the_ir_printer_writes_the_block_as_declared():
             in text)
     assert "materials[id].emissive" in text
     syntax.parse(text, "two.ir")                     # reads like .pipe
+
+
+def test_materials_with_fields_stay_hashable():
+    scene = load_scene(SCENE)
+    assert len({o.material for o in scene.objects}) == 5

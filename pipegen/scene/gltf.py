@@ -411,10 +411,14 @@ def _material_settings(m, label: str) -> tuple[MaterialSetting, ...]:
     # pygltflib fills an absent emissiveFactor with its default, black: only a glowing
     # material sets the field (black leaves the technique's default)
     if m.emissiveFactor is not None and any(float(x) != 0 for x in m.emissiveFactor):
-        out.append(MaterialSetting("emissive", [float(x) for x in m.emissiveFactor], None,
+        out.append(MaterialSetting("emissive", tuple(float(x) for x in m.emissiveFactor), None,
                                    source, required=False))
     extras = m.extras if isinstance(m.extras, dict) else {}
     for key, value in extras.items():
+        value = tuple(value) if isinstance(value, list) else value
+        nested = isinstance(value, tuple) and any(isinstance(v, (list, dict)) for v in value)
+        if isinstance(value, dict) or nested:    # no field's value: not kept (and unhashable)
+            continue
         out.append(MaterialSetting(str(key), value, None, f"{source} extras", required=False))
     return tuple(out)
 

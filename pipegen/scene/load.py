@@ -477,6 +477,7 @@ def _setting(m: _Reader, key: str) -> MaterialSetting:
                f"of numbers, not {_show(value)}",
                hint="pipegen's own material keys: " + ", ".join(_MATERIAL_KEYS) + "; any other "
                     "key is a field of the technique's `material { … }` block")
+    value = tuple(value) if isinstance(value, list) else value
     return MaterialSetting(key, value, m.loc.find(m.path + (key,)), _describe(m.path))
 
 
@@ -564,24 +565,19 @@ def _object(r: _Reader, index: int, base_dir: Path, next_id: int,
 
 def _light(r: _Reader) -> Light:
     kind = r.string("type", "point", choices=tuple(LIGHT_TYPES))
-    keys = {"point": {"position", "radius", "color"},
+    keys = {"point": {"position", "radius", "color", "shadows"},
             "spot": {"position", "radius", "color", "direction", "inner_deg", "outer_deg",
                      "shadows"},
             "directional": {"direction", "color", "radius", "shadows"}}[kind]
-    if kind == "point" and r.has("shadows"):
-        r.fail("shadows", "point lights cannot cast shadows (only spot and directional "
-               "lights have shadow maps)",
-               hint="drop `shadows`, or make the light a spot (`type = \"spot\"`, direction, "
-                    "inner_deg, outer_deg)")
     r.check_keys(keys | {"type"})
     color = r.vec3("color")
-    shadows = r.boolean("shadows", False) if kind != "point" else False
+    shadows = r.boolean("shadows", False)
     if kind == "directional":
         return Light("directional", color, direction=_unit(r.vec3("direction", nonzero=True)),
                      radius=r.number("radius", 0.0, minimum=0.0), shadows=shadows)
     position, radius = r.vec3("position"), r.number("radius", positive=True)
     if kind == "point":
-        return Light("point", color, position=position, radius=radius)
+        return Light("point", color, position=position, radius=radius, shadows=shadows)
     inner = r.number("inner_deg", minimum=0.0, maximum=89.9)
     outer = r.number("outer_deg", minimum=0.0, maximum=89.9)
     if not inner < outer:

@@ -21,7 +21,8 @@ from pipegen.ir.material_layout import MATERIAL_IDS
 @dataclass(frozen=True)
 class MaterialSetting:
     """One material key a scene object sets beyond pipegen's own: ``value`` as the file gave
-    it (a number, a bool or a list of numbers), ``where`` its position (None: not known)."""
+    it (a number, a bool, or a list as a tuple, so that a material stays hashable), ``where``
+    its position (None: not known)."""
 
     name: str
     value: Any
@@ -58,8 +59,9 @@ def field_value(s: MaterialSetting, type_name: str) -> tuple[float, ...]:
     """``s``'s value as the components of a ``type_name`` field, or a positioned error."""
     size = int(type_name[-1]) if type_name[-1].isdigit() else 1
     kind = {"u": "uint", "i": "int"}.get(type_name[0], "float") if size > 1 else type_name
-    values = s.value if isinstance(s.value, list) else [s.value]
-    if (size > 1) != isinstance(s.value, list) or len(values) != size:
+    is_list = isinstance(s.value, (list, tuple))
+    values = list(s.value) if is_list else [s.value]
+    if (size > 1) != is_list or len(values) != size:
         shape = f"a list of {size} numbers" if size > 1 else "one number"
         raise PipegenError(s.where, f"{s.source}: material field '{s.name}' is a {type_name}, "
                            f"so its value is {shape}, not {_show(s.value)}",
@@ -91,4 +93,7 @@ def _example(size: int) -> str:
 
 
 def _show(v: Any) -> str:
+    """``v`` as the scene file writes it."""
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_show(x) for x in v) + "]"
     return repr(v) if not isinstance(v, str) else f'"{v}"'
