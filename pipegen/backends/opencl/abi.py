@@ -146,16 +146,27 @@ def state_words(pass_: PassPlan) -> list[int]:
     return out
 
 
-# llvmpipe's multisample positions (GL_SAMPLE_POSITION, measured; GL window space, y up)
+# Multisample positions, GL window space (y up).  4: llvmpipe's (GL_SAMPLE_POSITION,
+# measured), which are Direct3D's standard 4x pattern in sixteenths of a pixel read in GL's
+# axes.  llvmpipe stops at 4 (GL_MAX_SAMPLES), so 2 and 8 cannot be measured here: they are
+# Direct3D's standard 2x and 8x patterns read the same way, what GPUs with standard patterns
+# report; GL renders at those counts agree with these only on such a GPU.
+def _sixteenths(*offsets: tuple[int, int]) -> list[tuple[float, float]]:
+    return [(0.5 + x / 16, 0.5 + y / 16) for x, y in offsets]
+
+
 SAMPLE_POSITIONS = {1: [(0.5, 0.5)],
-                    4: [(0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)]}
+                    2: _sixteenths((4, 4), (-4, -4)),
+                    4: [(0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875)],
+                    8: _sixteenths((1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1),
+                                   (3, 7), (7, -7))}
 
 
 def sample_positions(samples: int) -> tuple[list[int], list[int]]:
     """Sample offsets within a pixel in 1/256 pixel (x list, y list)."""
     pos = SAMPLE_POSITIONS.get(samples)
     if pos is None:
-        raise ValueError(f"{samples} samples per pixel: the reference supports 1 and 4 "
-                         "(llvmpipe's GL_MAX_SAMPLES is 4)")
+        raise ValueError(f"{samples} samples per pixel: the OpenCL backend supports "
+                         f"{', '.join(map(str, SAMPLE_POSITIONS))}")
     return [int(x * 256) for x, _ in pos], [int(y * 256) for _, y in pos]
 

@@ -37,7 +37,8 @@ from typing import Optional, Sequence
 import numpy as np
 
 from pipegen.core import formats as F
-from pipegen.runtime.gl.context import GL, get_context
+from pipegen.core.diagnostics import PipegenError
+from pipegen.runtime.gl.context import GL, get_context, gl_limits
 
 __all__ = ["GLFormat", "GL_FORMATS", "gl_format", "create_texture", "delete_texture",
            "clear_texture", "read_texture", "write_texture", "split_depth_stencil",
@@ -123,12 +124,30 @@ GL_FORMATS: dict[str, GLFormat] = {name: gl_format(name) for name in F.FORMATS}
 
 def create_texture(name: str, width: int, height: int, samples: int = 1) -> int:
     """An immutable texture of format ``name`` (multisampled when ``samples > 1``)."""
-    get_context()
+    ctx = get_context()
     g = gl_format(name)
     from pipegen.runtime.gl import names
+    if samples > gl_limits()["max_samples"]:
+        # the language allows 8 (SAMPLE_COUNTS); llvmpipe stops at 4, and GL would only say
+        # "framebuffer incomplete" at the first pass drawing there
+        raise PipegenError(None, f"{samples} samples per pixel: GL ({ctx.info['GL_RENDERER']}) "
+                                 f"renders at most {gl_limits()['max_samples']} (GL_MAX_SAMPLES)",
+                           "render on CL alone (`--backend cl`, `pipeline('cl')`), or ask for "
+                           "fewer samples")
     if samples > 1:
         tex = names.create_texture_name(GL.GL_TEXTURE_2D_MULTISAMPLE)
         GL.glTextureStorage2DMultisample(tex, samples, g.internal, width, height, True)
+        got_buf = np.zeros(1, np.int32)
+        GL.glGetTextureLevelParameteriv(tex, 0, GL.GL_TEXTURE_SAMPLES, got_buf)
+        got = int(got_buf[0])
+        if got != samples:
+            # GL may round a count up (llvmpipe renders 2 as 4): the CL backend, and the
+            # image's error, would then be for a count nobody asked for
+            names.delete_textures(tex)
+            raise PipegenError(None, f"{samples} samples per pixel: GL "
+                                     f"({ctx.info['GL_RENDERER']}) renders them as {got}",
+                               "render on CL alone (`--backend cl`, `pipeline('cl')`), or ask "
+                               f"for {got} samples")
     else:
         tex = names.create_texture_name(GL.GL_TEXTURE_2D)
         GL.glTextureStorage2D(tex, 1, g.internal, width, height)
