@@ -49,9 +49,24 @@ class _WholeWords:
     """
 
     always_accept = ("NAME",)
+    # ``expect`` is a keyword only at the top level (an expectation's line); inside braces or
+    # parentheses (shader code, a function's parameters) it is a name.  The contextual lexer
+    # cannot tell by itself: LALR merges the lookaheads of states with the same items, and a
+    # target's trailing ``if COND`` is followed by any top-level keyword, ``expect`` included,
+    # so after that grammar change ``float expect = 1.0;`` lexed ``expect`` as the keyword.
+    _OPEN, _CLOSE = ("LBRACE", "LPAR"), ("RBRACE", "RPAR")
 
     def process(self, stream):
-        return stream
+        from lark import Token
+        depth = 0
+        for tok in stream:
+            if tok.type in self._OPEN:
+                depth += 1
+            elif tok.type in self._CLOSE:
+                depth = max(0, depth - 1)
+            elif tok.type == "EXPECT" and depth:
+                tok = Token.new_borrow_pos("NAME", tok.value, tok)
+            yield tok
 
 
 @functools.cache
