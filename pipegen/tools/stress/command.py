@@ -62,8 +62,13 @@ def add_parser(sub, size_arg, output_note: str):
                         "features, one per distinct set of features, as pipegen run renders "
                         "that scene; docs/specialise.md)")
     p.add_argument("-o", "--out", metavar="DIR",
-                   help="folder for worst-pixel PNGs and failing scenes (default: "
-                        "build/stress/<technique>)")
+                   help="folder for the table (table.txt), the cases' journal "
+                        "(cases.jsonl), worst-pixel PNGs and failing scenes, each case written "
+                        "as it finishes (default: build/stress/<technique>)")
+    p.add_argument("--resume", action="store_true",
+                   help="finish a run that was stopped (Ctrl-C, kill, a crash): render only "
+                        "the cases DIR/cases.jsonl lacks; the technique, options and scene "
+                        "must be the stopped run's")
     p.add_argument("--force", action="store_true",
                    help="write into an output folder that holds files pipegen did not write")
     p.set_defaults(func=cmd_stress, parser=p)
@@ -73,9 +78,10 @@ def add_parser(sub, size_arg, output_note: str):
 def cmd_stress(args) -> int:
     from pipegen.compiler.inputs import compile_technique
     from pipegen.core.diagnostics import PipegenError
-    from pipegen.core.outdir import OutputDir, safe_name
-    from pipegen.tools.stress import report
-    from pipegen.tools.stress.cases import build, case_names, random_scene_toml, scene_toml
+    from pipegen.core.outdir import OutputDir
+    from pipegen.tools.stress.cases import build, case_names, random_scene_toml
+    from pipegen.tools.stress.journal import (JOURNAL, TABLE, JournaledRunner, StressJournal,
+                                              stress_identity)
     from pipegen.tools.stress.run import Stress
     t_start = time.perf_counter()
     measured = args.reference is not None or args.reference_samples != 1
@@ -99,42 +105,50 @@ def cmd_stress(args) -> int:
 
     reference = choose_reference(args.reference, compiled, args.reference_samples) \
         if measured else None
-    runner = Stress(compiled, reference=reference, general=args.general, path=args.file)
+    stress = Stress(compiled, reference=reference, general=args.general, path=args.file)
+    journal = StressJournal(out, resume=args.resume)
+    done = journal.start(stress_identity(args.file, args.param, args.scene, size, names,
+                                         args.random, args.seed, args.reference,
+                                         args.reference_samples, args.general))
+
+    def report_text(records: list) -> str:
+        builds = stress.builds_text(len({r.build for r in journal.records.values()}))
+        return "\n".join(report_lines(compiled.name, base.name, size, records, builds,
+                                       reference)) + "\n"
+
+    runner = JournaledRunner(stress, journal, done, reference, report_text)
     results = []
-    for case in build(base, names) if names else []:
-        say(case.name)
-        results.append(runner.run_case(case))
     failing_random = None
-    if args.random:
-        from pipegen.tools.stress.search import random_search
-        randoms, failing_random = random_search(runner, args.random, size, args.seed, say)
-        results += randoms
-    print(f"{compiled.name}: stress on {base.name} at {size[0]}x{size[1]} "
-          f"({len(results)} cases; error of each float32 target against the float64 "
-          f"evaluation, divided by its bound; {runner.builds_text()})")
-    print(report.table(results))
-    for line in report.notes(results):
-        print(f"note: {line}")
-    if reference is not None:
-        print()
-        print("\n".join(reference_table(results, reference)))
-    failed = [r for r in results if r.failed]
-    with out.staging() as tmp:
-        for r in failed:
-            for t in r.targets:
-                if not t.passed and r.images:
-                    report.worst_pixels_png(r, t, tmp / safe_name(
-                        f"{r.case}_{t.backend}_{t.key}", ".png"))
-            if not r.case.startswith("random"):
-                scene_toml(r.scene, tmp, safe_name(r.case, ""))
-        if failing_random is not None:
-            params, res = failing_random
-            (tmp / "random_minimal.toml").write_text(
-                random_scene_toml(params, *size) + "\n")
+    try:
+        for case in build(base, names) if names else []:
+            say(case.name + (" (done)" if case.name in done else ""))
+            results.append(runner.run_case(case))
+        if args.random:
+            from pipegen.tools.stress.search import random_search
+            randoms, failing_random = random_search(runner, args.random, size, args.seed, say)
+            results += randoms
+    except KeyboardInterrupt:
+        total = len(names) + args.random      # shrinking steps of --random come after these
+        print(f"\ninterrupted: {min(len(journal.records), total)} of {total} cases done "
+              f"({out}/{TABLE}); resume with: {command_line(args)} --resume", file=sys.stderr)
+        return 130
+    text = report_text(results)
     counts = {}
     for r in results:
         counts[r.status] = counts.get(r.status, 0) + 1
     summary = ", ".join(f"{n} {s}" for s, n in counts.items())
+    failed = [r for r in results if r.failed]
+    with out.staging() as tmp:       # the final folder: files of cases no longer run go
+        for r in failed:
+            for name, data in journal.files_of(r).items():
+                (tmp / name).write_bytes(data)
+        if failing_random is not None:
+            params, res = failing_random
+            (tmp / "random_minimal.toml").write_text(
+                random_scene_toml(params, *size) + "\n")
+        (tmp / TABLE).write_text(text + summary + "\n")
+        (tmp / JOURNAL).write_text(journal.text())
+    print(text, end="")
     print(f"{summary}; {time.perf_counter() - t_start:.1f}s")
     if failing_random is not None:
         print(f"random search: minimal failing scene ({failing_random[1].case}) saved as "
@@ -146,34 +160,49 @@ def cmd_stress(args) -> int:
     return 0
 
 
+def report_lines(technique: str, base: str, size: tuple, records: list, builds: str,
+                 reference) -> list[str]:
+    """What stress prints (and writes as table.txt) for ``records`` (``CaseRecord``): the
+    title, the table, the notes and the table against the reference."""
+    from pipegen.tools.stress import report
+    lines = [f"{technique}: stress on {base} at {size[0]}x{size[1]} ({len(records)} cases; "
+             f"error of each float32 target against the float64 evaluation, divided by its "
+             f"bound; {builds})", report.table_of_rows([r.row for r in records])]
+    lines += [f"note: {line}" for r in records for line in r.notes]
+    if reference is not None:
+        notes = {n for r in records for n in r.ref_notes}
+        lines += [""] + report.reference_lines(reference, [r.ref_row for r in records], notes)
+    return lines
+
+
+def command_line(args) -> str:
+    """The run's command line, rebuilt from its arguments (for the resume hint)."""
+    import shlex
+    words = ["pipegen", "stress", args.file]
+    for p in args.param:
+        words += ["-p", p]
+    if args.scene:
+        words += ["--scene", args.scene]
+    words += ["--size", f"{args.size[0]}x{args.size[1]}", "--cases", args.cases]
+    if args.random:
+        words += ["--random", str(args.random), "--seed", str(args.seed)]
+    if args.reference is not None:
+        words += ["--reference", args.reference]
+    if args.reference_samples != 1:
+        words += ["--reference-samples", str(args.reference_samples)]
+    if args.general:
+        words.append("--general")
+    if args.out:
+        words += ["-o", args.out]
+    return " ".join(shlex.quote(w) for w in words)
+
+
 def reference_table(results, reference) -> list[str]:
     """Each case's output against the chosen reference, in rgba8 codes: rmse, ``vs ref p99``
     and max of the worse float32 backend, and its worst pixel (y from the top)."""
-    lines = [f"against {reference.describe()}: the output of each case in rgba8 codes "
-             f"(the worse of GL and CL)"]
-    if reference.spec.why:
-        lines.append(f"  (the default reference: {reference.spec.why})")
+    from pipegen.tools.stress.report import reference_lines, reference_row
     notes = {n for r in results if r.scene is not None for n in reference.notes(r.scene)}
-    lines += [f"  note: {n}" for n in sorted(notes)]
-    header = ("case", "vs ref rmse", "vs ref p99", "vs ref max", "worst pixel (x, y): got vs ref")
-    rows = [header]
-    for r in results:
-        figures = r.vs_reference
-        if "error" in figures:
-            rows.append((r.case, "-", "-", "-", f"not evaluated: {figures['error']}"))
-            continue
-        if not figures:
-            rows.append((r.case, "-", "-", "-", "not rendered"))
-            continue
-        b, e = max(figures.items(), key=lambda kv: (kv[1]["p99"], kv[1]["rmse"]))
-        where = "-"
-        if e["worst"]:
-            x, y, got, want = e["worst"][0]
-            where = f"({x}, {y}) {b}: {got} vs {want}"
-        rows.append((r.case, f"{e['rmse']:.2f}", f"{e['p99']:.0f}", f"{e['max']:.0f}", where))
-    widths = [max(len(row[i]) for row in rows) for i in range(len(header))]
-    lines += ["  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip() for row in rows]
-    return lines
+    return reference_lines(reference, [reference_row(r) for r in results], notes)
 
 
 def _base_scene(args):

@@ -52,9 +52,49 @@ def row(res: CaseResult) -> tuple[str, ...]:
 
 
 def table(results: list[CaseResult]) -> str:
-    rows = [HEADER] + [row(r) for r in results]
-    widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
+    return table_of_rows([row(r) for r in results])
+
+
+def table_of_rows(rows: list) -> str:
+    """The table of ``row`` tuples (or a journal's lists of them), under ``HEADER``."""
+    return aligned([HEADER] + [tuple(r) for r in rows])
+
+
+def aligned(rows: list) -> str:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
+
+
+REFERENCE_HEADER = ("case", "vs ref rmse", "vs ref p99", "vs ref max",
+                    "worst pixel (x, y): got vs ref")
+
+
+def reference_row(res: CaseResult) -> tuple[str, ...]:
+    """A case's output against the chosen reference (``CaseResult.vs_reference``): rmse,
+    p99 and max of the worse float32 backend in rgba8 codes, and its worst pixel."""
+    figures = res.vs_reference
+    if "error" in figures:
+        return (res.case, "-", "-", "-", f"not evaluated: {figures['error']}")
+    if not figures:
+        return (res.case, "-", "-", "-", "not rendered")
+    b, e = max(figures.items(), key=lambda kv: (kv[1]["p99"], kv[1]["rmse"]))
+    where = "-"
+    if e["worst"]:
+        x, y, got, want = e["worst"][0]
+        where = f"({x}, {y}) {b}: {got} vs {want}"
+    return (res.case, f"{e['rmse']:.2f}", f"{e['p99']:.0f}", f"{e['max']:.0f}", where)
+
+
+def reference_lines(reference, rows: list, notes: set) -> list[str]:
+    """The table against the chosen reference: ``rows`` (``reference_row``), ``notes`` (what
+    the reference says of the cases' scenes)."""
+    lines = [f"against {reference.describe()}: the output of each case in rgba8 codes "
+             f"(the worse of GL and CL)"]
+    if reference.spec.why:
+        lines.append(f"  (the default reference: {reference.spec.why})")
+    lines += [f"  note: {n}" for n in sorted(notes)]
+    table_text = aligned([REFERENCE_HEADER] + [tuple(r) for r in rows])
+    return lines + table_text.splitlines()
 
 
 def notes(results: list[CaseResult]) -> list[str]:

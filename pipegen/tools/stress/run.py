@@ -96,12 +96,20 @@ class Stress:
         self.caps = capabilities(compiled.technique)
         self._builds: dict = {}           # facts (None: the general build) -> Build
 
+    def facts(self, scene):
+        """The key of the build that renders ``scene``: its facts (None: the general build)."""
+        from pipegen.scene.features import scene_features
+        return None if self.general else scene_features(scene).facts()
+
+    def build_key(self, scene) -> str:
+        """``facts`` as text (the stress journal keeps it: how many builds a run made)."""
+        return repr(self.facts(scene))
+
     def build(self, scene) -> Build:
         """The build that renders ``scene``: the variant compiled for it (one per facts), or
         with ``general`` the general build."""
         from pipegen.compiler.driver import for_scene
-        from pipegen.scene.features import scene_features
-        key = None if self.general else scene_features(scene).facts()
+        key = self.facts(scene)
         if key not in self._builds:
             compiled = for_scene(self.compiled, scene, self.general, self.path)
             self._builds[key] = Build(compiled, F64Bound(compiled, self.per_channel),
@@ -112,11 +120,12 @@ class Stress:
         """The builds (``Compiled``) that rendered the cases so far, one per set of facts."""
         return [b.compiled for b in self._builds.values()]
 
-    def builds_text(self) -> str:
-        """Which builds rendered the cases so far, for the report's first line."""
+    def builds_text(self, n: Optional[int] = None) -> str:
+        """Which builds rendered the cases so far (``n`` of them; None: those this runner
+        made), for the report's first line."""
         if self.general:
             return "the general build (--general)"
-        n = len(self._builds)
+        n = len(self._builds) if n is None else n
         return (f"each case rendered by the variant compiled for its scene: {n} variant"
                 f"{'s' * (n != 1)}; --general renders the general build")
 
