@@ -17,8 +17,8 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.proof.accuracy import output_codes
 from pipegen.proof.references import choose_reference
 from pipegen.reference.metrics import reference_codes
-from pipegen.testing.api import (assert_backends_agree, for_scene, load_technique,
-                                 load_test_scene, render)
+from pipegen.testing.api import (assert_backends_agree, assert_close_to_f64, for_scene,
+                                 load_technique, load_test_scene, render)
 
 PIPE = "pipelines/inferred.pipe"
 SIZE = (64, 36)
@@ -32,6 +32,17 @@ pytestmark = pytest.mark.cl
 def test_gl_and_cl_agree_at_4_samples(scene):
     result = assert_backends_agree(PIPE, scene, SIZE, params={"samples": 4})
     assert {r.name for r in result.rows} >= {"color", "lbuf"}
+
+
+@pytest.mark.parametrize("scene", ["examples/scenes/edges.toml",
+                                   "examples/scenes/translucent_layers.toml"])
+def test_cl_at_8_samples_is_within_the_bound_of_its_float64_evaluation(scene):
+    # GL cannot render 8 samples here: CL float32 against CL float64, the output within the
+    # tolerance model's bound (docs/tolerances.md).  The output only: the model's bound on a
+    # multisampled depth target is short by ~0.3 codes at silhouettes (ds, at 4x too), and
+    # lbuf is 2 px over at 64x36 on edges at 1x already; neither is what samples changes
+    assert_close_to_f64(PIPE, scene, SIZE, params={"samples": 8}, backends=("cl",),
+                        only={"color"})
 
 
 @pytest.mark.gl
