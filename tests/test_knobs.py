@@ -28,8 +28,9 @@ def test_shipped_knobs():
     assert allowed("deferred_calver") == {"lut_size": (64, 256, 1024, 4096),
                                           "tonemap": (False, True), "fog": (0, 1, 2),
                                           "dof_taps": (0, 4, 8, 16), "pcf_taps": (1, 4, 9, 16),
+                                          "pcf_pattern": ("grid", "jittered"),
                                           "hdr_accumulate": ("blend", "copy_back")}
-    assert allowed("forward") == {"pcf_taps": (1, 4, 9, 16)}
+    assert allowed("forward") == {"pcf_taps": (1, 4, 9, 16), "pcf_pattern": ("grid", "jittered")}
 
 
 @pytest.mark.parametrize("bits, capacity, constant", [(8, 4, 0.25), (16, 2, 0.0625),

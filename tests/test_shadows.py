@@ -1,6 +1,6 @@
 """Shadow maps with percentage-closer filtering (issue 12, part 2).
 
-- scenes: ``shadows = true`` on spot and directional lights, refused on point lights;
+- scenes: ``shadows = true`` on lights (a point light takes six tiles: test_point_shadows.py);
 - the language: ``draw scene… from lights TYPES tiles N`` and its errors;
 - GL against OpenCL (``pipegen check``): the d32f atlas bit for bit, the image within the
   format's tolerance; the atlas against the float64 reference's shadow maps;
@@ -62,14 +62,13 @@ def test_scene_marks_shadow_casting_lights():
     assert np.array_equal(t[2, 1], np.float32([0, 0, 0, 1]))
 
 
-def test_shadows_on_a_point_light_is_a_positioned_error():
-    text = HEAD + '[[lights]]\nposition = [0, 2, 0]\nradius = 4\ncolor = [1, 1, 1]\nshadows = true\n'
-    with pytest.raises(PipegenError) as e:
-        parse_scene(text)
-    msg = e.value.render()
-    assert "point lights cannot cast shadows" in str(e.value)
-    assert e.value.span is not None and e.value.span.line == text.splitlines().index(
-        "shadows = true") + 1, msg
+def test_a_point_light_casts_shadows_into_six_tiles():
+    text = HEAD + ('[[lights]]\ntype = "spot"\nposition = [0, 2, 0]\nradius = 4\ncolor = [1, 1, 1]\n'
+                   'direction = [0, -1, 0]\ninner_deg = 10\nouter_deg = 30\nshadows = true\n'
+                   '[[lights]]\nposition = [0, 2, 0]\nradius = 4\ncolor = [1, 1, 1]\nshadows = true\n')
+    s = parse_scene(text)
+    assert s.lights[1].shadows and S.first_tiles(s.lights) == {0: 0, 1: 1}
+    assert S.tiles_needed(s.lights) == 7 and S.tile_owner(s.lights, 6) == (1, 5)
 
 
 def test_shadows_need_a_boolean_and_a_narrow_spot():
@@ -140,7 +139,7 @@ def test_draw_from_lights_lowers_to_a_shadow_draw():
     assert (d.shadow, d.shadow_tiles, d.light_types) == (True, 3, ("spot",))
     assert d.describe() == "scene.opaque from lights spot tiles 3"
     d = _compile("draw scene from lights").technique.passes[0].draw
-    assert (d.shadow_tiles, d.light_types) == (1, ("spot", "directional"))
+    assert (d.shadow_tiles, d.light_types) == (1, ("point", "spot", "directional"))
     plan = c.plan("gl").to_dict()
     assert plan["passes"][0]["draw"]["shadow_tiles"] == 3
     # a plain scene draw's plan keeps its old spelling
@@ -148,7 +147,6 @@ def test_draw_from_lights_lowers_to_a_shadow_draw():
 
 
 @pytest.mark.parametrize("draw, extra, message", [
-    ("draw scene from lights point", "depth atlas less write", "point lights cast no shadows"),
     ("draw scene from lights spot spot", "depth atlas less write", "listed twice"),
     ("draw scene from lights tiles 0", "depth atlas less write", "between 1 and 64"),
     ("draw scene from lights", "", "attaches no depth target"),
@@ -258,7 +256,7 @@ def test_a_technique_without_shadows_says_so():
 
 def test_a_draw_from_spot_lights_only_reports_the_suns():
     src = (ROOT / "pipelines/forward.pipe").read_text().replace(
-        "from lights spot directional", "from lights spot")
+        "from lights point spot directional", "from lights spot")
     c = compile_source(src, str(ROOT / "pipelines/forward.pipe"))
     got = [m.message for m in c.mismatches(scene())]
     assert got == ["1 directional light casts shadows that are not drawn (no shadow-map pass "

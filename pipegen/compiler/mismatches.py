@@ -215,9 +215,10 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
             out.append(Mismatch("shadows", f"{_n(n, t + ' light')} "
                                            f"{'casts' if n == 1 else 'cast'} shadows that are "
                                            f"not drawn ({why}): lit unshadowed"))
-    total = sum(casting.values())
-    if cap.shadow_capacity and total > cap.shadow_capacity:
-        out.append(Mismatch("capacity", f"the scene has {total} shadow-casting lights, the "
+    total, tiles = sum(casting.values()), S.tiles_needed(scene.lights)
+    if cap.shadow_capacity and tiles > cap.shadow_capacity:
+        out.append(Mismatch("capacity", f"the scene's {total} shadow-casting lights need "
+                                        f"{tiles} atlas tiles (six per point light), the "
                                         f"shadow atlas holds {cap.shadow_capacity}: the "
                                         f"technique refuses the scene"))
     if tech.lights.fields and f.lights > tech.lights.capacity:

@@ -183,8 +183,8 @@ class _Verifier:
                    and not d.scissor, where, lambda: f"light-draw options on a {d.kind.value} draw")
             _check(not d.shadow or (d.kind is ir.DrawKind.SCENE and not p.writes and not p.body
                                     and p.depth_target and p.repeat_group is None
-                                    and set(d.light_types) <= {"spot", "directional"}),
-                   where, "a shadow-map draw writes depth only, once per light")
+                                    and set(d.light_types) <= {"point", "spot", "directional"}),
+                   where, "a shadow-map draw writes depth only, once per atlas tile")
         _check(d.kind is ir.DrawKind.SCENE or not d.material, where, "material filter")
         _check(p.state.cull is not ir.CullMode.AUTO or (
             d.kind is ir.DrawKind.LIGHTS and d.volume in (ir.Volume.SPHERE, ir.Volume.CONE)),

@@ -14,6 +14,13 @@ is the fraction of the PCF taps that see ``P`` lit:
     side = sqrt(pcf_taps);  base = floor(uv - (side - 1) / 2)
     factor = mean over a, b in [0, side) of  [ z <= map[clamp(base + (a, b), 0, tile - 1)] ]
 
+``pattern = "jittered"`` (``pcf_pattern``) takes Calver's four jittered taps instead:
+``floor(uv + side / 8 * o)`` for o in (1, 3), (3, -1), (-1, -3), (-3, 1) (a rotated grid).  A point
+light (six tiles, ``ShadowMap.faces``): ``d = (P - (P - L) * bias / |P - L|) - L`` (moved towards
+the light), the face its major axis picks (``face_of``), the face's view coordinates ``v`` (an
+axis permutation, ``shadows.POINT_FACES``) and ``c = (t v.x, t v.y, p22 v.z + p23, -v.z)`` from
+the light-table rows (``shadows.point_rows``), then the same filter in that face's tile.
+
 The light's parameters are read as the light table stores them (float32), like the rest of the
 reference; the map's depths are float64 (the runtimes store float32, ``d32f``).
 
@@ -38,35 +45,57 @@ from pipegen.reference.raster import rasterize_triangles
 @dataclass
 class ShadowMap:
     light: int                 # index into scene.lights
-    tile: int                  # k: the atlas tile
+    tile: int                  # k: the atlas tile (a point light: its first)
     rect: tuple[int, int, int, int]   # (x, y, w, h) in the atlas, y up
     matrix: np.ndarray         # float64 4x4: projection @ view as the light table holds it
     direction: np.ndarray      # float64 (3,): the light's direction as the table holds it
     depth: np.ndarray          # float64 (h, w), GL row order (row 0 = the tile's bottom row)
+    # a point light: its six faces' maps (+x -x +y -y +z -z, tiles k .. k+5; the first is this
+    # map's rect and depth) and its light-table rows (float32 values: shadows.point_rows)
+    faces: tuple = ()
+    rows: Optional[np.ndarray] = None
+
+    def tiles(self) -> list["ShadowMap"]:
+        """The maps of every tile the light owns (one, or a point light's six faces)."""
+        return list(self.faces) or [self]
+
+
+def _draw_tile(pos, nrm, view, proj, w: int, h: int) -> np.ndarray:
+    """A float64 depth map (GL row order) of the triangles seen through view, proj."""
+    depth = np.ones((h, w))
+    if len(pos):
+        # drawn with the float32 matrices the runtimes upload
+        frags = rasterize_triangles(pos, nrm, as_float32(proj) @ as_float32(view), w, h, "none")
+        depth.reshape(-1)[frags.pixel] = frags.depth
+    return np.flipud(depth)
 
 
 def shadow_maps(scene, tiles: int, width: int, height: int,
                 material: tuple[str, ...] = ("opaque",)) -> dict[int, ShadowMap]:
-    """The float64 shadow map of every shadow-casting light within the atlas's ``tiles x
-    tiles`` capacity: ``{light index: ShadowMap}``."""
+    """The float64 shadow map of every shadow-casting light whose tiles fit the atlas's
+    ``tiles x tiles`` capacity: ``{light index: ShadowMap}``."""
     geo = scene.geometry(tuple(material))
     pos = geo.positions.astype(np.float64).reshape(-1, 3, 3)
     nrm = geo.normals.astype(np.float64).reshape(-1, 3, 3)
     bounds = S.scene_bounds(scene)
     out = {}
-    for k, i in enumerate(S.shadow_lights(scene.lights)):
-        if k >= tiles * tiles:
-            break
+    for i, k in S.first_tiles(scene.lights).items():
         light = scene.lights[i]
-        view, proj = S.light_view_proj(scene, light, bounds)
-        x, y, w, h = S.tile_rect(k, tiles, width, height)
-        depth = np.ones((h, w))
-        if len(pos):
-            # drawn with the float32 matrices the runtimes upload
-            frags = rasterize_triangles(pos, nrm, as_float32(proj) @ as_float32(view), w, h, "none")
-            depth.reshape(-1)[frags.pixel] = frags.depth
-        out[i] = ShadowMap(i, k, (x, y, w, h), as_float32(proj @ view), as_float32(light.direction),
-                           np.flipud(depth))
+        if k + S.tile_count(light) > tiles * tiles:
+            break
+        direction = as_float32(light.direction)
+        maps = []
+        for face in range(S.tile_count(light)):
+            view, proj = S.light_view_proj(scene, light, bounds, face)
+            x, y, w, h = S.tile_rect(k + face, tiles, width, height)
+            maps.append(ShadowMap(i, k + face, (x, y, w, h), as_float32(proj @ view), direction,
+                                  _draw_tile(pos, nrm, view, proj, w, h)))
+        if light.type == "point":
+            first = maps[0]
+            out[i] = ShadowMap(i, k, first.rect, first.matrix, direction, first.depth,
+                               tuple(maps), as_float32(S.point_rows(light)))
+        else:
+            out[i] = maps[0]
     return out
 
 
@@ -85,10 +114,12 @@ class MappedShadows(Shadows):
     maps: dict[int, ShadowMap]
     pcf_taps: int
     bias: float
+    pattern: str = "grid"          # pcf_pattern: grid or jittered
 
     def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
         smap = self.maps.get(i)
-        return None if smap is None else shadow_factor(smap, P, self.pcf_taps, self.bias)
+        return None if smap is None else shadow_factor(smap, P, self.pcf_taps, self.bias,
+                                                       self.pattern)
 
 
 @dataclass(frozen=True)
@@ -99,30 +130,82 @@ class ExactShadows(Shadows):
         return visibility(scene, light, P) if S.casts_shadows(light) else None
 
 
-def shadow_factor(smap: ShadowMap, P: np.ndarray, pcf_taps: int, bias: float) -> np.ndarray:
+def shadow_factor(smap: ShadowMap, P: np.ndarray, pcf_taps: int, bias: float,
+                  pattern: str = "grid") -> np.ndarray:
     """(n,) float64 in [0, 1]: the lit fraction of the PCF taps at surface points P (n, 3)."""
-    side = S.taps_side(pcf_taps)
-    q = np.asarray(P, np.float64) - smap.direction * float(np.float32(bias))
+    P = np.asarray(P, np.float64)
+    if smap.rows is not None:
+        return _point_factor(smap, P, pcf_taps, bias, pattern)
+    q = P - smap.direction * float(np.float32(bias))
     c = np.concatenate([q, np.ones((len(q), 1))], axis=1) @ smap.matrix.T
+    return pcf(smap, c, pcf_taps, pattern)
+
+
+def face_of(d: np.ndarray) -> np.ndarray:
+    """(n,) int: the cube face (0..5: +x -x +y -y +z -z) of directions d (n, 3) from a point
+    light, by major axis (ties: x, then y, then z), as ``shadow_face`` picks it."""
+    a = np.abs(d)
+    x = (a[:, 0] >= a[:, 1]) & (a[:, 0] >= a[:, 2])
+    y = ~x & (a[:, 1] >= a[:, 2])
+    axis = np.where(x, 0, np.where(y, 1, 2))
+    negative = d[np.arange(len(d)), axis] < 0
+    return 2 * axis + negative
+
+
+def _point_factor(smap: ShadowMap, P: np.ndarray, pcf_taps: int, bias: float,
+                  pattern: str) -> np.ndarray:
+    """A point light: the point moved ``bias`` towards the light, the face its major axis
+    picks, its view coordinates by the face's axis permutation, then ``pcf`` in that tile."""
+    t, p22, p23 = smap.rows[0, :3]
+    light = smap.rows[1, :3]
+    d = P - light
+    dist = np.linalg.norm(d, axis=1)
+    ok = dist > 0
+    d = (P - d * (float(np.float32(bias)) / np.where(ok, dist, 1.0))[:, None]) - light
+    face = face_of(d)
+    out = np.ones(len(P))
+    for f, fmap in enumerate(smap.faces):
+        sel = ok & (face == f)
+        if not sel.any():
+            continue
+        axis, right, up = (np.asarray(v, np.float64) for v in S.POINT_FACES[f])
+        v = np.stack([d[sel] @ right, d[sel] @ up, -(d[sel] @ axis)], axis=1)
+        c = np.stack([t * v[:, 0], t * v[:, 1], p22 * v[:, 2] + p23, -v[:, 2]], axis=1)
+        out[sel] = pcf(fmap, c, pcf_taps, pattern)
+    return out
+
+
+# Calver's jittered 4-tap PCF: a rotated grid, in eighths of the n x n footprint (texels)
+JITTER = ((1.0, 3.0), (3.0, -1.0), (-1.0, -3.0), (-3.0, 1.0))
+
+
+def pcf(smap: ShadowMap, c: np.ndarray, pcf_taps: int, pattern: str = "grid") -> np.ndarray:
+    """(n,): the lit fraction of the taps of ``pattern`` (``grid``: the n x n texels around the
+    point, n = sqrt(pcf_taps); ``jittered``: the four ``JITTER`` offsets times n / 8) in the
+    tile of ``smap`` at clip positions c (n, 4); 1 where c.w <= 0."""
+    side = S.taps_side(pcf_taps)
     w = c[:, 3]
     ok = w > 0
     ws = np.where(ok, w, 1.0)
     z = c[:, 2] / ws * 0.5 + 0.5
     _, _, tw, th = smap.rect
-    u = (c[:, 0] / ws * 0.5 + 0.5) * tw
-    v = (c[:, 1] / ws * 0.5 + 0.5) * th
     with np.errstate(invalid="ignore"):
-        bu = np.floor(u - 0.5 * (side - 1))
-        bv = np.floor(v - 0.5 * (side - 1))
-    bu = np.nan_to_num(bu, nan=0.0, posinf=tw, neginf=-1.0)
-    bv = np.nan_to_num(bv, nan=0.0, posinf=th, neginf=-1.0)
-    lit = np.zeros(len(q))
-    for a in range(side):
-        for b in range(side):
-            tx = np.clip(bu + a, 0, tw - 1).astype(np.int64)
-            ty = np.clip(bv + b, 0, th - 1).astype(np.int64)
-            lit += z <= smap.depth[ty, tx]
-    return np.where(ok, lit / (side * side), 1.0)
+        u = np.clip(np.nan_to_num((c[:, 0] / ws * 0.5 + 0.5) * tw, nan=0.0), -8.0, tw + 8.0)
+        v = np.clip(np.nan_to_num((c[:, 1] / ws * 0.5 + 0.5) * th, nan=0.0), -8.0, th + 8.0)
+    if pattern == "jittered":
+        r = 0.125 * side
+        taps = [(np.floor(u + a * r), np.floor(v + b * r)) for a, b in JITTER]
+    elif pattern == "grid":
+        bu, bv = np.floor(u - 0.5 * (side - 1)), np.floor(v - 0.5 * (side - 1))
+        taps = [(bu + a, bv + b) for a in range(side) for b in range(side)]
+    else:
+        raise ValueError(f"pcf_pattern must be grid or jittered, got {pattern!r}")
+    lit = np.zeros(len(c))
+    for tu, tv in taps:
+        tx = np.clip(tu, 0, tw - 1).astype(np.int64)
+        ty = np.clip(tv, 0, th - 1).astype(np.int64)
+        lit += z <= smap.depth[ty, tx]
+    return np.where(ok, lit / len(taps), 1.0)
 
 
 # ---- the truth: exact visibility ------------------------------------------------------------

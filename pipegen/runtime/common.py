@@ -8,7 +8,7 @@ import math
 
 from pipegen.backends.plan import Plan
 from pipegen.core.diagnostics import PipegenError
-from pipegen.scene.shadows import shadow_lights
+from pipegen.scene.shadows import shadow_lights, tiles_needed
 
 
 def check_light_capacity(lights: int, plan: Plan) -> None:
@@ -24,15 +24,17 @@ def check_light_capacity(lights: int, plan: Plan) -> None:
 
 
 def check_shadow_capacity(plan: Plan, scene) -> None:
-    """A scene with more shadow-casting lights than a shadow-map pass's atlas has tiles is a
-    user error (its lights would be drawn unshadowed): tile k belongs to the k-th shadow-casting
-    light (``shadows.shadow_lights``)."""
-    n = len(shadow_lights(scene.lights))
+    """A scene whose shadow-casting lights need more tiles than a shadow-map pass's atlas has
+    is a user error (its lights would be drawn unshadowed): each light takes consecutive tiles,
+    six for a point light (``shadows.first_tiles``)."""
+    n = tiles_needed(scene.lights)
+    lights = len(shadow_lights(scene.lights))
     for p in plan.passes:
         tiles = p.draw.shadow_tiles
         if n and p.draw.shadow and n > tiles * tiles:
-            raise PipegenError(None, f"the scene has {n} shadow-casting lights but pass "
-                               f"'{p.name}' of technique '{plan.technique or '?'}' draws an "
+            raise PipegenError(None, f"the scene's {lights} shadow-casting lights need {n} atlas "
+                               f"tiles (six per point light, one per spot or directional) but "
+                               f"pass '{p.name}' of technique '{plan.technique or '?'}' draws an "
                                f"atlas of {tiles} x {tiles} tiles",
                                hint="compile it with more tiles (e.g. -p shadow_tiles="
                                     f"{math.isqrt(n - 1) + 1} where the technique declares it), or "

@@ -131,9 +131,9 @@ def schedule(plan: Plan, selection: LightSelection) -> Iterator[tuple[int, Optio
     k = 0
     while k < len(passes):
         group = passes[k].repeat_group
-        if passes[k].draw.shadow:            # once per shadow-casting light: its atlas tile
-            for light in shadow_casters(passes[k].draw, selection.lights):
-                yield k, light
+        if passes[k].draw.shadow:            # once per atlas tile (a point light has six)
+            for tile in shadow_casters(passes[k].draw, selection.lights):
+                yield k, tile
             k += 1
             continue
         if group is None:
@@ -196,26 +196,27 @@ def scene_key(draw: ir.Draw) -> tuple:
 
 
 def shadow_casters(draw: ir.Draw, lights: Sequence) -> list[int]:
-    """The lights a shadow-map draw (``draw scene… from lights TYPES tiles N``) draws, in
-    light order: the shadow-casting lights of its types whose tile (``shadows.shadow_lights``
-    order) fits the ``N x N`` atlas (``common.check_shadow_capacity`` refuses a scene with
-    more)."""
-    from pipegen.scene.shadows import shadow_lights
-    order = shadow_lights(lights)
+    """The atlas tiles a shadow-map draw (``draw scene… from lights TYPES tiles N``) draws, in
+    order: those of the shadow-casting lights of its types (``shadows.first_tiles``: one per
+    spot or directional light, six per point light) that fit the ``N x N`` atlas
+    (``common.check_shadow_capacity`` refuses a scene needing more).  The schedule runs the
+    pass once per tile, with the tile in place of a light."""
+    from pipegen.scene.shadows import first_tiles, tile_count
     cap = draw.shadow_tiles * draw.shadow_tiles
-    return [i for k, i in enumerate(order)
-            if k < cap and light_type(lights[i]) in draw.light_types]
+    return [k + f for i, k in first_tiles(lights).items()
+            if light_type(lights[i]) in draw.light_types
+            for f in range(tile_count(lights[i])) if k + f < cap]
 
 
-def shadow_view(scene, light: int, draw: ir.Draw, width: int, height: int):
-    """A shadow-map draw of light ``light``: (tile rectangle (x, y, w, h) in the depth
+def shadow_view(scene, tile: int, draw: ir.Draw, width: int, height: int):
+    """A shadow-map draw of atlas tile ``tile``: (its rectangle (x, y, w, h) in the depth
     target of ``width x height``, view, projection) -- the float64 matrices of
-    ``shadows.light_view_proj``, which the runtimes upload as float32 like a camera's."""
+    ``shadows.light_view_proj`` for the tile's light (a point light's face), which the
+    runtimes upload as float32 like a camera's."""
     from pipegen.scene import shadows as S
-    lights = scene.lights
-    k = S.tile_of(lights, light)
-    view, proj = S.light_view_proj(scene, lights[light])
-    return S.tile_rect(k, draw.shadow_tiles, width, height), view, proj
+    light, face = S.tile_owner(scene.lights, tile)
+    view, proj = S.light_view_proj(scene, scene.lights[light], face=face)
+    return S.tile_rect(tile, draw.shadow_tiles, width, height), view, proj
 
 
 # ---- cull auto ---------------------------------------------------------------------------------

@@ -4,13 +4,19 @@ The one place both runtimes and the float64 reference take these from (so a shad
 GL, by OpenCL and by ``reference/shadows.py`` is the same picture of the same frustum):
 
 - ``shadow_lights(lights)``: the indices of the shadow-casting lights (``shadows = true`` in the
-  scene), in light-table order; light ``shadow_lights(...)[k]`` owns **tile k** of the atlas;
+  scene), in light-table order; each owns consecutive tiles of the atlas in that order
+  (``first_tiles``): one for a spot or directional light, six for a point light (its cube's
+  faces +x, -x, +y, -y, +z, -z, Trebilco's "6 consecutive shadow map indexes");
 - ``light_view_proj(scene, light)``: the light's (view, projection) as float64 4x4 matrices,
   GL conventions (column vectors, clip z in [-w, w], window depth 0 near, 1 far):
 
   - spot: a look-at from the light's position along its direction and a square perspective
     frustum of full angle ``2 * (outer_deg + SPOT_MARGIN_DEG)``, near ``radius *
     SPOT_NEAR_FRACTION``, far ``radius`` (nothing beyond the radius is lit);
+  - point, face f: a 90-degree perspective from the light's position looking along the face's
+    axis (``POINT_FACES``: the GL cube-map orientation, axis permutations), widened so that
+    ``tan(half-angle) = 1 + POINT_FACE_MARGIN`` (PCF taps near a face's edge read that face's own
+    depths: see ``POINT_FACE_MARGIN``), near ``radius * SPOT_NEAR_FRACTION``, far ``radius``;
   - directional: an orthographic box along the light's direction fitted to the bounding box of
     every object of the scene (the box's eight corners in light view space, widened by
     ``ORTHO_MARGIN`` of its extent on each side), so every object both casts and receives;
@@ -20,12 +26,12 @@ GL, by OpenCL and by ``reference/shadows.py`` is the same picture of the same fr
   ``k // tiles`` (window coordinates, y up), ``w = width // tiles``, ``h = height // tiles``.
 
 The light table carries what a shader needs to look a shadow up (``Scene.light_table``):
-``shadow_tile`` (k, or -1 for a light that casts none) and ``shadow_m0`` .. ``shadow_m3``, the
-rows of ``projection @ view`` rounded to float32.  The runtimes draw the tile with the float32
-roundings of ``view`` and ``projection`` (as they upload a camera).
-
-Point lights cannot cast shadows (a cube map of six faces is not implemented): the scene
-loader refuses ``shadows = true`` on them.
+``shadow_tile`` (its first tile, or -1 for a light that casts none) and ``shadow_m0`` ..
+``shadow_m3``, the rows of ``projection @ view`` rounded to float32; for a point light (whose six
+faces are axis permutations the shader rebuilds) ``shadow_m0 = (t, p22, p23, 0)``, the entries
+of its faces' projection, ``shadow_m1 = (position, 1)`` and ``shadow_m3 = 0`` (the mark of a
+point light: a projection's last row is never zero).  The runtimes draw each tile with the
+float32 roundings of ``view`` and ``projection`` (as they upload a camera).
 """
 
 from __future__ import annotations
@@ -39,6 +45,22 @@ SPOT_MARGIN_DEG = 1.0       # the frustum's half-angle exceeds the outer cone by
 SPOT_MAX_OUTER_DEG = 84.0   # wider spots cannot cast shadows (a frustum near 180 degrees)
 SPOT_NEAR_FRACTION = 0.02   # near plane of a spot's frustum, as a fraction of its radius
 ORTHO_MARGIN = 0.01         # directional boxes: widened by this fraction of their extent
+# Point-light faces: tan(half-angle) = 1 + this (half-angle 46.7 degrees).  A point whose major
+# axis picks a face projects inside NDC [-1/(1+m), 1/(1+m)], i.e. at least tile * m / (2 (1+m))
+# texels (tile / 34: 3.8 texels in a 128-texel tile) from the tile's edge, which covers the PCF
+# taps' reach (<= 2.5 texels for 16 taps, 1.5 for the jittered 4) from tiles of 86 texels up;
+# smaller tiles clamp the outer taps to the tile (the face's own depths, never a neighbour's).
+POINT_FACE_MARGIN = 0.0625
+# The faces of a point light's cube, in tile order: (axis, right s, up u) of the view rotation
+# (rows s, u, -axis), GL's cube-map orientation: the shader's shadow_face() mirrors this.
+POINT_FACES = (
+    ((1, 0, 0), (0, 0, -1), (0, -1, 0)),
+    ((-1, 0, 0), (0, 0, 1), (0, -1, 0)),
+    ((0, 1, 0), (1, 0, 0), (0, 0, 1)),
+    ((0, -1, 0), (1, 0, 0), (0, 0, -1)),
+    ((0, 0, 1), (1, 0, 0), (0, -1, 0)),
+    ((0, 0, -1), (-1, 0, 0), (0, -1, 0)),
+)
 
 SHADOW_FIELDS = ("shadow_tile", "shadow_m0", "shadow_m1", "shadow_m2", "shadow_m3")
 
@@ -48,14 +70,40 @@ def casts_shadows(light) -> bool:
 
 
 def shadow_lights(lights) -> list[int]:
-    """Indices of the shadow-casting lights, in table order (light k of this list: tile k)."""
+    """Indices of the shadow-casting lights, in table order (``first_tiles``: their atlas tiles)."""
     return [i for i, l in enumerate(lights) if casts_shadows(l)]
 
 
+def tile_count(light) -> int:
+    """Atlas tiles a shadow-casting light takes: six for a point light (a cube), else one."""
+    return 6 if light.type == "point" else 1
+
+
+def first_tiles(lights) -> dict[int, int]:
+    """Per shadow-casting light index: its first atlas tile (consecutive, in table order)."""
+    out, k = {}, 0
+    for i in shadow_lights(lights):
+        out[i] = k
+        k += tile_count(lights[i])
+    return out
+
+
+def tiles_needed(lights) -> int:
+    """Atlas tiles the scene's shadow-casting lights take together."""
+    return sum(tile_count(lights[i]) for i in shadow_lights(lights))
+
+
 def tile_of(lights, index: int) -> int:
-    """The atlas tile of light ``index`` (-1: it casts no shadow)."""
-    order = shadow_lights(lights)
-    return order.index(index) if index in order else -1
+    """The (first) atlas tile of light ``index`` (-1: it casts no shadow)."""
+    return first_tiles(lights).get(index, -1)
+
+
+def tile_owner(lights, tile: int) -> tuple[int, int]:
+    """(light index, face) of atlas tile ``tile`` (face 0 for a spot or directional light)."""
+    for i, k in first_tiles(lights).items():
+        if k <= tile < k + tile_count(lights[i]):
+            return i, tile - k
+    raise ValueError(f"atlas tile {tile} belongs to no shadow-casting light")
 
 
 def tile_rect(k: int, tiles: int, width: int, height: int) -> tuple[int, int, int, int]:
@@ -104,6 +152,26 @@ def spot_view_proj(light) -> tuple[np.ndarray, np.ndarray]:
     return view, p
 
 
+def point_face_view_proj(light, face: int) -> tuple[np.ndarray, np.ndarray]:
+    """Face ``face`` (0..5, ``POINT_FACES``) of a point light's cube: (view, projection)."""
+    axis, right, up = (np.asarray(v, np.float64) for v in POINT_FACES[face])
+    view = np.eye(4)
+    view[0, :3], view[1, :3], view[2, :3] = right, up, -axis
+    view[:3, 3] = -view[:3, :3] @ np.asarray(light.position, np.float64)
+    t, p22, p23 = point_projection(light)
+    p = np.zeros((4, 4))
+    p[0, 0] = p[1, 1] = t
+    p[2, 2], p[2, 3], p[3, 2] = p22, p23, -1.0
+    return view, p
+
+
+def point_projection(light) -> tuple[float, float, float]:
+    """(t, p22, p23): the entries of a point light's face projection (``shadow_m0``)."""
+    far = float(light.radius)
+    near = far * SPOT_NEAR_FRACTION
+    return 1.0 / (1.0 + POINT_FACE_MARGIN), (far + near) / (near - far), 2.0 * far * near / (near - far)
+
+
 def directional_view_proj(light, bounds) -> tuple[np.ndarray, np.ndarray]:
     lo, hi = (np.asarray(b, np.float64) for b in bounds)
     centre = 0.5 * (lo + hi)
@@ -125,8 +193,11 @@ def directional_view_proj(light, bounds) -> tuple[np.ndarray, np.ndarray]:
     return view, p
 
 
-def light_view_proj(scene, light, bounds=None) -> tuple[np.ndarray, np.ndarray]:
-    """The (view, projection) float64 matrices a shadow-casting light's tile is drawn with."""
+def light_view_proj(scene, light, bounds=None, face: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The (view, projection) float64 matrices a shadow-casting light's tile (a point light's
+    ``face``) is drawn with."""
+    if light.type == "point":
+        return point_face_view_proj(light, face)
     if light.type == "spot":
         return spot_view_proj(light)
     if light.type == "directional":
@@ -135,12 +206,24 @@ def light_view_proj(scene, light, bounds=None) -> tuple[np.ndarray, np.ndarray]:
     raise ValueError(f"{light.type} lights cast no shadows")
 
 
+def point_rows(light) -> np.ndarray:
+    """A point light's ``shadow_m0..3`` (4x4 float64): (t, p22, p23, 0), (position, 1), 0, 0."""
+    m = np.zeros((4, 4))
+    m[0, :3] = point_projection(light)
+    m[1, :3], m[1, 3] = light.position, 1.0
+    return m
+
+
 def shadow_table(scene) -> dict[int, tuple[int, np.ndarray]]:
-    """Per shadow-casting light index: (tile k, float64 projection @ view)."""
+    """Per shadow-casting light index: (first tile, float64 shadow_m0..3 rows: projection @
+    view, or a point light's ``point_rows``)."""
     out = {}
     bounds = None
-    for k, i in enumerate(shadow_lights(scene.lights)):
+    for i, k in first_tiles(scene.lights).items():
         light = scene.lights[i]
+        if light.type == "point":
+            out[i] = (k, point_rows(light))
+            continue
         if light.type == "directional" and bounds is None:
             bounds = scene_bounds(scene)
         v, p = light_view_proj(scene, light, bounds)

@@ -145,12 +145,23 @@ class ExprChecker:
         return operand if e.op == "+" else ir.Unary(e.op, operand, t)
 
     def _expr_BinaryOp(self, e: ast.BinaryOp) -> ir.Expr:
+        if e.op in ("==", "!=") and self._word_param_side(e):
+            # `WORD_PARAM == WORD` in shader code: the parameter's value is known when the
+            # technique is compiled, so the comparison is a constant (as in pass conditions)
+            from pipegen.frontend.lower.conditions import _Evaluator
+            return ir.Const(ir.BOOL, bool(_Evaluator(self.low.params).value(e)))
         left, right = self.expr(e.left), self.expr(e.right)
         t = binary_type(e.op, left.type, right.type)
         if t is None:
             raise error(e.span, f"operator '{e.op}' cannot combine {a_or_an(left.type)} and "
                         f"{a_or_an(right.type)}", _operator_hint(e.op, left.type, right.type))
         return ir.Binary(e.op, left, right, t)
+
+    def _word_param_side(self, e: ast.BinaryOp) -> bool:
+        """Whether a side of ``e`` names a word parameter (no local of that name)."""
+        return any(isinstance(s, ast.Name) and self._lookup_local(s.name) is None
+                   and s.name in self.low.params and self.low.params[s.name].type == ir.VOID
+                   for s in (e.left, e.right))
 
     def _expr_Conditional(self, e: ast.Conditional) -> ir.Expr:
         cond = self._condition(e.cond, "a ?: condition")

@@ -88,15 +88,12 @@ class PassLowerer:
 
     def _shadow_draw(self, d: ast.Draw, material: tuple[str, ...],
                      order: ir.DrawOrder) -> ir.Draw:
-        """``draw scene… from lights [spot] [directional] [tiles N]``: the scene from each
-        shadow-casting light into its tile of the depth target (pipegen/scene/shadows.py)."""
+        """``draw scene… from lights [point] [spot] [directional] [tiles N]``: the scene from
+        each shadow-casting light into its tiles of the depth target (six for a point light;
+        pipegen/scene/shadows.py); no types listed: all three."""
         f = d.from_lights
         types: list[str] = []
         for w in f.light_types:
-            if w.value == "point":
-                raise error(w.span, "point lights cast no shadows (a shadow map is one "
-                            "frustum; a point light would need six)",
-                            "draw from spot and/or directional lights")
             if w.value in types:
                 raise error(w.span, f"light type '{w.value}' is listed twice", "list it once")
             types.append(w.value)
@@ -121,7 +118,7 @@ class PassLowerer:
                         f"target", "add e.g. `depth shadow_atlas less write`")
         return ir.Draw(ir.DrawKind.SCENE, material=material, order=order,
                        light_types=tuple(t for t in LIGHT_TYPES if t in types) or
-                       ("spot", "directional"), shadow_tiles=tiles)
+                       tuple(LIGHT_TYPES), shadow_tiles=tiles)
 
     def _light_set(self, d: ast.Draw) -> Optional[tuple[str, int]]:
         if d.light_set is None:
