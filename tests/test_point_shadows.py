@@ -75,6 +75,7 @@ def test_light_table_rows_of_a_point_light():
 
 # ---- capacity ----------------------------------------------------------------------------------
 
+@pytest.mark.gl
 def test_atlas_must_hold_six_tiles_per_point_light():
     c = compile_file(ROOT / "pipelines/forward.pipe", params={"shadow_tiles": 2})
     got = [m.message for m in c.mismatches(scene())]
