@@ -73,6 +73,31 @@ def test_light_table_rows_of_a_point_light():
     assert t[1, 3, 0] == -1.0                            # the spot casts none
 
 
+# ---- pcf_pattern: a word parameter compared in shader code -------------------------------------
+
+WORD_TECH = """technique t "t"
+param mode = a in {a, b}
+target color : rgba8
+pass shade { draw scene writes color fragment { color = vec4(MODE_TEST ? 1.0 : 0.0); } }
+"""
+
+
+@pytest.mark.parametrize("test, value, folded", [("mode == b", "a", False), ("mode == b", "b", True),
+                                                 ("mode != b", "a", True)])
+def test_word_parameter_comparison_folds_to_a_constant(test, value, folded):
+    from pipegen.compiler.driver import compile_source
+    c = compile_source(WORD_TECH.replace("MODE_TEST", test), "t.pipe", {"mode": value})
+    glsl = c.plan("gl").to_dict()["passes"][0]["fragment"]
+    body = glsl[glsl.index("void main"):]
+    assert f"o_color = vec4({1.0 if folded else 0.0});" in body and "mode" not in body
+
+
+def test_word_parameter_compared_with_a_word_it_cannot_hold_is_an_error():
+    from pipegen.compiler.driver import compile_source
+    with pytest.raises(PipegenError, match="'c' is not a value parameter 'mode' can hold"):
+        compile_source(WORD_TECH.replace("MODE_TEST", "mode == c"), "t.pipe")
+
+
 # ---- capacity ----------------------------------------------------------------------------------
 
 @pytest.mark.gl

@@ -117,7 +117,7 @@ class Light:
     direction: tuple[float, float, float] = (0.0, 0.0, -1.0)   # unit, the way light travels
     inner_deg: float = 0.0
     outer_deg: float = 0.0
-    shadows: bool = False                      # casts shadows (spot, directional; shadows.py)
+    shadows: bool = False                      # casts shadows (a point light: six tiles; shadows.py)
 
     @property
     def type_code(self) -> int:

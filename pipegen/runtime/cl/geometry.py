@@ -73,7 +73,8 @@ class _Vertices:
 
 @dataclasses.dataclass(frozen=True)
 class ShadowView:
-    """One light's tile of a shadow-map draw: the light, the tile (x, y, w, h) in the depth
+    """One atlas tile of a shadow-map draw: the tile's index (``light``: the schedule's
+    ``light`` slot holds it; a point light has six), its rectangle (x, y, w, h) in the depth
     target, and the frame structs (f32, and f64 or None) with the light's view and
     projection in place of the camera's (``draws.shadow_view``)."""
     light: int

@@ -537,7 +537,8 @@ class CLPipeline:
         timing["tile_entries"] = tb.entries
 
     def _shadow_view(self, p: PassPlan, light: int, width: int, height: int) -> ShadowView:
-        """A shadow-map draw of ``light``: its tile and the frame structs with the light's view
+        """A shadow-map draw of atlas tile ``light`` (the schedule's slot; ``draws.shadow_casters``):
+        its rectangle and the frame structs with the owning light's view
         and projection in place of the camera's (``draws.shadow_view``; float32 as a camera's
         are uploaded); once per frame."""
         got = self._shadows.get((id(p), light))

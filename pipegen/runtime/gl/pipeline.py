@@ -600,7 +600,8 @@ class GLPipeline:
                     p.uploaded[name] = data
 
     def _shadow_view(self, p: _Pass, light: int, w: int, h: int) -> None:
-        """A shadow-map draw of ``light``: viewport and scissor on its tile, the light's view
+        """A shadow-map draw of atlas tile ``light`` (the schedule's slot;
+        ``draws.shadow_casters``): viewport and scissor on the tile, the owning light's view
         and projection in the pass's ``u_view``/``u_proj`` (``draws.shadow_view``)."""
         rect, view, proj = draws.shadow_view(self._scene, light, p.draw, w, h)
         for name, m in (("u_view", view), ("u_proj", proj)):
