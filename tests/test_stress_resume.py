@@ -111,7 +111,9 @@ def test_ctrl_c_exits_130_with_valid_partial_outputs_and_the_resume_command(args
     stopped = time.monotonic()
     proc.send_signal(signal.SIGINT)
     rc, _, err = finish(proc, timeout=30)
-    assert time.monotonic() - stopped < 5        # generous on a loaded 2-core machine
+    # a hang guard, not a timing (the stop takes about a second here; a loaded CI machine is
+    # slower): the interrupt must not wait for the remaining rows
+    assert time.monotonic() - stopped < 20
     assert rc == 130, err
     assert "Traceback" not in err
     done = journal_cases(out)
