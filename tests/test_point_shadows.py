@@ -104,9 +104,9 @@ def test_word_parameter_compared_with_a_word_it_cannot_hold_is_an_error():
 def test_atlas_must_hold_six_tiles_per_point_light():
     c = compile_file(ROOT / "pipelines/forward.pipe", params={"shadow_tiles": 2})
     got = [m.message for m in c.mismatches(scene())]
-    assert ("the scene's 1 shadow-casting lights need 6 atlas tiles (six per point light), the "
+    assert ("the scene's 1 shadow-casting light needs 6 atlas tiles (six per point light), the "
             "shadow atlas holds 4: the technique refuses the scene") in got
-    with pytest.raises(PipegenError, match=r"need 6 atlas tiles .* atlas of 2 x 2 tiles") as e:
+    with pytest.raises(PipegenError, match=r"light needs 6 atlas tiles .* atlas of 2 x 2 tiles") as e:
         c.pipeline("gl").render(scene())
     assert "shadow_tiles=3" in e.value.render()
 

@@ -217,7 +217,8 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                                            f"not drawn ({why}): lit unshadowed"))
     total, tiles = sum(casting.values()), S.tiles_needed(scene.lights)
     if cap.shadow_capacity and tiles > cap.shadow_capacity:
-        out.append(Mismatch("capacity", f"the scene's {total} shadow-casting lights need "
+        out.append(Mismatch("capacity", f"the scene's {_n(total, 'shadow-casting light')} "
+                                        f"{'needs' if total == 1 else 'need'} "
                                         f"{tiles} atlas tiles (six per point light), the "
                                         f"shadow atlas holds {cap.shadow_capacity}: the "
                                         f"technique refuses the scene"))

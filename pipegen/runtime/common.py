@@ -32,7 +32,8 @@ def check_shadow_capacity(plan: Plan, scene) -> None:
     for p in plan.passes:
         tiles = p.draw.shadow_tiles
         if n and p.draw.shadow and n > tiles * tiles:
-            raise PipegenError(None, f"the scene's {lights} shadow-casting lights need {n} atlas "
+            raise PipegenError(None, f"the scene's {lights} shadow-casting "
+                               f"{'light needs' if lights == 1 else 'lights need'} {n} atlas "
                                f"tiles (six per point light, one per spot or directional) but "
                                f"pass '{p.name}' of technique '{plan.technique or '?'}' draws an "
                                f"atlas of {tiles} x {tiles} tiles",
