@@ -128,6 +128,27 @@ def test_check_gl_against_cl(technique, tmp_path):
     assert rows["color"].max_error <= 1
 
 
+@pytest.mark.gl
+@pytest.mark.cl
+@pytest.mark.parametrize("technique", TECHNIQUES)
+def test_check_gl_against_cl_with_every_light_type_casting(technique, tmp_path):
+    """examples/scenes/shadows.toml (two spots and a sun cast shadows) with its point light
+    casting one too: 3 + 6 = 9 tiles, the whole 3 x 3 atlas."""
+    pytest.importorskip("pyopencl")
+    import dataclasses
+    from pipegen.proof.check import check
+    s = load_scene(ROOT / "examples/scenes/shadows.toml")
+    lights = tuple(dataclasses.replace(l, shadows=True) for l in s.lights)
+    s = dataclasses.replace(s, lights=lights, width=64, height=36)
+    assert S.tiles_needed(s.lights) == 9 and {l.type for l in s.lights} == {
+        "point", "spot", "directional"}
+    c = compile_file(ROOT / f"pipelines/{technique}.pipe", params={**PARAMS, "pcf_taps": 16})
+    result = check(c, s, tmp_path)
+    assert result.passed, "\n" + result.table()
+    rows = {r.name: r for r in result.rows}
+    assert rows["shadow_atlas"].max_error == 0 and rows["color"].max_error <= 1
+
+
 # ---- against the float64 references ------------------------------------------------------------
 
 @pytest.fixture(scope="module")
