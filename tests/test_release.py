@@ -31,8 +31,11 @@ def test_cl_pipelines_leave_no_generated_sources_behind():
     for _ in range(3):
         with compiled.pipeline("cl") as pipe:
             pipe.render(scene)
-            assert generated() > 0          # made while the pipeline lives ...
-        assert generated() == 0             # ... dropped when it is closed
+            # what pytools files for a kernel's setter (whether it does depends on its
+            # version and caches), and one standing in for it: both go with the pipeline
+            linecache.cache[_INVOKER_SOURCES + "test'>"] = (1, None, ["x\n"], "test")
+            assert generated() >= 1
+        assert generated() == 0             # dropped when it is closed
     assert pipe.store is None               # closed: its buffers dropped
 
 

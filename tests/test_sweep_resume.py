@@ -22,8 +22,9 @@ ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUE = str(ROOT / "pipelines/forward.pipe")
 SCENE = str(ROOT / "examples/scenes/small.toml")
 # four variants (pcf_taps), one render process: slow enough to stop in the middle
+# the axis named, not the declared ones: forward.pipe may declare more (pcf_pattern did)
 ARGS = [TECHNIQUE, "--scene", SCENE, "--size", "32x18", "--frames", "0", "--jobs", "1",
-        "--no-progress"]
+        "-p", "pcf_taps=1,4,9,16", "--no-progress"]
 TIMING = {"frame_ms", "cpu_ms", "frame_ms_q1", "frame_ms_q3", "ties", "pareto"}
 ROWS = 8                        # 4 variants x 2 backends
 

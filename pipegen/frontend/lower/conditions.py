@@ -37,6 +37,12 @@ def holds(cond: ast.Condition, params: dict[str, ir.Param]) -> bool:
     return value
 
 
+def parameter_value(expr: ast.Expr, params: dict[str, ir.Param]):
+    """The value of an expression over parameters (``WORD_PARAM == WORD`` in shader code is a
+    constant once the technique is compiled); an error where it is not one."""
+    return _Evaluator(params).value(expr)
+
+
 def spelling(cond: ast.Condition) -> str:
     """The condition as written (one line), for messages."""
     s = cond.expr.span

@@ -148,8 +148,8 @@ class ExprChecker:
         if e.op in ("==", "!=") and self._word_param_side(e):
             # `WORD_PARAM == WORD` in shader code: the parameter's value is known when the
             # technique is compiled, so the comparison is a constant (as in pass conditions)
-            from pipegen.frontend.lower.conditions import _Evaluator
-            return ir.Const(ir.BOOL, bool(_Evaluator(self.low.params).value(e)))
+            from pipegen.frontend.lower.conditions import parameter_value
+            return ir.Const(ir.BOOL, bool(parameter_value(e, self.low.params)))
         left, right = self.expr(e.left), self.expr(e.right)
         t = binary_type(e.op, left.type, right.type)
         if t is None:

@@ -130,6 +130,9 @@ def cmd_sweep(args) -> int:
                                  f"scene file (.toml)", hint="--scene takes a scene .toml")
     if args.jobs == 0:
         raise PipegenError(None, "--jobs must be at least 1")
+    if args.reference is not None:          # its text checked before any variant compiles
+        from pipegen.proof.references import parse_reference
+        parse_reference(args.reference, args.reference_samples)
     axes = parse_axes(args.param) if args.param else None
     journal = Journal(out, resume=args.resume, command=command_line(args))
     try:
