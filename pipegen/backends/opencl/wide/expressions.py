@@ -206,21 +206,24 @@ class WideExpressions:
             acc = f"({i} == {k} ? {b.comps[k]} : {acc})"
         return Val([acc], e.type, base.varying)
 
+    def _light_index(self, index: "ir.Expr | None") -> tuple[str, ir.Type]:
+        """A light-table index as (uniform text, its type): the light being drawn for None."""
+        if index is None:
+            return self.lang.render_current_light(), ir.UINT
+        iv = self.expr(index)
+        if iv.varying:
+            # each lane its own light (light-indexed shading): measured 2-3x slower than
+            # the scalar function (gathers, and every light type's branch for all lanes)
+            raise Unsupported("varying light index")
+        return iv.comps[0], index.type
+
     def _lightfield(self, e: ir.LightField) -> Val:
         local = None
         if e.field != "index" and self.rows is not None:
             local = self.rows.local_for(self.path, e)     # its row, loaded once (light_rows.py)
         if local is not None:
             return self._row_field(local[0], local[1], e.type)
-        if e.index is None:
-            index, itype = self.lang.render_current_light(), ir.UINT
-        else:
-            iv = self.expr(e.index)
-            if iv.varying:
-                # each lane its own light (light-indexed shading): measured 2-3x slower than
-                # the scalar function (gathers, and every light type's branch for all lanes)
-                raise Unsupported("varying light index")
-            index, itype = iv.comps[0], e.index.type
+        index, itype = self._light_index(e.index)
         if e.field == "index":
             c = index if itype == e.type else self.lang.render_construct(e.type, [index], [itype])
             return Val([c], e.type, False)

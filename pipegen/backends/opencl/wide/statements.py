@@ -158,13 +158,7 @@ class WideStatements:
         """The light-table rows loaded before the current statement (uniform: one light)."""
         lines = []
         for load in [] if self.rows is None else self.rows.loads_before(self.path):
-            if load.index is None:
-                index, itype = self.lang.render_current_light(), ir.UINT
-            else:
-                iv = self.expr(load.index)
-                if iv.varying:
-                    raise Unsupported("varying light index")
-                index, itype = iv.comps[0], load.index.type
+            index, itype = self._light_index(load.index)
             if itype != ir.INT:
                 index = self.lang.render_construct(ir.INT, [index], [itype])
             row = self.lang.render_light_row(index, load.row)
