@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from interrupted import finish, start, wait_until
 from test_stress import FRAGILE
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -37,14 +36,7 @@ pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
 
 def stress(*args):
-    return subprocess.Popen([sys.executable, "-m", "pipegen", "stress", *map(str, args)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
-
-
-def finish(proc, timeout=120):
-    out, err = proc.communicate(timeout=timeout)
-    return proc.returncode, out, err
+    return start("stress", *args)
 
 
 def journal_cases(folder: Path) -> list[str]:
@@ -56,11 +48,7 @@ def journal_cases(folder: Path) -> list[str]:
 
 
 def wait_for_a_case(proc, folder: Path) -> None:
-    deadline = time.monotonic() + 60
-    while not journal_cases(folder):
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline, "no case committed in 60 s"
-        time.sleep(0.02)
+    wait_until(proc, lambda: bool(journal_cases(folder)), "case")
 
 
 def table_rows(text: str) -> dict:

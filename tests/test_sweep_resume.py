@@ -8,15 +8,13 @@ import csv
 import json
 import os
 import signal
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
 
-from pipegen.tools.sweep.result import COLUMNS, EXTRA_COLUMNS
+from interrupted import finish, start, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
 TECHNIQUE = str(ROOT / "pipelines/forward.pipe")
@@ -32,14 +30,7 @@ pytestmark = [pytest.mark.gl, pytest.mark.cl]
 
 
 def sweep(*args, **kw):
-    return subprocess.Popen([sys.executable, "-m", "pipegen", "sweep", *map(str, args)],
-                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, **kw)
-
-
-def finish(proc, timeout=120):
-    out, err = proc.communicate(timeout=timeout)
-    return proc.returncode, out, err
+    return start("sweep", *args, **kw)
 
 
 def journal_rows(folder: Path) -> int:
@@ -50,11 +41,7 @@ def journal_rows(folder: Path) -> int:
 
 
 def wait_for_rows(proc, folder: Path, n: int = 1) -> None:
-    deadline = time.monotonic() + 60
-    while journal_rows(folder) < n:
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline, "no row committed in 60 s"
-        time.sleep(0.05)
+    wait_until(proc, lambda: journal_rows(folder) >= n, "row")
 
 
 def csv_rows(folder: Path) -> list[dict]:
