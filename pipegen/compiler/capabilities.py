@@ -37,6 +37,10 @@ class Capabilities:
     # depth greater/gequal (light-volume back faces behind the opaque surface): (pass, pack,
     # the point/spot light types those writers draw)
     translucent_back_reads: tuple[tuple[str, str, frozenset], ...] = ()
+    # ``from lights … first K``: the light indices that may cast (the smallest K of the shadow
+    # draws; 0: every index), and where it is declared ("pass 'P' (file:line)")
+    shadow_first: int = 0
+    shadow_first_at: str = ""
 
     def light_type(self, t: str) -> str:
         return dict(self.light_types)[t]
@@ -144,8 +148,21 @@ def capabilities(tech: ir.Technique) -> Capabilities:
     shadow_draws = [p.draw for p in tech.passes if p.draw.shadow]
     shadow_types = frozenset(t for d in shadow_draws for t in d.light_types)
     shadow_capacity = min((d.shadow_tiles ** 2 for d in shadow_draws), default=0)
+    first, first_at = _shadow_first(tech)
     return Capabilities(tuple(out), has_table, translucent, index, slots, rules,
-                        shadow_types, shadow_capacity, _translucent_back_reads(tech, rules))
+                        shadow_types, shadow_capacity, _translucent_back_reads(tech, rules),
+                        first, first_at)
+
+
+def _shadow_first(tech: ir.Technique) -> tuple[int, str]:
+    """(K, "pass 'P' (file:line)") for the shadow-map draw with the smallest ``first K``;
+    (0, "") when none declares one (every light index may cast)."""
+    limited = [p for p in tech.passes if p.draw.shadow and p.draw.shadow_first]
+    if not limited:
+        return 0, ""
+    p = min(limited, key=lambda p: p.draw.shadow_first)
+    where = f" ({p.span.file}:{p.span.line})" if p.span is not None else ""
+    return p.draw.shadow_first, f"pass '{p.name}'{where}"
 
 
 _BEHIND_TESTS = (ir.CompareFunc.GREATER, ir.CompareFunc.GEQUAL)

@@ -131,6 +131,18 @@ def _capacity_message(load, pack: str, scheme: str, capacity: int, types, faces:
     return f"{holds}: lights may be dropped (a conservative bound: {volumes}{reach})"
 
 
+def _late_casters_message(scene, late: list[int], cap) -> str:
+    """Shadow-casting lights past the light indices a technique's shadow maps take (``first
+    K``, Trebilco: "only a limited light index range has shadows"): named, with the remedy."""
+    k = cap.shadow_first
+    names = ", ".join(f"{i} ({scene.lights[i].type})" for i in late)
+    return (f"{_n(len(late), 'light')} {'casts' if len(late) == 1 else 'cast'} shadows past the "
+            f"light indices this technique's shadow maps take (0..{k - 1}: `first {k}` in "
+            f"{cap.shadow_first_at}): light{'' if len(late) == 1 else 's'} {names} "
+            f"{'is' if len(late) == 1 else 'are'} lit unshadowed; list the shadow-casting "
+            f"lights first in the scene, or declare more in `first`")
+
+
 def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = None,
                per_pixel: Optional[int] = None) -> list[Mismatch]:
     """What ``tech`` will not render of ``scene`` (empty: it renders everything).
@@ -203,8 +215,12 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                                             f"the {slots} light sets of `{pack}` hold: "
                                             f"{'it is' if len(dropped) == 1 else 'they are'} "
                                             f"dropped (lights {', '.join(map(str, dropped))})"))
+    late = S.casters_from(scene.lights, cap.shadow_first)
+    if late:
+        out.append(Mismatch("shadows", _late_casters_message(scene, late, cap)))
+    drawn = S.casting_below(scene, cap.shadow_first)      # what the runtimes draw
     casting: dict[str, int] = {}
-    for light in scene.lights:
+    for light in drawn.lights:
         if S.casts_shadows(light):
             casting[light.type] = casting.get(light.type, 0) + 1
     for t in LIGHT_TYPES:
@@ -215,7 +231,7 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
             out.append(Mismatch("shadows", f"{_n(n, t + ' light')} "
                                            f"{'casts' if n == 1 else 'cast'} shadows that are "
                                            f"not drawn ({why}): lit unshadowed"))
-    total, tiles = sum(casting.values()), S.tiles_needed(scene.lights)
+    total, tiles = sum(casting.values()), S.tiles_needed(drawn.lights)
     if cap.shadow_capacity and tiles > cap.shadow_capacity:
         out.append(Mismatch("capacity", f"the scene's {_n(total, 'shadow-casting light')} "
                                         f"{'needs' if total == 1 else 'need'} "

@@ -327,14 +327,15 @@ class Draw(Node):
     light_set: Optional[tuple[Name, Expr]] = None   # in PACK[k]
     scissor: bool = False
     back_to_front: bool = False                # scene... back_to_front
-    from_lights: Optional["DrawFrom"] = None  # scene... from lights TYPES [tiles N]
+    from_lights: Optional["DrawFrom"] = None  # scene... from lights TYPES [first K] [tiles N]
 
 
 @record
 class DrawFrom(Node):
-    """``from lights [TYPES …] [tiles N]`` after ``draw scene…``: shadow-map passes."""
+    """``from lights [TYPES …] [first K] [tiles N]`` after ``draw scene…``: shadow-map passes."""
     light_types: list[Word] = field(default_factory=list)
     tiles: Optional[Expr] = None
+    first: Optional[Expr] = None      # only light indices 0..K-1 may cast
 
 
 @record

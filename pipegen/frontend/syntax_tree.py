@@ -371,8 +371,8 @@ class _ToAst(Transformer):
 
     def draw_from(self, meta, ch):
         types = [c for c in ch if isinstance(c, ast.Word)]
-        tiles = ch[-1] if ch and not isinstance(ch[-1], (ast.Word, Token)) else None
-        return ast.DrawFrom(types, tiles, span=self._span(meta))
+        first, tiles = ch[-2:]          # the optional clauses' placeholders (None: absent)
+        return ast.DrawFrom(types, tiles, first, span=self._span(meta))
 
     def light_set(self, meta, ch):
         return _LightSet(self._name(ch[0]), ch[1])

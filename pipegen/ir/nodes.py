@@ -586,6 +586,9 @@ class Draw:
     # SCENE ``from lights TYPES tiles N``: a shadow-map draw, the scene from each shadow-casting
     # light of ``light_types`` into its tile of an N x N atlas (pipegen/scene/shadows.py); 0: not one
     shadow_tiles: int = 0
+    # ``first K``: only light indices 0..K-1 may cast (lights after them are drawn unshadowed,
+    # runtime/common.scene_as_drawn; compiler/mismatches names them); 0: every index may
+    shadow_first: int = 0
 
     @property
     def shadow(self) -> bool:
@@ -597,8 +600,9 @@ class Draw:
         if self.kind is DrawKind.SCENE:
             return "scene" + "".join("." + m for m in self.material) + (
                 " back_to_front" if self.order is DrawOrder.BACK_TO_FRONT else "") + (
-                " from lights " + " ".join(self.light_types) + f" tiles {self.shadow_tiles}"
-                if self.shadow else "")
+                " from lights " + " ".join(self.light_types) +
+                (f" first {self.shadow_first}" if self.shadow_first else "") +
+                f" tiles {self.shadow_tiles}" if self.shadow else "")
         if self.kind is DrawKind.LIGHTS:
             text = f"lights as {(self.volume or Volume.SPHERE).value}"
             if self.light_types:

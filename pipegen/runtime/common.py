@@ -71,6 +71,21 @@ def check_scene_facts(plan: Plan, scene) -> None:
                            hint="compile it for this scene (--scene), or without a scene")
 
 
+def shadow_first(plan: Plan) -> int:
+    """The light indices a plan's shadow maps take: the smallest ``first K`` of its shadow-map
+    draws (0: every index may cast)."""
+    return min((p.draw.shadow_first for p in plan.passes
+                if p.draw.shadow and p.draw.shadow_first), default=0)
+
+
+def scene_as_drawn(plan: Plan, scene):
+    """``scene`` as the plan draws it: lights at or after its ``shadow_first`` cast no shadow
+    (no atlas tile, ``shadow_tile`` -1: lit unshadowed; ``compiler/mismatches`` warns of them).
+    ``scene`` itself when nothing changes."""
+    from pipegen.scene.shadows import casting_below
+    return casting_below(scene, shadow_first(plan))
+
+
 def check_scene(plan: Plan, scene) -> None:
     """Everything a pipeline checks before it takes a new scene, the same on both runtimes: the
     specialised scene facts, the light table's capacity and the shadow atlas's tiles (each a

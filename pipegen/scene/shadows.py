@@ -7,6 +7,9 @@ GL, by OpenCL and by ``reference/shadows.py`` is the same picture of the same fr
   scene), in light-table order; each owns consecutive tiles of the atlas in that order
   (``first_tiles``): one for a spot or directional light, six for a point light (its cube's
   faces +x, -x, +y, -y, +z, -z, Trebilco's "6 consecutive shadow map indexes");
+  ``casting_below(scene, K)``: the scene as a technique whose shadow maps take only light
+  indices below K sees it (``draw … from lights first K``, Trebilco's "limited light index
+  range"): later lights cast none;
 - ``light_view_proj(scene, light)``: the light's (view, projection) as float64 4x4 matrices,
   GL conventions (column vectors, clip z in [-w, w], window depth 0 near, 1 far):
 
@@ -36,6 +39,7 @@ float32 roundings of ``view`` and ``projection`` (as they upload a camera).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Optional
 
@@ -72,6 +76,25 @@ def casts_shadows(light) -> bool:
 def shadow_lights(lights) -> list[int]:
     """Indices of the shadow-casting lights, in table order (``first_tiles``: their atlas tiles)."""
     return [i for i, l in enumerate(lights) if casts_shadows(l)]
+
+
+def casters_from(lights, first: int) -> list[int]:
+    """The shadow-casting lights at index ``first`` or later: those a technique whose shadow
+    maps take only light indices below ``first`` (``draw … from lights first K``; 0: every
+    index) draws unshadowed."""
+    return [i for i in shadow_lights(lights) if first and i >= first]
+
+
+def casting_below(scene, first: int):
+    """``scene`` as a technique drawing shadow maps for light indices below ``first`` only sees
+    it: the lights from ``first`` on cast none (their ``shadow_tile`` is -1, they take no atlas
+    tile); ``scene`` itself when none of them casts (or ``first`` is 0: every index may)."""
+    late = set(casters_from(scene.lights, first))
+    if not late:
+        return scene
+    return dataclasses.replace(scene, lights=tuple(
+        dataclasses.replace(l, shadows=False) if i in late else l
+        for i, l in enumerate(scene.lights)))
 
 
 def tile_count(light) -> int:

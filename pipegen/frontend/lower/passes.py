@@ -88,9 +88,10 @@ class PassLowerer:
 
     def _shadow_draw(self, d: ast.Draw, material: tuple[str, ...],
                      order: ir.DrawOrder) -> ir.Draw:
-        """``draw scene… from lights [point] [spot] [directional] [tiles N]``: the scene from
-        each shadow-casting light into its tiles of the depth target (six for a point light;
-        pipegen/scene/shadows.py); no types listed: all three."""
+        """``draw scene… from lights [point] [spot] [directional] [first K] [tiles N]``: the
+        scene from each shadow-casting light into its tiles of the depth target (six for a point
+        light; pipegen/scene/shadows.py); no types listed: all three; ``first K``: only light
+        indices below K cast (at most the light table's capacity)."""
         f = d.from_lights
         types: list[str] = []
         for w in f.light_types:
@@ -99,6 +100,9 @@ class PassLowerer:
             types.append(w.value)
         tiles = 1 if f.tiles is None else self.low.integer(f.tiles, "the shadow atlas's tiles "
                                                             "per side", 1, 64)
+        first = 0 if f.first is None else self.low.integer(
+            f.first, "`first` (the light indices that may cast shadows)", 1,
+            self.low.lights.capacity or None)
         if order is not ir.DrawOrder.SCENE:
             raise error(f.span, "a shadow-map draw keeps the scene order",
                         "drop `back_to_front`")
@@ -118,7 +122,7 @@ class PassLowerer:
                         f"target", "add e.g. `depth shadow_atlas less write`")
         return ir.Draw(ir.DrawKind.SCENE, material=material, order=order,
                        light_types=tuple(t for t in LIGHT_TYPES if t in types) or
-                       tuple(LIGHT_TYPES), shadow_tiles=tiles)
+                       tuple(LIGHT_TYPES), shadow_tiles=tiles, shadow_first=first)
 
     def _light_set(self, d: ast.Draw) -> Optional[tuple[str, int]]:
         if d.light_set is None:

@@ -103,7 +103,7 @@ from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from pipegen.runtime.cl import clamps as cl_clamps, context as cl_context
 from pipegen.runtime import draws
-from pipegen.runtime.common import check_param_overrides, check_scene
+from pipegen.runtime.common import check_param_overrides, check_scene, scene_as_drawn
 from pipegen.runtime.light_table import light_rows
 from pipegen.runtime.cl.device import Device
 from pipegen.runtime.cl.geometry import DrawGeometry, FrameState, ShadowView
@@ -193,7 +193,8 @@ class CLPipeline:
         self.clamp_counters = cl_clamps.ClampCounters(self.ctx, self.queue, plan)
         self._clamps: Optional[list] = []
         self._presets: dict = {}
-        self._scene = None
+        self._scene = None              # the scene as drawn (runtime/common.scene_as_drawn)
+        self._given = None              # the scene it was given
         self._selection: Optional[draws.LightSelection] = None
         self._events: list = []
         self._int2s: dict = {}
@@ -397,8 +398,9 @@ class CLPipeline:
         return self._clamps
 
     def _use_scene(self, scene) -> None:
-        if self._scene is scene:
+        if self._scene is not None and self._given is scene:
             return
+        self._given, scene = scene, scene_as_drawn(self.plan, scene)
         check_scene(self.plan, scene)
         self._scene = scene
         self._selection = draws.LightSelection(self.plan, list(scene.lights))

@@ -61,7 +61,7 @@ from pipegen.runtime.gl import formats as GF
 from pipegen.runtime.gl import state as GS
 from pipegen.runtime.gl import names
 from pipegen.runtime.gl import transitions as GT
-from pipegen.runtime.common import check_param_overrides, check_scene
+from pipegen.runtime.common import check_param_overrides, check_scene, scene_as_drawn
 from pipegen.runtime.light_table import light_rows, table_records
 from pipegen.runtime.gl.context import (
     GL, check_error, clear_stale_errors, debug_enabled, get_context)
@@ -315,7 +315,8 @@ class GLPipeline:
                                            table_records(plan.lights))
         self._samplers = {mode: self._sampler(mode) for mode in ("nearest", "linear")}
         self._meshes: dict[str, moderngl.Buffer] = {}
-        self._scene = None
+        self._scene = None              # the scene as drawn (runtime/common.scene_as_drawn)
+        self._given = None              # the scene it was given
         self._scene_vbos: dict[tuple, tuple[moderngl.Buffer, int]] = {}
         self._selection: Optional[draws.LightSelection] = None
         self._released = False
@@ -430,8 +431,9 @@ class GLPipeline:
 
     # -- scene data -------------------------------------------------------------------------
     def _use_scene(self, scene) -> None:
-        if self._scene is scene:
+        if self._scene is not None and self._given is scene:
             return
+        self._given, scene = scene, scene_as_drawn(self.plan, scene)
         check_scene(self.plan, scene)
         for p in self.passes:
             for key in [k for k in p.vaos if k[0] == "scene"]:
