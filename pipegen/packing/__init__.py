@@ -4,6 +4,6 @@ encodings.  Above the IR (a scheme's functions are IR-typed source text), below 
 that declares them.
 
 ``schemes`` is the entry point (``SCHEMES``, ``build``, ``numpy_impl``); the schemes are in
-``light_index``, ``values`` and ``normals`` on ``base``; ``capacity`` is Trebilco's table,
-``error_tables`` the generated figures, ``measurement`` the normal encodings' measurement.
-This file imports nothing: compiling loads only what it uses, and never numpy."""
+``light_index``, ``intensity``, ``values`` and ``normals`` on ``base``; ``capacity`` is
+Trebilco's table, ``error_tables`` the generated figures, ``measurement`` the normal
+encodings' measurement.  This file imports nothing: compiling loads only what it uses, and never numpy."""

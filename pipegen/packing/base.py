@@ -15,7 +15,7 @@ from pipegen.core.formats import Format
 # The scheme names the language accepts (``pack NAME = SCHEME(…)``): here, beside the base
 # class, so that lowering a technique without packings reads them without importing every
 # scheme (``schemes.py`` maps each to its class).
-SCHEMES = ("bitplanes", "max_pairs", "channel_slots", "split16", "bitfield",
+SCHEMES = ("bitplanes", "max_pairs", "channel_slots", "intensity_planes", "split16", "bitfield",
            "kircher", "spheremap", "octahedral")
 
 

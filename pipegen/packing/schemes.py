@@ -13,15 +13,17 @@ Schemes:
 
 * light indices (Trebilco 2007, "Light indexed deferred rendering"): ``bitplanes`` (bit
   shifting with blend ``ONE, CONSTANT_COLOR``), ``max_pairs`` (MAX blend of ``(i, 1-i)`` with
-  the stencil), ``channel_slots`` (CPU-sorted light sets, one channel each);
+  the stencil), ``channel_slots`` (CPU-sorted light sets, one channel each), and beside
+  bit-plane indices ``intensity_planes`` (a [0,1] value per light slot, bit-packed the same
+  way: Trebilco's packed "shadow intensity");
 * values: ``split16`` (a [0,1] value as 16 bits over two 8-bit channels), ``bitfield`` (e.g.
   Kircher's 8-bit object id | 8-bit normal group);
 * normals: ``kircher`` (Kircher & Lawrance 2009, eq. 1–3), ``spheremap``, ``octahedral``.
 
 Light indices are 1-based (``light.index + 1u``): 0 means "no light" in every index scheme.
 
-The schemes live by concern: ``light_index``, ``values`` and ``normals`` (on ``base``'s
-``Scheme`` and helpers), Trebilco's table in ``capacity``, the measured figures in
+The schemes live by concern: ``light_index``, ``intensity``, ``values`` and ``normals`` (on
+``base``'s ``Scheme`` and helpers), Trebilco's table in ``capacity``, the measured figures in
 ``error_tables`` and the normal encodings' measurement in ``measurement``.  This module is the
 entry point: the registry of scheme names, ``build`` and ``numpy_impl``.
 """
@@ -37,6 +39,7 @@ from pipegen.core.formats import Format
 from pipegen.core.records import record
 from pipegen.ir import nodes as ir
 from pipegen.packing.base import SCHEMES, Scheme
+from pipegen.packing.intensity import IntensityPlanes
 from pipegen.packing.light_index import BitPlanes, ChannelSlots, MaxPairs
 from pipegen.packing.normals import Kircher, Octahedral, Spheremap
 from pipegen.packing.values import Bitfield, Split16
@@ -46,8 +49,8 @@ from pipegen.packing.values import Bitfield, Split16
 
 _SCHEME_CLASSES: dict[str, type[Scheme]] = {
     "bitplanes": BitPlanes, "max_pairs": MaxPairs, "channel_slots": ChannelSlots,
-    "split16": Split16, "bitfield": Bitfield, "kircher": Kircher,
-    "spheremap": Spheremap, "octahedral": Octahedral,
+    "intensity_planes": IntensityPlanes, "split16": Split16, "bitfield": Bitfield,
+    "kircher": Kircher, "spheremap": Spheremap, "octahedral": Octahedral,
 }
 assert tuple(_SCHEME_CLASSES) == SCHEMES
 
