@@ -342,6 +342,8 @@ class CStyleLanguage:
 
     def _load(self, e: ir.Load) -> tuple[str, int]:
         coord = None if e.coord is None else self.expr(e.coord)
+        if e.sample is not None:
+            return self.render_load_sample(e.target, coord, self.expr(e.sample), e.type), ATOM
         return self.render_load(e.target, coord, e.type), ATOM
 
     def _sample(self, e: ir.Sample) -> tuple[str, int]:
@@ -512,6 +514,12 @@ class CStyleLanguage:
         raise NotImplementedError
 
     def render_load(self, target: str, coord: Optional[str], t: Type) -> str:
+        raise NotImplementedError
+
+    def render_load_sample(self, target: str, coord: Optional[str], sample: str,
+                           t: Type) -> str:
+        """Sample ``sample`` of multisampled ``target`` at this pixel (``coord`` None) or at
+        ``coord``, clamped to the target as ``load`` is."""
         raise NotImplementedError
 
     def render_sample(self, target: str, uv: str, t: Type) -> str:

@@ -71,6 +71,7 @@ INPUTS: dict[str, tuple[str, Optional[str]]] = {
     "inv_proj": ("u_inv_proj", None), "output_size": ("u_output_size", None),
     "prev_view": ("u_prev_view", None), "prev_proj": ("u_prev_proj", None),
     "num_lights": ("u_num_lights", None), "ambient": ("u_ambient", None),
+    "sample_id": ("gl_SampleID", None),
     "world_pos": ("v_world_pos", "v_world_pos"), "view_pos": ("v_view_pos", "v_view_pos"),
     "normal": ("v_normal", "v_normal"), "view_normal": ("v_view_normal", "v_view_normal"),
     "albedo": ("v_albedo", "v_albedo"), "specular": ("v_material.x", "v_material"),
@@ -106,6 +107,9 @@ UNIFORMS = [("mat4", "u_view"), ("mat4", "u_proj"), ("mat4", "u_inv_view"),
 # extension (Mesa has it everywhere): only those shaders get the line
 PACKING_BUILTINS = frozenset({"packHalf2x16", "unpackHalf2x16"})
 PACKING_EXTENSION = "GL_ARB_shading_language_packing"
+# gl_SampleID (GLSL 4.00): a 330 shader that reads sample_id enables the extension; its
+# static use makes the fragment shader run once per covered sample
+SAMPLE_SHADING_EXTENSION = "GL_ARB_sample_shading"
 
 
 class GLSLLanguage(CStyleLanguage):
@@ -138,6 +142,8 @@ class GLSLLanguage(CStyleLanguage):
     def render_input(self, name: str, t: Type) -> str:
         if name == "light_index":
             return self.current_light
+        if name == "sample_id" and SAMPLE_SHADING_EXTENSION not in self.extensions:
+            self.extensions.append(SAMPLE_SHADING_EXTENSION)   # gl_SampleID: GLSL 4.00
         assert name in INPUTS, f"unknown stage input '{name}'"
         return INPUTS[name][0]
 
@@ -158,6 +164,20 @@ class GLSLLanguage(CStyleLanguage):
                 return f"texelFetch(t_{target}, {coord}, 0){texel_select(t)}"
         coord = f"clamp({coord}, ivec2(0), textureSize(t_{target}, 0) - 1)"
         return f"texelFetch(t_{target}, {coord}, 0){texel_select(t)}"
+
+    def render_load_sample(self, target: str, coord: Optional[str], sample: str,
+                           t: Type) -> str:
+        # t_T is a sampler2DMS here (the pass's "sample_reads"); textureSize takes no lod
+        if coord is None:
+            coord = "ivec2(gl_FragCoord.xy)"
+            if target not in self.unclamped:
+                coord = f"clamp({coord}, ivec2(0), textureSize(t_{target}) - 1)"
+        else:
+            coord = f"clamp({coord}, ivec2(0), textureSize(t_{target}) - 1)"
+        # an index past the samples reads 0 on llvmpipe (GL leaves it undefined): clamped,
+        # as the OpenCL runtime clamps it
+        last = self.tech.target(target).samples - 1
+        return f"texelFetch(t_{target}, {coord}, clamp({sample}, 0, {last})){texel_select(t)}"
 
     def render_sample(self, target: str, uv: str, t: Type) -> str:
         return f"texture(t_{target}, {uv}){texel_select(t)}"
@@ -197,6 +217,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
     uses_light = bool(inputs & {"light", "light_index"})
     assert not uses_light or kind is DrawKind.LIGHTS or p.repeat_per_light, p.name
 
+    sample_reads = planlib.sample_read_targets(p.body, functions)
     written = planlib.code_facts(p.body).outputs
     assert written <= set(p.writes), f"pass {p.name} writes {written - set(p.writes)} undeclared"
     code = [lang.function(f) for f in functions]
@@ -220,8 +241,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
               "source": tech.source, "uniforms": _uniforms(p, inputs)}
     fragment = templating.render(
         "gl_fragment.glsl.j2", **common, stage="fragment", varyings=varyings,
-        samplers=[{"name": r, "type": "usampler2D" if tech.target(r).format.is_integer
-                   else "sampler2D"} for r in p.reads],
+        samplers=[_sampler(tech, r, r in sample_reads) for r in p.reads],
         outputs=[_output(tech.target(w)) for w in p.writes], functions=code, body=body,
         extensions=lang.extensions)
     sampled = planlib.sampled_targets(p.body, functions)
@@ -247,6 +267,13 @@ def emit_vertex(tech: ir.Technique, p: ir.Pass, common: dict, varyings: list,
 
 def _varying(name: str, type_: str, flat: bool, value: str) -> dict:
     return {"name": name, "type": type_, "flat": flat, "value": value}
+
+
+def _sampler(tech: ir.Technique, read: str, per_sample: bool) -> dict:
+    """The sampler uniform of a read target: its samples (``load_sample``) or one texel per
+    pixel (a multisampled target's resolve)."""
+    kind = "usampler2D" if tech.target(read).format.is_integer else "sampler2D"
+    return {"name": read, "type": kind + ("MS" if per_sample else "")}
 
 
 def _output(t: ir.Target) -> dict:

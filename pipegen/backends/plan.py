@@ -24,7 +24,8 @@ from pipegen.core import formats as F
 from pipegen.ir import nodes as ir
 # the code queries, here for the emitters (they live in the backend-neutral core)
 from pipegen.ir.facts import (
-    CodeFacts, code_exprs, code_facts, may_discard, pass_functions, sampled_targets, stage_inputs)
+    CodeFacts, code_exprs, code_facts, may_discard, pass_functions, sample_read_targets,
+    sampled_targets, shades_per_sample, stage_inputs)
 
 
 # ---- the typed plan ------------------------------------------------------------------------
@@ -124,6 +125,9 @@ class PassPlan:
     repeat_types: tuple[str, ...] = ()
     sampled: tuple[str, ...] = ()            # reads filtered bilinearly (``sample()``)
     code: PassCode = None
+    # reads of a multisampled target's samples (``load_sample``): the runtimes bind the
+    # samples themselves, not the resolve
+    sample_reads: tuple[str, ...] = ()
 
     @property
     def attached(self) -> tuple[str, ...]:
@@ -183,7 +187,8 @@ def technique_plan(tech: ir.Technique, backend: str,
                                     for f in (tech.materials.fields if tech.materials else ()))),
         output=tech.output,
         targets=tuple(target_plan(t) for t in tech.targets),
-        passes=tuple(pass_plan(p, code, s) for p, code, s in zip(tech.passes, codes, sampled)),
+        passes=tuple(pass_plan(p, code, s, _sample_reads(tech, p))
+                     for p, code, s in zip(tech.passes, codes, sampled)),
         light_sets={p.name: int(dict(p.options).get("slots", 4))
                     for p in tech.packings if p.scheme == "channel_slots"},
         scene=tech.scene)
@@ -196,11 +201,18 @@ def target_plan(t: ir.Target) -> TargetPlan:
     return TargetPlan(t.name, t.format, t.size, t.samples, clear)
 
 
-def pass_plan(p: ir.Pass, code: PassCode = None, sampled: tuple[str, ...] = ()) -> PassPlan:
+def _sample_reads(tech: ir.Technique, p: ir.Pass) -> tuple[str, ...]:
+    per_sample = sample_read_targets(p.body, pass_functions(tech, p.body))
+    return tuple(r for r in p.reads if r in per_sample)
+
+
+def pass_plan(p: ir.Pass, code: PassCode = None, sampled: tuple[str, ...] = (),
+              sample_reads: tuple[str, ...] = ()) -> PassPlan:
     # the plan keeps blend state for the written targets only, in write order
     state = replace(p.state, blend=tuple((t, p.state.blend_for(t)) for t in p.writes))
     return PassPlan(p.name, p.draw, state, tuple(p.writes), tuple(p.reads), p.depth_target,
-                    tuple(p.clears), p.repeat_group, tuple(p.repeat_types), tuple(sampled), code)
+                    tuple(p.clears), p.repeat_group, tuple(p.repeat_types), tuple(sampled), code,
+                    tuple(sample_reads))
 
 
 # ---- the plain-data spelling ---------------------------------------------------------------
@@ -266,6 +278,8 @@ def _pass_to_dict(p: PassPlan) -> dict:
         "depth_target": p.depth_target,
         "state": state_to_dict(p.state, p.writes),
     }
+    if p.sample_reads:      # only when there are any (the other plans keep their text)
+        out["sample_reads"] = list(p.sample_reads)
     if isinstance(p.code, GLPassCode):
         out.update(vertex=p.code.vertex, fragment=p.code.fragment, sampled=list(p.sampled),
                    attributes=list(p.code.attributes))
@@ -385,7 +399,8 @@ def _pass_from_dict(p: Mapping, preludes: Mapping[str, str]) -> PassPlan:
         reads=tuple(p.get("reads") or ()), depth_target=p.get("depth_target"),
         clears=tuple((c["target"], _clear_from_dict(c)) for c in p.get("clears") or []),
         repeat_group=p.get("repeat_group"), repeat_types=tuple(p.get("repeat_types") or ()),
-        sampled=tuple(p.get("sampled") or ()), code=code)
+        sampled=tuple(p.get("sampled") or ()), code=code,
+        sample_reads=tuple(p.get("sample_reads") or ()))
 
 
 def _face_from_dict(f: Mapping) -> ir.StencilFace:

@@ -123,6 +123,8 @@ def resolve_builtin(name: str, args: Sequence[ir.Type]) -> Optional[ir.Type]:
 # Functions whose first argument is a render target (typed by the front end from its format).
 TARGET_FUNCTIONS: dict[str, str] = {
     "load": "load(T) / load(T, ivec2): texel of T at this pixel / at a pixel",
+    "load_sample": "load_sample(T, int s) / load_sample(T, ivec2, int s): sample s of "
+                   "multisampled T at this pixel / at a pixel",
     "sample": "sample(T, vec2 uv): bilinear sample of T, clamped to the edge",
     "size": "size(T) -> ivec2: T's size in pixels",
 }
@@ -171,6 +173,9 @@ STAGE_INPUTS: dict[str, StageInput] = {
     **_inputs(Where.EVERYWHERE, ir.MAT4, "prev_view", "prev_proj"),
     **_inputs(Where.EVERYWHERE, ir.VEC2, "output_size"),
     **_inputs(Where.EVERYWHERE, ir.UINT, "num_lights"),
+    # the sample being shaded (GL's gl_SampleID): reading it makes the pass run once per
+    # covered sample, frag_coord and the scene inputs at that sample (multisampled passes)
+    **_inputs(Where.EVERYWHERE, ir.INT, "sample_id"),
     **_inputs(Where.SCENE, ir.VEC3, "world_pos", "view_pos", "normal", "view_normal", "albedo"),
     **_inputs(Where.SCENE, ir.FLOAT, "specular", "shininess", "alpha"),
     **_inputs(Where.SCENE, ir.UINT, "object_id", "normal_group", "layer"),

@@ -31,6 +31,8 @@ class CodeFacts:
     outputs: frozenset[str]         # targets written (``ir.Output``)
     discard: bool                   # holds a ``discard``
     reads: frozenset[str]           # targets read (``load``, ``sample``, ``size``)
+    sample_reads: frozenset[str] = frozenset()   # targets read per sample (``load_sample``)
+    resolved_reads: frozenset[str] = frozenset()  # targets read otherwise (their resolve)
 
 
 # The cache holds its statement tuples (so that an id is not reused while cached), and through
@@ -48,7 +50,7 @@ def code_facts(stmts) -> CodeFacts:
     if hit is not None and hit[0] is stmts:
         return hit[1]
     calls: list[str] = []
-    inputs, sampled, reads = set(), set(), set()
+    inputs, sampled, reads, per_sample, resolved = set(), set(), set(), set(), set()
     loads = 0
     for e in irwalk.walk_exprs(stmts):
         t = type(e)
@@ -64,9 +66,11 @@ def code_facts(stmts) -> CodeFacts:
         elif t is ir.Sample:
             sampled.add(e.target)
             reads.add(e.target)
+            resolved.add(e.target)
             loads += 1
         elif t is ir.Load:
             reads.add(e.target)
+            (resolved if e.sample is None else per_sample).add(e.target)
             loads += 1
         elif t is ir.TargetSize:
             reads.add(e.target)
@@ -77,7 +81,8 @@ def code_facts(stmts) -> CodeFacts:
         elif isinstance(s, ir.Discard):
             discard = True
     facts = CodeFacts(tuple(dict.fromkeys(calls)), tuple(calls), loads, frozenset(inputs),
-                      frozenset(sampled), frozenset(outputs), discard, frozenset(reads))
+                      frozenset(sampled), frozenset(outputs), discard, frozenset(reads),
+                      frozenset(per_sample), frozenset(resolved))
     if isinstance(stmts, tuple):
         if len(_FACTS) >= _FACTS_MAX:
             _FACTS.clear()
@@ -123,6 +128,30 @@ def sampled_targets(body, functions) -> set[str]:
     for f in functions:
         out |= code_facts(f.body).sampled
     return out
+
+
+def sample_read_targets(body, functions) -> set[str]:
+    """The targets the code reads per sample (``load_sample``): the runtimes bind their
+    samples, not their resolve."""
+    out = set(code_facts(body).sample_reads)
+    for f in functions:
+        out |= code_facts(f.body).sample_reads
+    return out
+
+
+def resolved_read_targets(body, functions) -> set[str]:
+    """The targets the code reads through ``load``/``sample`` (a multisampled one: its
+    resolve)."""
+    out = set(code_facts(body).resolved_reads)
+    for f in functions:
+        out |= code_facts(f.body).resolved_reads
+    return out
+
+
+def shades_per_sample(body, functions) -> bool:
+    """Whether the code reads ``sample_id``: its pass runs once per covered sample (GL:
+    a static use of gl_SampleID forces per-sample shading)."""
+    return "sample_id" in stage_inputs(body, functions)
 
 
 def may_discard(body, functions) -> bool:

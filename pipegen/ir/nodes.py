@@ -347,12 +347,15 @@ class Load:
     """Texel fetch of a target (``load(t)`` at this pixel, ``load(t, ivec2)`` elsewhere).
 
     The result type is the target's read type (vec4 for unorm/float, uvec4 for uint, float
-    for depth); values are what the shader would read (unorm decoded to [0,1]).
+    for depth); values are what the shader would read (unorm decoded to [0,1]).  ``sample``
+    (an int; ``load_sample(t, s)``, ``load_sample(t, ivec2, s)``): sample ``s`` of a
+    multisampled colour target itself; without it a multisampled target reads its resolve.
     """
 
     target: str
     coord: Optional["Expr"]
     type: Type
+    sample: Optional["Expr"] = None
 
 
 @record(frozen=True)

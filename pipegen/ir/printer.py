@@ -346,6 +346,8 @@ def _material_field(e: ir.MaterialField) -> tuple[str, int]:
 
 def _load(e: ir.Load) -> tuple[str, int]:
     where = "" if e.coord is None else f", {expr(e.coord)}"
+    if e.sample is not None:
+        return f"load_sample({e.target}{where}, {expr(e.sample)})", _ATOM
     return f"load({e.target}{where})", _ATOM
 
 

@@ -17,7 +17,7 @@ from dataclasses import field
 from typing import Callable, Optional, Union
 
 from pipegen.core.records import record
-from pipegen.ir import nodes as ir
+from pipegen.ir import facts, nodes as ir
 from pipegen.ir.builtins import (
     BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, LIGHT_TYPES, STAGE_INPUTS, Where, binary_type,
     construct_error, resolve_builtin, target_read_type, target_write_type, unary_type)
@@ -167,6 +167,20 @@ class _Verifier:
             self._clear(self.targets[name], c, where)
         body = _Body(self, where, ret=ir.VOID, in_pass=p)
         body.stmts(p.body)
+        self._per_sample(p, where)
+
+    def _per_sample(self, p: ir.Pass, where: str) -> None:
+        """``sample_id`` only where the attachments have samples; a target read either per
+        sample or through its resolve, not both (the runtimes bind one of the two)."""
+        functions = facts.pass_functions(self.tech, p.body)
+        if facts.shades_per_sample(p.body, functions):
+            attached = list(p.writes) + ([p.depth_target] if p.depth_target else [])
+            samples = max([self.targets[n].samples for n in attached if n in self.targets]
+                          or [1])
+            _check(samples > 1, where, "reads sample_id without multisampled attachments")
+        both = facts.sample_read_targets(p.body, functions) & \
+            facts.resolved_read_targets(p.body, functions)
+        _check(not both, where, lambda: f"reads {sorted(both)} both per sample and resolved")
 
     def _draw(self, p: ir.Pass, where: str) -> None:
         d = p.draw
@@ -470,6 +484,10 @@ class _Body:
         t = self._read(e.target)
         self.check(e.type == target_read_type(t.format), lambda: f"load({e.target}) typed {e.type}")
         self.check(e.coord is None or self.expr(e.coord) == ir.IVEC2, "load coordinate")
+        if e.sample is not None:
+            self.check(self.expr(e.sample) == ir.INT, "load_sample's sample index is an int")
+            self.check(t.samples > 1 and t.format.is_color,
+                       lambda: f"load_sample of '{e.target}', not a multisampled colour target")
 
     def _Sample(self, e: ir.Sample) -> None:
         t = self._read(e.target)

@@ -292,6 +292,11 @@ class OpenCLLanguage(CStyleLanguage):
         coord = "in->pix" if coord is None else coord
         return f"pg_load_{target}(in, {coord}){texel_select(t)}"
 
+    def render_load_sample(self, target: str, coord: Optional[str], sample: str,
+                           t: Type) -> str:
+        coord = "in->pix" if coord is None else coord
+        return f"pg_load_sample_{target}(in, {coord}, {sample}){texel_select(t)}"
+
     def render_sample(self, target: str, uv: str, t: Type) -> str:
         return f"pg_sample_{target}(in, {uv}){texel_select(t)}"
 

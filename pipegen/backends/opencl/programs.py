@@ -128,7 +128,10 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         reads.append({**f, "name": name, "format": f["name"], "decoded": read_expr(f),
                       "integer": f["cls"] == "uint",
                       "linear": f["cls"] in ("unorm8", "unorm", "snorm", "half", "float", "f64"),
-                      "sampled": name in code.sampled})
+                      "sampled": name in code.sampled,
+                      # load_sample: the target's sample planes are bound, not its resolve
+                      "per_sample": name in pass_.sample_reads,
+                      "samples": plan.target(name).samples})
     inputs = set(code.inputs)
     draw = pass_.draw
     layout = schema_layout(plan.lights.fields)
@@ -165,7 +168,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
-        wide_w=cl_wide.W, batch=batch)
+        wide_w=cl_wide.W, batch=batch, per_sample="sample_id" in inputs)
 
 
 def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:

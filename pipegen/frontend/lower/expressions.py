@@ -128,6 +128,13 @@ class ExprChecker:
                             f"{self.ctx.describe()} does not draw the scene",
                             "store it in a target in a scene pass and load() it here")
             self.uses.scene.append((e.name, e.span))
+        if e.name == "sample_id":
+            if self.ctx.in_pass and self.ctx.samples == 1:
+                raise error(e.span, f"'sample_id' is the sample being shaded, and "
+                            f"{self.ctx.describe()} draws into single-sampled targets",
+                            "declare its attachments with `samples N` (N > 1), or drop "
+                            "sample_id")
+            self.uses.sample_id.append(e.span)
         return ir.Var(e.name, inp.type, "input")
 
     def _expr_UnaryOp(self, e: ast.UnaryOp) -> ir.Expr:
@@ -358,6 +365,29 @@ class ExprChecker:
                 raise error(span, f"'{name}' reads target '{target}' (line {where.line}), "
                             f"which pass '{ctx.pass_name}' does not declare",
                             f"add `reads {target}` to the pass")
+        if needs.sample_id and ctx.samples == 1:
+            raise error(span, f"'{name}' reads sample_id (line {needs.sample_id[0].line}), "
+                        f"and {ctx.describe()} draws into single-sampled targets",
+                        "call it from a pass whose attachments have `samples N` (N > 1)")
+        for target, where in needs.sample_reads.items():
+            self._note_target_read(target, True, span, f"'{name}' (line {where.line})")
+        for target, where in needs.resolved_reads.items():
+            self._note_target_read(target, False, span, f"'{name}' (line {where.line})")
+
+    def _note_target_read(self, target: str, per_sample: bool, span: Span,
+                          who: str = "this pass") -> None:
+        """Record a read of ``target`` per sample or through its resolve; in a pass, the two
+        kinds of read of one target are an error (a runtime binds one of them)."""
+        mine, other = (self.uses.sample_reads, self.uses.resolved_reads) if per_sample else (
+            self.uses.resolved_reads, self.uses.sample_reads)
+        mine.setdefault(target, span)
+        if self.ctx.in_pass and target in other:
+            first = "load_sample" if not per_sample else "load/sample"
+            raise error(span, f"{who} reads multisampled target '{target}' per sample and "
+                        f"resolved: pass '{self.ctx.pass_name}' also reads it with {first} "
+                        f"(line {other[target].line})",
+                        "read its samples with load_sample only (average them for the "
+                        "resolve), or read the resolve in another pass")
 
     def _builtin_call(self, e: ast.Call) -> ir.Expr:
         name = e.func.name
@@ -373,7 +403,7 @@ class ExprChecker:
 
     def _target_call(self, e: ast.Call) -> ir.Expr:
         name = e.func.name
-        arity = {"load": (1, 2), "sample": (2,), "size": (1,)}[name]
+        arity = {"load": (1, 2), "load_sample": (2, 3), "sample": (2,), "size": (1,)}[name]
         if len(e.args) not in arity or not isinstance(e.args[0], ast.Name):
             raise error(e.span, f"'{name}' is called as {TARGET_FUNCTIONS[name].split(':')[0]}",
                         "its first argument is the name of a target")
@@ -381,6 +411,10 @@ class ExprChecker:
         fmt = self.low.targets[target].format
         if name == "size":
             return ir.TargetSize(target, ir.IVEC2)
+        if name == "load_sample":
+            return self._load_sample(e, target)
+        if self.low.targets[target].samples > 1:
+            self._note_target_read(target, False, e.span)
         if name == "load":
             coord = self._typed_arg(e.args[1], ir.IVEC2, "a load coordinate") \
                 if len(e.args) == 2 else None
@@ -390,6 +424,23 @@ class ExprChecker:
                         f"read texels with load({target}) or load({target}, ivec2(…))")
         uv = self._typed_arg(e.args[1], ir.VEC2, "a sample coordinate")
         return ir.Sample(target, uv, target_read_type(fmt))
+
+    def _load_sample(self, e: ast.Call, target: str) -> ir.Expr:
+        """``load_sample(T, s)`` / ``load_sample(T, ivec2, s)``: sample s of a multisampled
+        colour target."""
+        t = self.low.targets[target]
+        if t.samples == 1 or not t.format.is_color:
+            what = "a depth target" if not t.format.is_color else "single-sampled"
+            raise error(e.args[0].span, f"load_sample reads the samples of a multisampled "
+                        f"colour target, and '{target}' is {what}",
+                        f"read it with load({target}), or declare it `samples N` (N > 1)"
+                        if t.format.is_color else "copy the depth into a multisampled "
+                        "colour target (e.g. r32f, frag_coord.z) and read that")
+        coord = self._typed_arg(e.args[1], ir.IVEC2, "a load coordinate") \
+            if len(e.args) == 3 else None
+        sample = self._typed_arg(e.args[-1], ir.INT, "a sample index")
+        self._note_target_read(target, True, e.span)
+        return ir.Load(target, coord, target_read_type(t.format), sample)
 
     def _typed_arg(self, e: ast.Expr, t: ir.Type, what: str) -> ir.Expr:
         value = self.expr(e)

@@ -63,12 +63,18 @@ class Uses:
     light: list[Span] = field(default_factory=list)                 # light.FIELD
     reads: dict[str, Span] = field(default_factory=dict)            # targets loaded/sampled
     calls: list[tuple[str, Span]] = field(default_factory=list)     # user functions called
+    sample_id: list[Span] = field(default_factory=list)             # `sample_id` read
+    sample_reads: dict[str, Span] = field(default_factory=dict)     # load_sample(T, …)
+    resolved_reads: dict[str, Span] = field(default_factory=dict)   # load/sample(T, …)
 
     def merge(self, other: "Uses") -> None:
         self.scene.extend(other.scene)
         self.light.extend(other.light)
-        for t, s in other.reads.items():
-            self.reads.setdefault(t, s)
+        self.sample_id.extend(other.sample_id)
+        for mine, theirs in ((self.reads, other.reads), (self.sample_reads, other.sample_reads),
+                             (self.resolved_reads, other.resolved_reads)):
+            for t, s in theirs.items():
+                mine.setdefault(t, s)
 
 
 @contextlib.contextmanager
@@ -142,6 +148,7 @@ class Context:
     reads: tuple[str, ...] = ()
     ret: ir.Type = ir.VOID
     function: Optional[str] = None
+    samples: int = 1              # samples per pixel of the pass's attachments
 
     @staticmethod
     def for_function(sig: Signature) -> "Context":

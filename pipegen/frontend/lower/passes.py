@@ -45,7 +45,10 @@ class PassLowerer:
         depth_target, depth = self._depth(reads)
         stencil = self._stencil(depth_target)
         blend = self._blend(writes)
-        ctx = Context(self.name, draw.kind, self.group is not None, writes, reads)
+        attached = list(writes) + ([depth_target] if depth_target else [])
+        samples = max([self.low.targets[n].samples for n in attached] or [1])
+        ctx = Context(self.name, draw.kind, self.group is not None, writes, reads,
+                      samples=samples)
         body = self._fragment(ctx, writes)
         state = ir.PassState(depth, stencil, blend, self._blend_constant(), self._cull(),
                              self._offset())

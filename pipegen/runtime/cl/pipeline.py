@@ -520,6 +520,9 @@ class CLPipeline:
                 args.append(dt.stencil)
         for name in p.reads:
             rt = self._targets[name]
+            if name in p.sample_reads:            # load_sample: the sample planes themselves
+                args += [rt.buf, self._int2(rt.width, rt.height)]
+                continue
             self.store.resolve(rt)                # reads see the resolved texture, like GL
             args += [rt.res, self._int2(rt.width, rt.height)]
         if self.f64:

@@ -294,12 +294,14 @@ class GLPipeline:
             fmt = plan.target(p.depth_target).format if p.depth_target else None
             p.depth_format = fmt
             p.vector = GT.pass_vector(p.state, p.writes, depth_format=fmt, label=p.name)
-            # reads: unit k + 1, linear only for the pass's "sampled" filterable targets
+            # reads: unit k + 1, linear only for the pass's "sampled" filterable targets;
+            # a multisampled target read per sample (load_sample) binds its samples
             p.units = []
             for k, r in enumerate(p.reads):
                 kind = plan.target(r).format.kind
                 linear = r in p.sampled and kind in (F.Kind.UNORM, F.Kind.SNORM, F.Kind.FLOAT)
-                p.units.append((k + 1, r, "linear" if linear else "nearest"))
+                p.units.append((k + 1, r, "linear" if linear else "nearest",
+                                r in p.spec.sample_reads))
         GT.TRACKER.prime([p.vector for p in self.passes])
         self.targets: dict[str, _Target] = {}
         self._built_size: Optional[tuple[int, int]] = None
@@ -637,8 +639,11 @@ class GLPipeline:
             p.u_light.value = int(light)
         # reads: unit 0 is the light table
         tracker.texture(0, self.light_tex, self._samplers["nearest"])
-        for unit, r, mode in p.units:
+        for unit, r, mode, per_sample in p.units:
             t = self.targets[r]
+            if per_sample:
+                tracker.texture(unit, t.tex, self._samplers[mode])
+                continue
             t.resolve()
             tracker.texture(unit, t.resolved, self._samplers[mode])
         tracker.framebuffer(p.fbo)

@@ -258,6 +258,8 @@ class WideExpressions:
         return Val([f"{name}.c[{k}]" for k in range(t.size)], t, True)
 
     def _load(self, e: ir.Load) -> Val:
+        if e.sample is not None:
+            raise Unsupported("load_sample")
         if e.coord is None:
             args = ["win->pix[0]", "win->pix[1]"]
         else:
