@@ -51,21 +51,36 @@ def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
     return t * t * (3.0 - 2.0 * t)
 
 
+def incidence(light: Light, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(l (n, 3), att (n,)): the unit direction towards ``light`` and its attenuation (a spot's
+    cone falloff included) at n surface points."""
+    if light.type == "directional":
+        return np.broadcast_to(-as_float32(light.direction), P.shape), np.ones(len(P))
+    L = as_float32(light.position) - P
+    d2 = np.einsum("ij,ij->i", L, L)
+    l = L / np.maximum(np.sqrt(d2), EPS_DIST)[:, None]
+    att = attenuation(d2, float(as_float32(light.radius)))
+    if light.type == "spot":
+        cos_a = np.einsum("ij,j->i", -l, as_float32(light.direction))
+        att = att * smoothstep(float(as_float32(light.cos_outer)), float(as_float32(light.cos_inner)), cos_a)
+    return l, att
+
+
+def reached(light: Light, P: np.ndarray):
+    """The points of P (n, 3) that ``light`` may reach: all for a directional light, else the
+    indices strictly inside its radius (att is exactly 0 elsewhere)."""
+    if light.type == "directional":
+        return slice(None)
+    L = as_float32(light.position) - P
+    r = float(as_float32(light.radius))
+    return np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
+
+
 def light_contribution(light: Light, P: np.ndarray, normal: np.ndarray, camera_pos: np.ndarray,
                        albedo: np.ndarray, specular: np.ndarray, shininess: np.ndarray) -> np.ndarray:
     """One light's contribution (n, 3) at n surface points (flat arrays, float64)."""
     color = as_float32(light.color)
-    if light.type == "directional":
-        l = np.broadcast_to(-as_float32(light.direction), P.shape)
-        att = np.ones(len(P))
-    else:
-        L = as_float32(light.position) - P
-        d2 = np.einsum("ij,ij->i", L, L)
-        l = L / np.maximum(np.sqrt(d2), EPS_DIST)[:, None]
-        att = attenuation(d2, float(as_float32(light.radius)))
-        if light.type == "spot":
-            cos_a = np.einsum("ij,j->i", -l, as_float32(light.direction))
-            att = att * smoothstep(float(as_float32(light.cos_outer)), float(as_float32(light.cos_inner)), cos_a)
+    l, att = incidence(light, P)
     n = safe_normalize(normal)
     v = safe_normalize(camera_pos - P)
     h = safe_normalize(l + v)
@@ -91,13 +106,7 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows: Optional[Shadows] = None) -> 
     cam = np.asarray(scene.camera.position, dtype=np.float64)
     colour = as_float32(scene.ambient) * albedo
     for i, light in enumerate(scene.lights):
-        if light.type == "directional":
-            sel = slice(None)
-        else:
-            # Only points strictly inside the radius receive light (att is exactly 0 elsewhere).
-            L = as_float32(light.position) - P
-            r = float(as_float32(light.radius))
-            sel = np.flatnonzero(np.einsum("ij,ij->i", L, L) < r * r)
+        sel = reached(light, P)
         term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
         factor = None if shadows is None else shadows.factor(scene, i, light, P[sel])
         if factor is not None:
