@@ -269,7 +269,8 @@ def _pass_to_dict(p: PassPlan) -> dict:
                  # only when not the default, so plans of scene-order draws keep their text
                  **({"order": d.order.value} if d.order is not ir.DrawOrder.SCENE else {}),
                  **({"shadow_tiles": d.shadow_tiles} if d.shadow else {}),
-                 **({"shadow_first": d.shadow_first} if d.shadow_first else {})},
+                 **({"shadow_first": d.shadow_first} if d.shadow_first else {}),
+                 **({"shadow_volumes": True} if d.shadow_volumes else {})},
         "repeat_group": p.repeat_group,
         "repeat_types": list(p.repeat_types),
         "clears": [{"target": name, **_clear_to_dict(c)} for name, c in p.clears],
@@ -374,7 +375,8 @@ def draw_from_dict(d: Optional[Mapping]) -> ir.Draw:
                    tuple(d.get("light_types") or ()),
                    None if not light_set else (str(light_set[0]), int(light_set[1])),
                    bool(d.get("scissor")), ir.DrawOrder(d.get("order") or "scene"),
-                   int(d.get("shadow_tiles") or 0), int(d.get("shadow_first") or 0))
+                   int(d.get("shadow_tiles") or 0), int(d.get("shadow_first") or 0),
+                   bool(d.get("shadow_volumes")))
 
 
 def _pass_from_dict(p: Mapping, preludes: Mapping[str, str]) -> PassPlan:

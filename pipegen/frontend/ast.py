@@ -328,6 +328,7 @@ class Draw(Node):
     scissor: bool = False
     back_to_front: bool = False                # scene... back_to_front
     from_lights: Optional["DrawFrom"] = None  # scene... from lights TYPES [first K] [tiles N]
+    shadow_volumes: Optional["DrawVolumes"] = None   # scene... shadow_volumes
 
 
 @record
@@ -336,6 +337,11 @@ class DrawFrom(Node):
     light_types: list[Word] = field(default_factory=list)
     tiles: Optional[Expr] = None
     first: Optional[Expr] = None      # only light indices 0..K-1 may cast
+
+
+@record
+class DrawVolumes(Node):
+    """``shadow_volumes`` after ``draw scene…``: the scene's shadow volumes from the pass's light."""
 
 
 @record

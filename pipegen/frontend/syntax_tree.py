@@ -351,9 +351,11 @@ class _ToAst(Transformer):
         kind = ch[0]
         if kind.type == "SCENE":
             material = self._name(ch[1]) if ch[1] is not None else None
+            last = ch[3] if len(ch) > 3 else None        # `from lights …` or `shadow_volumes`
             return ast.Draw("scene", material=material, span=span,
                             back_to_front=len(ch) > 2 and ch[2] is not None,
-                            from_lights=ch[3] if len(ch) > 3 else None)
+                            from_lights=last if isinstance(last, ast.DrawFrom) else None,
+                            shadow_volumes=last if isinstance(last, ast.DrawVolumes) else None)
         if kind.type == "FULLSCREEN":
             return ast.Draw("fullscreen", span=span)
         draw = ast.Draw("lights", volume=ch[1], span=span)
@@ -373,6 +375,9 @@ class _ToAst(Transformer):
         types = [c for c in ch if isinstance(c, ast.Word)]
         first, tiles = ch[-2:]          # the optional clauses' placeholders (None: absent)
         return ast.DrawFrom(types, tiles, first, span=self._span(meta))
+
+    def draw_volumes(self, meta, ch):
+        return ast.DrawVolumes(span=self._span(meta))
 
     def light_set(self, meta, ch):
         return _LightSet(self._name(ch[0]), ch[1])

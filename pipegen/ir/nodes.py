@@ -592,6 +592,9 @@ class Draw:
     # ``first K``: only light indices 0..K-1 may cast (lights after them are drawn unshadowed,
     # runtime/common.scene_as_drawn; compiler/mismatches names them); 0: every index may
     shadow_first: int = 0
+    # SCENE ``shadow_volumes``: the stencil shadow volumes of the objects (material filter as
+    # above) from the pass's light, in a ``repeat per light`` pass (pipegen/scene/shadow_volumes.py)
+    shadow_volumes: bool = False
 
     @property
     def shadow(self) -> bool:
@@ -605,7 +608,8 @@ class Draw:
                 " back_to_front" if self.order is DrawOrder.BACK_TO_FRONT else "") + (
                 " from lights " + " ".join(self.light_types) +
                 (f" first {self.shadow_first}" if self.shadow_first else "") +
-                f" tiles {self.shadow_tiles}" if self.shadow else "")
+                f" tiles {self.shadow_tiles}" if self.shadow else "") + (
+                " shadow_volumes" if self.shadow_volumes else "")
         if self.kind is DrawKind.LIGHTS:
             text = f"lights as {(self.volume or Volume.SPHERE).value}"
             if self.light_types:

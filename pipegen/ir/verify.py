@@ -199,6 +199,11 @@ class _Verifier:
                                     and p.depth_target and p.repeat_group is None
                                     and set(d.light_types) <= {"point", "spot", "directional"}),
                    where, "a shadow-map draw writes depth only, once per atlas tile")
+            _check(not d.shadow_volumes or (
+                d.kind is ir.DrawKind.SCENE and not d.shadow and not p.writes and not p.body
+                and p.depth_target and p.repeat_group is not None
+                and d.order is ir.DrawOrder.SCENE),
+                where, "a shadow-volume draw writes stencil only, once per light")
         _check(d.kind is ir.DrawKind.SCENE or not d.material, where, "material filter")
         _check(p.state.cull is not ir.CullMode.AUTO or (
             d.kind is ir.DrawKind.LIGHTS and d.volume in (ir.Volume.SPHERE, ir.Volume.CONE)),

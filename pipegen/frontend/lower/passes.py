@@ -71,6 +71,8 @@ class PassLowerer:
             order = ir.DrawOrder.BACK_TO_FRONT if d.back_to_front else ir.DrawOrder.SCENE
             if d.from_lights is not None:
                 return self._shadow_draw(d, material, order)
+            if d.shadow_volumes is not None:
+                return self._volume_draw(d, material, order)
             return ir.Draw(ir.DrawKind.SCENE, material=material, order=order)
         if d.kind == "fullscreen":
             return ir.Draw(ir.DrawKind.FULLSCREEN)
@@ -126,6 +128,29 @@ class PassLowerer:
         return ir.Draw(ir.DrawKind.SCENE, material=material, order=order,
                        light_types=tuple(t for t in LIGHT_TYPES if t in types) or
                        tuple(LIGHT_TYPES), shadow_tiles=tiles, shadow_first=first)
+
+    def _volume_draw(self, d: ast.Draw, material: tuple[str, ...],
+                     order: ir.DrawOrder) -> ir.Draw:
+        """``draw scene… shadow_volumes``: the stencil shadow volumes of the scene's objects
+        (material filter as for scene draws) from the light of a ``repeat per light`` pass,
+        extruded on the host (pipegen/scene/shadow_volumes.py); it writes only stencil."""
+        at = d.shadow_volumes.span
+        if order is not ir.DrawOrder.SCENE:
+            raise error(at, "shadow volumes are counted in the stencil: their order does not "
+                        "matter", "drop `back_to_front`")
+        if self.group is None and self.single.get(ast.RepeatPerLight) is None:
+            raise error(at, f"pass '{self.name}' draws the shadow volumes of a light but does "
+                        f"not repeat per light", "put it in a `repeat per light` group, before "
+                        "the passes that test its stencil")
+        for s in (self.single.get(ast.Writes), self.single.get(ast.Fragment)):
+            if s is not None:
+                raise error(s.span, f"pass '{self.name}' draws shadow volumes: it writes only "
+                            f"stencil (no `writes` or `fragment`)", "remove this statement")
+        if not self._all(ast.Stencil):
+            raise error(at, f"pass '{self.name}' draws shadow volumes but sets no stencil "
+                        f"operations", "count them, e.g. `stencil back { func always zfail "
+                        "incr_wrap }` and `stencil front { func always zfail decr_wrap }`")
+        return ir.Draw(ir.DrawKind.SCENE, material=material, order=order, shadow_volumes=True)
 
     def _light_set(self, d: ast.Draw) -> Optional[tuple[str, int]]:
         if d.light_set is None:
