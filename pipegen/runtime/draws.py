@@ -175,9 +175,12 @@ def scene_order(objects: Sequence, order: ir.DrawOrder, view) -> list[int]:
     return sorted(range(len(objects)), key=lambda i: -depth[i])
 
 
-def scene_geometry(scene, draw: ir.Draw):
+def scene_geometry(scene, draw: ir.Draw, light: Optional[int] = None):
     """The triangles a scene draw submits, in its object order (``scene_order``): what both
-    runtimes upload for the draw, so that GL and CL blend the objects in the same order."""
+    runtimes upload for the draw, so that GL and CL blend the objects in the same order.  A
+    ``shadow_volumes`` draw submits light ``light``'s volumes (``volume_geometry``)."""
+    if draw.shadow_volumes:
+        return volume_geometry(scene, draw, light)
     if draw.order is not ir.DrawOrder.BACK_TO_FRONT:
         return scene.geometry(draw.material)
     import dataclasses
@@ -187,9 +190,24 @@ def scene_geometry(scene, draw: ir.Draw):
         draw.material)
 
 
-def scene_key(draw: ir.Draw) -> tuple:
-    """What a scene draw's uploaded geometry depends on (for the runtimes' caches)."""
+def scene_key(draw: ir.Draw, light: Optional[int] = None) -> tuple:
+    """What a scene draw's uploaded geometry depends on (for the runtimes' caches): a
+    ``shadow_volumes`` draw's, on the light too."""
+    if draw.shadow_volumes:
+        return (draw.material, draw.order, "shadow_volumes", light)
     return (draw.material, draw.order)
+
+
+def volume_geometry(scene, draw: ir.Draw, light: int):
+    """A ``shadow_volumes`` draw for scene light ``light``: the float32 triangles of
+    ``shadow_volumes.shadow_volume`` as a scene ``Geometry`` (positions only; the other
+    attributes zero: the pass has no fragment code to read them), the same for both runtimes."""
+    from pipegen.scene.model import Geometry
+    from pipegen.scene.shadow_volumes import shadow_volume
+    pos = shadow_volume(scene, scene.lights[int(light)], draw.material).positions
+    zero = np.zeros_like(pos)
+    return Geometry(pos, zero, zero, zero, np.zeros((len(pos), 2), np.float32),
+                    np.zeros(len(pos), np.float32))
 
 
 # ---- shadow maps -------------------------------------------------------------------------------

@@ -244,11 +244,12 @@ class DrawGeometry:
             self.meshes[volume] = (len(mesh), self.device.buffer(f4(mesh)))
         return self.meshes[volume]
 
-    def attributes(self, draw: ir.Draw) -> Optional[tuple]:
-        """A scene draw's vertex attributes, in its object order (``draws.scene_geometry``)."""
-        material = draws.scene_key(draw)
+    def attributes(self, draw: ir.Draw, light: Optional[int] = None) -> Optional[tuple]:
+        """A scene draw's vertex attributes, in its object order (``draws.scene_geometry``;
+        a ``shadow_volumes`` draw: light ``light``'s volumes)."""
+        material = draws.scene_key(draw, light)
         if material not in self.scene_attrs:
-            g = draws.scene_geometry(self.frame_state.scene, draw)
+            g = draws.scene_geometry(self.frame_state.scene, draw, light)
             n = g.vertex_count
             if n == 0:
                 self.scene_attrs[material] = None
@@ -268,7 +269,8 @@ class DrawGeometry:
 
     # -- per pass -----------------------------------------------------------------------------
     def pass_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
-                       lights: Optional[list], shadow: Optional["ShadowView"] = None):
+                       lights: Optional[list], shadow: Optional["ShadowView"] = None,
+                       volume: Optional[int] = None):
         """(geometry, tile bins) a pass draws, or None when it draws no triangle.
 
         Geometry (vertex kernel, clipping and setup, on the device) is cached per frame and
@@ -280,15 +282,17 @@ class DrawGeometry:
         serves all lights and every pass of the group with the same raster state.  Bins are
         per pass (cached per frame too) and index the shared triangles; for light draws they
         are cut from the (triangle, tile) pairs of all their lights, found once.  Unshared
-        (``share`` off), the execution starts from empty caches and draws only its own."""
+        (``share`` off), the execution starts from empty caches and draws only its own.
+        ``volume``: the light whose shadow volumes a ``shadow_volumes`` draw draws (set up on
+        their own, as a shadow-map tile is)."""
         if not self.share:
             self.frame, self.only = {}, k
         if p.draw.kind is ir.DrawKind.LIGHTS:
             return self._light_triangles(k, p, width, height, timing, lights)
-        if shadow is not None:     # one light's tile of a shadow map: set up on its own
-            key = self._raster_key(p, width, height) + ("shadow", shadow.light)
+        if shadow is not None or volume is not None:   # one light's tile of a shadow map, or
+            key = self._own_key(p, width, height, shadow, volume)    # one light's volumes
             if key not in self.frame:
-                self._set_up(k, p, width, height, timing, key, None, shadow)
+                self._set_up(k, p, width, height, timing, key, None, shadow, volume)
             geo = self.frame[key]
             return None if geo is None else self._bins(geo, self.frame, width, height, timing)
         geo = self._geometry(k, p, width, height, timing, None)
@@ -457,7 +461,13 @@ class DrawGeometry:
             return ("lights", (draw.volume or ir.Volume.SPHERE).value, draw.scissor,
                     offset, depth_clamp, width, height, dfmt, center)
         return (draw.kind.value, draw.material, draw.order, p.state.cull.value, offset,
-                depth_clamp, width, height, dfmt, center, draw.shadow_tiles)
+                depth_clamp, width, height, dfmt, center, draw.shadow_tiles, draw.shadow_volumes)
+
+    def _own_key(self, p: PassPlan, width: int, height: int, shadow: Optional["ShadowView"],
+                 volume: Optional[int]) -> tuple:
+        """The cache key of a draw set up per light: a shadow-map tile, a light's volumes."""
+        own = ("shadow", shadow.light) if shadow is not None else ("volumes", volume)
+        return self._raster_key(p, width, height) + own
 
     def _light_batch(self, k: int, p: PassPlan, lights: list) -> tuple:
         """The lights a light draw of pass ``k`` sets up at once: its light list this frame
@@ -598,7 +608,8 @@ class DrawGeometry:
         return cut
 
     def prefetch(self, k: int, p: PassPlan, width: int, height: int,
-                 lights: Optional[list], shadow: Optional["ShadowView"] = None) -> None:
+                 lights: Optional[list], shadow: Optional["ShadowView"] = None,
+                 volume: Optional[int] = None) -> None:
         """Queue the vertex kernels (and non-blocking read-backs) of the set-up pass ``k``
         will need, unless this frame has it already.  ``CLPipeline.render`` calls this for
         every pass execution of the frame before queueing any raster kernel: on an in-order
@@ -614,12 +625,12 @@ class DrawGeometry:
         if kind is ir.DrawKind.LIGHTS:
             batch = self._light_batch(k, p, lights)
             key, lights = key + (batch,), batch
-        elif shadow is not None:
-            key = key + ("shadow", shadow.light)
+        elif shadow is not None or volume is not None:
+            key = self._own_key(p, width, height, shadow, volume)
         elif kind is not ir.DrawKind.SCENE:
             return
         if key not in self.frame and key not in self.pending:
-            self.pending[key] = self._vertices(k, p, width, height, key, lights, shadow)
+            self.pending[key] = self._vertices(k, p, width, height, key, lights, shadow, volume)
 
     def clip_pending(self) -> None:
         """Queue the clipping of every prefetched device set-up (``DeviceSetup.clip``), after
@@ -629,7 +640,8 @@ class DrawGeometry:
                 self.device_setup.clip(v.job)
 
     def _vertices(self, k: int, p: PassPlan, width: int, height: int, key: tuple,
-                  lights: Optional[tuple], shadow: Optional["ShadowView"]):
+                  lights: Optional[tuple], shadow: Optional["ShadowView"],
+                  volume: Optional[int] = None):
         """Queue the vertex kernel(s) of a draw and the read-back of clip positions and
         varyings (not waited for): a ``_Vertices``, or None when the draw has no vertex."""
         import pyopencl as cl
@@ -638,7 +650,7 @@ class DrawGeometry:
         v = _Vertices()
         v.names, v.flats, providers = [], [], [(k, [])]
         v.flat = v.scissor = None
-        if shadow is not None:     # depth only: no varyings
+        if shadow is not None or volume is not None:     # depth or stencil only: no varyings
             v.w_plane = False
             v.cull = p.state.cull.value
         elif draw.kind is ir.DrawKind.SCENE:
@@ -657,7 +669,7 @@ class DrawGeometry:
         attrs = [zeros] * 4
         v.inst = np.zeros(1, np.uint32)
         if draw.kind is ir.DrawKind.SCENE:
-            got = self.attributes(draw)
+            got = self.attributes(draw, volume)
             if got is None:
                 return None
             nverts, attrs, v.flat = got
@@ -746,12 +758,13 @@ class DrawGeometry:
         return v
 
     def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
-                lights: Optional[tuple], shadow: Optional["ShadowView"] = None):
+                lights: Optional[tuple], shadow: Optional["ShadowView"] = None,
+                volume: Optional[int] = None):
         """Wait for the draw's vertices (queued by ``prefetch``, or now), clip and set up on
         the host, upload the triangles (cached under ``key``; None: nothing to draw)."""
         v = self.pending.pop(key, False)
         if v is False:
-            v = self._vertices(k, p, width, height, key, lights, shadow)
+            v = self._vertices(k, p, width, height, key, lights, shadow, volume)
         if v is None:
             self.frame[key] = None
             return None

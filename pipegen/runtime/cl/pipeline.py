@@ -425,7 +425,8 @@ class CLPipeline:
                 return
         width, height = self._pass_size(p)
         shadow = self._shadow_view(p, light, width, height) if p.draw.shadow else None
-        self.geometry.prefetch(k, p, width, height, lights, shadow)
+        volume = light if p.draw.shadow_volumes else None
+        self.geometry.prefetch(k, p, width, height, lights, shadow, volume)
 
     def _run_pass(self, k: int, light: Optional[int], launch=None) -> None:
         """Queue a pass execution's device work (``launch``: its prepared host work, else
@@ -470,7 +471,9 @@ class CLPipeline:
             if p.draw.shadow:           # one light's tile, seen from the light
                 shadow = self._shadow_view(p, light, width, height)
                 frame_buf, frame64_buf = shadow.frame_buf, shadow.frame64_buf
-            drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow)
+            volume = light if p.draw.shadow_volumes else None    # that light's volumes
+            drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow,
+                                                 volume)
 
         def launch() -> None:
             self.store.begin_pass(k)        # targets sharing storage start here (alias)

@@ -451,10 +451,11 @@ class GLPipeline:
                              light_rows(scene, self.fields, self.capacity, self.materials))
         self._scene = scene
 
-    def _scene_vbo(self, draw: ir.Draw) -> tuple[moderngl.Buffer, int]:
-        key = draws.scene_key(draw)
+    def _scene_vbo(self, draw: ir.Draw, light: Optional[int] = None
+                   ) -> tuple[moderngl.Buffer, int]:
+        key = draws.scene_key(draw, light)
         if key not in self._scene_vbos:
-            g = draws.scene_geometry(self._scene, draw)     # in the draw's object order
+            g = draws.scene_geometry(self._scene, draw, light)   # in the draw's object order
             if hasattr(g, "interleaved"):
                 data = g.interleaved()
             else:
@@ -491,11 +492,11 @@ class GLPipeline:
                 self._selection.of(p.draw)
         return dict(self._selection.sets)
 
-    def _vao(self, p: _Pass) -> Optional[moderngl.VertexArray]:
+    def _vao(self, p: _Pass, light: Optional[int]) -> Optional[moderngl.VertexArray]:
         if p.kind is ir.DrawKind.SCENE:
-            key = ("scene",) + draws.scene_key(p.draw)
+            key = ("scene",) + draws.scene_key(p.draw, light)
             if key not in p.vaos:
-                buf, n = self._scene_vbo(p.draw)
+                buf, n = self._scene_vbo(p.draw, light)
                 fmt, names = [], []
                 for name, comps in SCENE_ATTRIBUTES:
                     if p.has(name):
@@ -655,11 +656,11 @@ class GLPipeline:
             tracker.scissor(None)
         else:
             GS.apply_state(p.state, p.writes, depth_format=depth_format)
-        vao = self._vao(p)
+        vao = self._vao(p, light)
         if self.profile is not None:
             t1 = time.perf_counter()
         if p.kind is ir.DrawKind.SCENE:
-            _, count = self._scene_vbo(p.draw)
+            _, count = self._scene_vbo(p.draw, light)
             if p.draw.shadow:       # the light's tile of the atlas, seen from the light
                 self._shadow_view(p, light, w, h)
             if count:
