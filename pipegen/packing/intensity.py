@@ -179,10 +179,12 @@ def _rgba8() -> Format:
     return formats.get("rgba8")
 
 
-def emulate_intensity_planes(values, lights: int, bits: int = 8) -> "np.ndarray":
+def emulate_intensity_planes(values, lights: int, bits: int = 8,
+                             mode: str = "unorm8") -> "np.ndarray":
     """The vec4 a pixel of a cleared rgba8 intensity target reads after ``values`` (L, P) (the
     lights' intensities, oldest first) were written and blended like bit-plane indices
-    (``light_index.blend_bitplanes``, llvmpipe's 8-bit fixed point)."""
+    (``light_index.blend_bitplanes``: ``mode`` "unorm8" is llvmpipe's 8-bit fixed point,
+    "exact" the float blend rounded once)."""
     import numpy as np
     from pipegen.packing.light_index import blend_bitplanes
     F32 = np.float32
@@ -191,5 +193,5 @@ def emulate_intensity_planes(values, lights: int, bits: int = 8) -> "np.ndarray"
     out = np.zeros(values.shape[1:] + (4,), dtype=np.uint8)
     for v in values:
         src = np.rint(impl["plane_value"](v).astype(np.float64) * 255)
-        out = blend_bitplanes(out, src, 8 // lights)
+        out = blend_bitplanes(out, src, 8 // lights, mode)
     return out.astype(F32) / F32(255)
