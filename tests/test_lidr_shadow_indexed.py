@@ -99,11 +99,11 @@ def test_first_errors_are_positioned(clause, message):
 
 def _late_message(first: int, late: str) -> str:
     line = PIPE.read_text().split("\n").index("pass shadow_maps {") + 1
-    taken = "0" if first == 1 else f"0..{first - 1}"
-    return (f"3 lights cast shadows past the light indices this technique's shadow maps take "
-            f"({taken}: `first {first}` in pass 'shadow_maps' ({PIPE}:{line})): lights {late} "
-            f"are lit unshadowed; list the shadow-casting lights first in the scene, or declare "
-            f"more in `first`")
+    taken = "index 0" if first == 1 else f"indices 0..{first - 1}"
+    return (f"3 lights cast shadows but their indices lie past the range this technique draws "
+            f"shadows for ({taken}: `first {first}` in pass 'shadow_maps' ({PIPE}:{line})): "
+            f"lights {late} are lit unshadowed; list the shadow-casting lights first in the "
+            f"scene, or declare more in `first`")
 
 
 def test_casters_past_the_range_are_named_and_the_atlas_counts_the_range():

@@ -136,12 +136,13 @@ def _late_casters_message(scene, late: list[int], cap) -> str:
     K``, Trebilco: "only a limited light index range has shadows"): named, with the remedy."""
     k = cap.shadow_first
     names = ", ".join(f"{i} ({scene.lights[i].type})" for i in late)
-    taken = "0" if k == 1 else f"0..{k - 1}"
-    return (f"{_n(len(late), 'light')} {'casts' if len(late) == 1 else 'cast'} shadows past the "
-            f"light indices this technique's shadow maps take ({taken}: `first {k}` in "
-            f"{cap.shadow_first_at}): light{'' if len(late) == 1 else 's'} {names} "
-            f"{'is' if len(late) == 1 else 'are'} lit unshadowed; list the shadow-casting "
-            f"lights first in the scene, or declare more in `first`")
+    taken = "index 0" if k == 1 else f"indices 0..{k - 1}"
+    one = len(late) == 1
+    return (f"{_n(len(late), 'light')} {'casts' if one else 'cast'} shadows but "
+            f"{'its index lies' if one else 'their indices lie'} past the range this technique "
+            f"draws shadows for ({taken}: `first {k}` in {cap.shadow_first_at}): "
+            f"light{'' if one else 's'} {names} {'is' if one else 'are'} lit unshadowed; list "
+            f"the shadow-casting lights first in the scene, or declare more in `first`")
 
 
 def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = None,
