@@ -106,3 +106,85 @@ def test_volume_outward_and_winding_matches_exact_visibility():
         assert np.abs(w - np.round(w)).max() < 1e-9 and np.round(w).min() >= 0   # outward
         shadowed = visibility(s, light, Q) == 0
         assert shadowed.sum() >= 20 and np.array_equal(np.round(w) > 0, shadowed)
+
+
+# ---- the language ------------------------------------------------------------------------------
+
+TECHNIQUE = ROOT / "pipelines/lidr_shadow_volumes.pipe"
+
+
+def technique_text(old: str = "", new: str = "") -> str:
+    text = TECHNIQUE.read_text().replace('include "common/', f'include "{ROOT}/pipelines/common/')
+    assert old in text
+    return text.replace(old, new, 1)
+
+
+def compile_error(text: str) -> str:
+    from pipegen.compiler.driver import compile_source
+    from pipegen.core.diagnostics import PipegenError
+    with pytest.raises(PipegenError) as e:
+        compile_source(text, "t.pipe")
+    return e.value.render()
+
+
+def test_the_draw_lowers_and_round_trips_through_the_plan():
+    from pipegen.backends.plan import plan_from_dict
+    from pipegen.compiler.driver import compile_file
+    c = compile_file(TECHNIQUE)
+    p = next(p for p in c.technique.passes if p.name == "shadow_volumes")
+    assert p.draw.shadow_volumes and p.draw.describe() == "scene.opaque shadow_volumes"
+    assert p.repeat_group is not None and not p.writes and p.state.depth.clamp
+    assert (p.state.stencil.back.zfail.value, p.state.stencil.front.zfail.value) == (
+        "incr_wrap", "decr_wrap")
+    d = c.plan("gl").to_dict()
+    again = plan_from_dict(d).passes[[q["name"] for q in d["passes"]].index("shadow_volumes")]
+    assert again.draw == p.draw
+
+
+def position(text: str, marker: str, after: str = "") -> str:
+    """``file:line:col`` of the first ``marker`` after the first ``after`` in ``text``."""
+    at = text.index(marker, text.index(after))
+    line = text.count("\n", 0, at) + 1
+    return f"t.pipe:{line}:{at - text.rfind(chr(10), 0, at)}"
+
+
+# (old, new, the pass, message): the error at the `shadow_volumes` clause, or at `writes`
+@pytest.mark.parametrize("old, new, pass_, message", [
+    ("repeat per light {\n", "pass outside {\n  draw scene.opaque shadow_volumes\n"
+     "  depth ds less nowrite clamp\n  stencil { func always }\n}\nrepeat per light {\n",
+     "pass outside", "does not repeat per light"),
+    ("    offset 0 4\n", "    offset 0 4\n    writes color\n", "pass shadow_volumes",
+     "writes only stencil"),
+    ("    stencil back { func always zfail incr_wrap }\n"
+     "    stencil front { func always zfail decr_wrap }\n", "", "pass shadow_volumes",
+     "sets no stencil operations"),
+])
+def test_draw_errors_are_positioned(old, new, pass_, message):
+    source = technique_text(old, new)
+    text = compile_error(source)
+    where = position(source, "writes" if "writes" in message else "shadow_volumes\n", pass_)
+    assert text.startswith(where + ": error:") and message in text, (where, text)
+
+
+def test_combining_with_the_front_face_technique_is_a_positioned_error():
+    """A light pass drawing volume front faces (lidr_transparent's `cull auto` with front
+    faces in front of the surface) that tests the shadow-volume stencil: Trebilco's reason."""
+    source = technique_text(
+        "    depth ds gequal nowrite\n    cull front\n    stencil { func equal ref 0 }\n",
+        "    depth ds lequal nowrite clamp inside always\n    cull auto\n"
+        "    stencil { func equal ref 0 }\n")
+    text = compile_error(source)
+    first = text.splitlines()[0]
+    where = position(source, "cull auto", "pass point_index")
+    assert where == "t.pipe:74:5"          # the point_index pass's `cull` statement
+    assert first.startswith(f"{where}: error: pass 'point_index' draws light-volume front "
+                            "faces (`cull auto`"), first
+    assert "\"this will not work if using the Light Volume Front Faces technique for MSAA / " \
+           "Transparency support\" (Trebilco, \"Shadows\")" in first
+    assert "cull auto\n" in text and "^^^^^^^^^" in text
+    # without the stencil test it is no combination: those lights are simply not shadowed
+    from pipegen.compiler.driver import compile_source
+    compile_source(technique_text("    depth ds gequal nowrite\n    cull front\n"
+                                  "    stencil { func equal ref 0 }\n",
+                                  "    depth ds lequal nowrite clamp inside always\n"
+                                  "    cull auto\n"), "t.pipe")

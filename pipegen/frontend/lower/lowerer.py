@@ -43,6 +43,7 @@ from pipegen.core.diagnostics import Span
 from pipegen.core.formats import FORMATS, Format
 from pipegen.packing.base import SCHEMES as SCHEME_NAMES
 from pipegen.frontend.lower.collect import Collector, Decls, PassItem
+from pipegen.frontend.lower.combinations import check_shadow_volume_combinations
 from pipegen.frontend.lower.conditions import holds, spelling
 from pipegen.frontend.lower.expectations import lower_expectations
 from pipegen.frontend.lower.materials import lower_material_table
@@ -503,7 +504,7 @@ class _Lowerer:
     # -- passes --------------------------------------------------------------------------------
     def _passes(self, items: list[PassItem]) -> tuple[ir.Pass, ...]:
         names: dict[str, Span] = {}
-        out = []
+        out, present = [], []
         for item in items:
             name = item.decl.name
             if name.name in names:
@@ -513,6 +514,8 @@ class _Lowerer:
             lowered = PassLowerer(self, item).lower()   # checked whether present or not
             if all([holds(c, self.params) for c in item.conditions]):
                 out.append(lowered)
+                present.append(item)
+        check_shadow_volume_combinations(out, present)
         return _renumber_groups(out)
 
     def _present_targets(self, decls: list[ast.TargetDecl], targets: tuple[ir.Target, ...],
