@@ -135,7 +135,7 @@ def test_the_reported_error_is_the_measured_one():
         assert 0.5 <= err * ((1 << bits) - 1) < 0.504, bits
     spec = schemes.build("s", "intensity_planes", {"lights": 4}, RGBA8, None)
     assert spec.error == intensity.INTENSITY_ERRORS[8] and spec.capacity == 4
-    assert "max error 0.001961 = 0.5001 of a step" in " ".join(spec.notes)
+    assert "max error 0.001961 (half a step: 0.001961)" in " ".join(spec.notes)
 
 
 def test_pcf_fractions_lose_at_most_half_a_step():

@@ -88,8 +88,8 @@ class IntensityPlanes(Scheme):
             f"capacity, written in the same draws)",
             f"blend the target add(one, constant_color) with blend constant "
             f"{self.blend_constant} (the index packing's) and clear it to 0",
-            f"max error {self.error:.4g} = {self.error * self.levels:.4g} of a step, measured "
-            f"over every float32 in [0,1] at every code's rounding boundaries; exact up to "
+            f"max error {self.error:.4g} (half a step: {0.5 / self.levels:.4g}), measured over "
+            f"the float32 values in [0,1] at every code's rounding boundaries; exact up to "
             f"capacity in the blend (beyond it the oldest slot is shifted out as the index's "
             f"is, and may add 1 to the next code's low chunk)",
         ]
