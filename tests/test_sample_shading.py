@@ -1,11 +1,14 @@
-"""Per-sample reads and per-sample shading (issue 27, Trebilco's MSAA technique 1):
+"""Per-sample reads and per-sample shading (issue 27, Trebilco's MSAA techniques 1 and 3):
 ``load_sample(T, s)`` reads sample s of a multisampled colour target, ``sample_id`` makes a
-pass run once per covered sample (docs/language.md, "Reading samples").
+pass run once per covered sample, ``sample_mask`` is the samples the primitive covers
+(docs/language.md, "Reading samples").
 
 - misuse is a positioned error (file:line:col at the offending token);
 - GL (llvmpipe, gl_SampleID) and CL give the same values bit for bit: frag_coord.xy at the
   sample position, frag_coord.z and the scene inputs at the pixel centre, each sample written
   by its own invocation; the float64 evaluation takes the same positions;
+- ``sample_mask`` is the primitive's coverage before the depth test on both backends (what
+  llvmpipe's gl_SampleMaskIn holds), in a per-pixel pass;
 - the example of docs/language.md renders alike on both backends.
 """
 
@@ -181,3 +184,45 @@ def test_the_documented_example_renders_alike_on_both_backends():
     compiled = compile_source(_doc_example(), str(ROOT / "pipelines" / "doc_per_sample.pipe"))
     result = assert_backends_agree(compiled, SCENE, (32, 18))
     assert {r.name for r in result.rows} >= {"color", "index"}
+
+
+MASK_PROBE = """\
+technique m "coverage probe"
+target color : rgba32f samples 4 clear 0
+target ds    : d24s8 samples 4 clear depth 1.0 stencil 0
+target s0    : rgba32f clear 0
+output s0
+pass prepass {
+  draw scene.opaque
+  depth ds less write
+  cull back
+}
+pass shade {
+  draw scene.opaque
+  writes color
+  depth ds equal nowrite
+  cull back
+  fragment { color = vec4(float(sample_mask), 0.0, 0.0, 1.0); }
+}
+pass split {
+  draw fullscreen
+  reads color
+  writes s0
+  fragment { s0 = load_sample(color, 0); }
+}
+"""
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_sample_mask_is_the_primitive_coverage_on_both_backends():
+    compiled = compile_source(MASK_PROBE, "mask.pipe")
+    scene = load_test_scene(SCENE, (32, 18))
+    gl, cl = (render(compiled, scene, b)["s0"].values[..., 0] for b in ("gl", "cl"))
+    assert np.array_equal(gl, cl)
+    shaded = cl[cl > 0]
+    # every mask holds sample 0 (the pixel was read at sample 0); interior pixels all four,
+    # silhouettes fewer -- including where the depth test rejected some of the covered
+    # samples (the mask is taken before it, as llvmpipe's gl_SampleMaskIn is)
+    assert set(np.unique(shaded).astype(int)) <= {1, 3, 5, 7, 9, 11, 13, 15}
+    assert (shaded == 15).mean() > 0.7 and (shaded < 15).sum() >= 20   # 76 % full at 32x18

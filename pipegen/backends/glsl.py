@@ -71,7 +71,7 @@ INPUTS: dict[str, tuple[str, Optional[str]]] = {
     "inv_proj": ("u_inv_proj", None), "output_size": ("u_output_size", None),
     "prev_view": ("u_prev_view", None), "prev_proj": ("u_prev_proj", None),
     "num_lights": ("u_num_lights", None), "ambient": ("u_ambient", None),
-    "sample_id": ("gl_SampleID", None),
+    "sample_id": ("gl_SampleID", None), "sample_mask": ("uint(gl_SampleMaskIn[0])", None),
     "world_pos": ("v_world_pos", "v_world_pos"), "view_pos": ("v_view_pos", "v_view_pos"),
     "normal": ("v_normal", "v_normal"), "view_normal": ("v_view_normal", "v_view_normal"),
     "albedo": ("v_albedo", "v_albedo"), "specular": ("v_material.x", "v_material"),
@@ -110,6 +110,8 @@ PACKING_EXTENSION = "GL_ARB_shading_language_packing"
 # gl_SampleID (GLSL 4.00): a 330 shader that reads sample_id enables the extension; its
 # static use makes the fragment shader run once per covered sample
 SAMPLE_SHADING_EXTENSION = "GL_ARB_sample_shading"
+# the extension each per-sample input needs in a 330 shader (gl_SampleMaskIn: gpu_shader5)
+SAMPLE_EXTENSIONS = {"sample_id": SAMPLE_SHADING_EXTENSION, "sample_mask": "GL_ARB_gpu_shader5"}
 
 
 class GLSLLanguage(CStyleLanguage):
@@ -142,8 +144,9 @@ class GLSLLanguage(CStyleLanguage):
     def render_input(self, name: str, t: Type) -> str:
         if name == "light_index":
             return self.current_light
-        if name == "sample_id" and SAMPLE_SHADING_EXTENSION not in self.extensions:
-            self.extensions.append(SAMPLE_SHADING_EXTENSION)   # gl_SampleID: GLSL 4.00
+        extension = SAMPLE_EXTENSIONS.get(name)     # gl_SampleID, gl_SampleMaskIn: GLSL 4.00
+        if extension and extension not in self.extensions:
+            self.extensions.append(extension)
         assert name in INPUTS, f"unknown stage input '{name}'"
         return INPUTS[name][0]
 

@@ -176,6 +176,9 @@ STAGE_INPUTS: dict[str, StageInput] = {
     # the sample being shaded (GL's gl_SampleID): reading it makes the pass run once per
     # covered sample, frag_coord and the scene inputs at that sample (multisampled passes)
     **_inputs(Where.EVERYWHERE, ir.INT, "sample_id"),
+    # the fragment's coverage (GL's gl_SampleMaskIn[0]): bit k set when sample k of the pixel
+    # is covered (and passed the early tests); all 1 bit on a single-sampled pass
+    **_inputs(Where.EVERYWHERE, ir.UINT, "sample_mask"),
     **_inputs(Where.SCENE, ir.VEC3, "world_pos", "view_pos", "normal", "view_normal", "albedo"),
     **_inputs(Where.SCENE, ir.FLOAT, "specular", "shininess", "alpha"),
     **_inputs(Where.SCENE, ir.UINT, "object_id", "normal_group", "layer"),

@@ -112,7 +112,7 @@ _RESERVED = {
     "mod", "sin", "cos", "tan", "atan", "load", "sample", "size", "frag_coord", "camera_pos",
     "view", "proj", "inv_view", "inv_proj", "output_size", "num_lights", "ambient",
     "lights", "light", "world_pos", "view_pos", "normal", "view_normal", "albedo", "specular",
-    "shininess", "alpha", "object_id", "normal_group", "layer", "sample_id", "load_sample",
+    "shininess", "alpha", "object_id", "normal_group", "layer", "sample_id", "sample_mask", "load_sample",
 }
 
 

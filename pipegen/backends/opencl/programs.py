@@ -168,7 +168,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
-        wide_w=cl_wide.W, batch=batch, per_sample="sample_id" in inputs)
+        wide_w=cl_wide.W, batch=batch, per_sample="sample_id" in inputs,
+        mask_input="sample_mask" in inputs)
 
 
 def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:

@@ -105,8 +105,9 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
     if not p.body or not ENABLED:
         return None
     functions = planlib.pass_functions(tech, p.body)
-    if planlib.shades_per_sample(p.body, functions):
-        return None     # per-sample shading: the raster kernel calls the scalar function
+    if planlib.shades_per_sample(p.body, functions) or \
+            "sample_mask" in planlib.stage_inputs(p.body, functions):
+        return None     # per-sample shading, coverage: the kernel calls the scalar function
     fmap = {f.name: f for f in functions}
     if cost(p.body, fmap) - GATHER_COST * gathers(p.body, fmap) < MIN_COST:
         return None
