@@ -319,3 +319,13 @@ def test_image_against_exact_visibility(checked, name):
         err = error_image(out, exact).max(axis=2)
         assert err[keep].max() <= OFF_EDGES_MAX, (backend, err[keep].max())
         assert np.mean(err[edge] > 2) <= EDGE_SHARE_OVER_2, (backend, np.mean(err[edge] > 2))
+
+
+def test_shadow_casting_lights_are_drawn_shadowed():
+    """`pipegen run`/`check` say nothing of shadows that are not drawn: every light type the
+    repeat group runs for is shadowed (lidr_bitplanes, which draws none, reports them)."""
+    from pipegen.compiler.driver import compile_file
+    s = load_scene(SHADOWS)
+    assert compile_file(TECHNIQUE).mismatches(s) == []
+    plain = [m.message for m in compile_file(ROOT / "pipelines/lidr_bitplanes.pipe").mismatches(s)]
+    assert any("2 spot lights cast shadows that are not drawn" in m for m in plain)

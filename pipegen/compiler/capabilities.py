@@ -30,7 +30,8 @@ class Capabilities:
     # "front": front faces in front of the surface), the index bank (n, k) or None)
     index_rules: tuple[tuple[str, str, Optional[tuple[int, int]]], ...] = ()
     # shadow maps (``draw scene… from lights TYPES tiles N``): the light types drawn into an
-    # atlas, and the fewest tiles of any such draw (N^2; 0: the technique draws no shadows)
+    # atlas, and the fewest tiles of any such draw (N^2; 0: no atlas); shadow volumes
+    # (``draw scene… shadow_volumes``) add the light types their repeat group runs for
     shadow_types: frozenset = frozenset()
     shadow_capacity: int = 0
     # passes drawing scene.translucent that read a light-index packing whose writers test
@@ -146,7 +147,8 @@ def capabilities(tech: ir.Technique) -> Capabilities:
     rules = tuple((k.name,) + _packing_rule(tech, k) for k in tech.packings
                   if k.scheme in INDEX_SCHEMES and k.capacity)
     shadow_draws = [p.draw for p in tech.passes if p.draw.shadow]
-    shadow_types = frozenset(t for d in shadow_draws for t in d.light_types)
+    shadow_types = frozenset(t for d in shadow_draws for t in d.light_types) | frozenset(
+        t for p in tech.passes if p.draw.shadow_volumes for t in p.repeat_types or LIGHT_TYPES)
     shadow_capacity = min((d.shadow_tiles ** 2 for d in shadow_draws), default=0)
     first, first_at = _shadow_first(tech)
     return Capabilities(tuple(out), has_table, translucent, index, slots, rules,
