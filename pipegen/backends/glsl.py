@@ -110,8 +110,11 @@ PACKING_EXTENSION = "GL_ARB_shading_language_packing"
 # gl_SampleID (GLSL 4.00): a 330 shader that reads sample_id enables the extension; its
 # static use makes the fragment shader run once per covered sample
 SAMPLE_SHADING_EXTENSION = "GL_ARB_sample_shading"
-# the extension each per-sample input needs in a 330 shader (gl_SampleMaskIn: gpu_shader5)
-SAMPLE_EXTENSIONS = {"sample_id": SAMPLE_SHADING_EXTENSION, "sample_mask": "GL_ARB_gpu_shader5"}
+# the extension each per-sample input needs in a 330 shader; gl_SampleMaskIn has none that
+# glslang accepts (GL_ARB_gpu_shader5 only "partially supported"): a shader reading sample_mask
+# is GLSL 4.00, where it is core (llvmpipe: 4.50)
+SAMPLE_EXTENSIONS = {"sample_id": SAMPLE_SHADING_EXTENSION}
+GLSL_400_INPUTS = frozenset({"sample_mask"})
 
 
 class GLSLLanguage(CStyleLanguage):
@@ -132,6 +135,7 @@ class GLSLLanguage(CStyleLanguage):
         self.current_light = "v_light" if lights else "u_light"
         self.unclamped: set[str] = set()   # targets whose load(T) needs no clamp
         self.extensions: list[str] = []    # #extension lines the shader needs (packHalf2x16)
+        self.version = 330                 # #version: 400 where a 4.00 input is read
         if tech and pass_:
             size = _render_size(tech, pass_)
             self.unclamped = {r for r in pass_.reads if tech.target(r).size == size}
@@ -144,9 +148,11 @@ class GLSLLanguage(CStyleLanguage):
     def render_input(self, name: str, t: Type) -> str:
         if name == "light_index":
             return self.current_light
-        extension = SAMPLE_EXTENSIONS.get(name)     # gl_SampleID, gl_SampleMaskIn: GLSL 4.00
+        extension = SAMPLE_EXTENSIONS.get(name)     # gl_SampleID: GLSL 4.00
         if extension and extension not in self.extensions:
             self.extensions.append(extension)
+        if name in GLSL_400_INPUTS:
+            self.version = 400
         assert name in INPUTS, f"unknown stage input '{name}'"
         return INPUTS[name][0]
 
@@ -246,7 +252,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass) -> dict:
         "gl_fragment.glsl.j2", **common, stage="fragment", varyings=varyings,
         samplers=[_sampler(tech, r, r in sample_reads) for r in p.reads],
         outputs=[_output(tech.target(w)) for w in p.writes], functions=code, body=body,
-        extensions=lang.extensions)
+        extensions=lang.extensions, glsl_version=lang.version)
     sampled = planlib.sampled_targets(p.body, functions)
     return {"vertex": emit_vertex(tech, p, common, varyings, attributes), "fragment": fragment,
             "sampled": [r for r in p.reads if r in sampled],
