@@ -329,3 +329,18 @@ def test_shadow_casting_lights_are_drawn_shadowed():
     assert compile_file(TECHNIQUE).mismatches(s) == []
     plain = [m.message for m in compile_file(ROOT / "pipelines/lidr_bitplanes.pipe").mismatches(s)]
     assert any("2 spot lights cast shadows that are not drawn" in m for m in plain)
+
+
+@pytest.mark.gl
+def test_a_scene_without_shadows_specialises_the_volumes_away():
+    """Compiled for a scene whose lights cast no shadows, the volume pass is cut (its stencil
+    would stay 0) and the image is the general build's, byte for byte."""
+    from pipegen.compiler.driver import compile_file
+    s = load_scene(ROOT / "examples/scenes/mixed_lights.toml").with_size(48, 27)
+    assert not any(l.shadows for l in s.lights)
+    general, special = compile_file(TECHNIQUE), compile_file(TECHNIQUE, scene=s)
+    assert "shadow_volumes" not in [p.name for p in special.technique.passes]
+    assert any(c.name == "shadow_volumes" and "casts a shadow" in c.reason
+               for c in special.technique.cuts)
+    a, b = general.pipeline("gl").render(s), special.pipeline("gl").render(s)
+    assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)

@@ -2,8 +2,8 @@
 
 With ``tech.scene`` set, a pass draws nothing when it draws ``scene.translucent`` and the
 scene has no translucent objects (or ``scene.opaque`` and no opaque ones), when its light
-draw takes only light types the scene lacks, or when it repeats per light for types the scene
-lacks.  Such a pass changes no target, so removing it changes no image: except for a pass
+draw takes only light types the scene lacks, when it repeats per light for types the scene
+lacks, or when it draws shadow maps or shadow volumes and no light of the scene casts.  Such a pass changes no target, so removing it changes no image: except for a pass
 outside a repeat group that clears a target (its clears run even when it draws nothing),
 which is kept.  Each removal is an ``ir.Cut`` with the scene fact behind it.
 """
@@ -58,6 +58,8 @@ def _empty(p: ir.Pass, facts: ir.SceneFacts) -> Optional[str]:
             return f"it draws {d.describe()} and no light of the scene casts a shadow"
         if not present & set(d.light_types):
             return f"it draws {d.describe()} and the scene has no {_lights(d.light_types)}"
+    if d.shadow_volumes and not facts.shadows:
+        return f"it draws {d.describe()} and no light of the scene casts a shadow"
     if d.kind is ir.DrawKind.LIGHTS:
         if not present:
             return f"it draws {d.describe()} and the scene has no lights"
