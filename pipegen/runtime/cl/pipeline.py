@@ -530,8 +530,9 @@ class CLPipeline:
             args += [rt.res, self._int2(rt.width, rt.height)]
         if self.f64:
             attrs = [dev.zeros4] * 4
-            if p.draw.kind is ir.DrawKind.SCENE:
-                attrs = self.geometry.attributes(p.draw)[1]
+            if p.draw.kind is ir.DrawKind.SCENE:    # a shadow_volumes draw: the light's
+                volume = light if p.draw.shadow_volumes else None
+                attrs = self.geometry.attributes(p.draw, volume)[1]
             args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
         kern = dev.kernel(k, "pg_raster")
         cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
