@@ -269,7 +269,8 @@ class HardMapped(Shadows):
     def __init__(self, mapped: MappedShadows):
         self.mapped = mapped
 
-    def factor(self, scene, i, light, P):
+    def factor(self, scene, i, light, P, N=None):
+        # the index passes read a depth copy, no normal: the constant bias alone (N unused)
         f = self.mapped.factor(scene, i, light, P)
         return None if f is None else (f >= 0.5).astype(np.float64)
 

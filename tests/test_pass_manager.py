@@ -280,7 +280,7 @@ def test_dump_after_prints_the_ir_then_compiles(tmp_path):
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("// after fold\ntechnique forward ")
     assert r.stdout.count("// after ") == 1
-    assert "pass shade {" in r.stdout and "float shadow_factor(uint i, vec3 p) {" in r.stdout
+    assert "pass shade {" in r.stdout and "float shadow_factor(uint i, vec3 p, vec3 n) {" in r.stdout
     assert "technique forward: " in r.stdout                       # then the report
     assert (tmp_path / "out/report.txt").exists()
 

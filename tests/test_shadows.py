@@ -282,7 +282,7 @@ def test_specialised_for_a_scene_without_shadows():
     assert "shadow_atlas" not in [t.name for t in plan.targets]
     frag = plan.passes[0].code.fragment
     assert "t_shadow_atlas" not in frag                      # no lookup left
-    body = frag.split("float shadow_factor(uint i, vec3 p) {")[1].split("}")[0]
+    body = frag.split("float shadow_factor(uint i, vec3 p, vec3 n) {")[1].split("}")[0]
     assert body.split() == ["return", "1.0;"]
     reasons = [cut.reason for cut in c.specialisation.cuts]
     assert any("no light of the scene casts a shadow" in r for r in reasons)

@@ -76,7 +76,7 @@ def calver_shade(gbuffer: GBuffer, scene, shadows: Optional[Shadows] = None,
         cl = as_float32(light.color)
         highlight = cs1[sel] * (cl + m["kspec_blend"][sel] * (1.0 - cl))     # lerp(Cl, 1, K)
         term = att[:, None] * (cl * albedo[sel] * diffuse[:, None] + spec[:, None] * highlight)
-        factor = None if shadows is None else shadows.factor(scene, i, light, P[sel])
+        factor = None if shadows is None else shadows.factor(scene, i, light, P[sel], n[sel])
         if factor is not None:
             term = term * factor[:, None]
         colour[sel] += term

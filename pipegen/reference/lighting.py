@@ -108,7 +108,8 @@ def shade(gbuffer: GBuffer, scene: Scene, shadows: Optional[Shadows] = None) -> 
     for i, light in enumerate(scene.lights):
         sel = reached(light, P)
         term = light_contribution(light, P[sel], N[sel], cam, albedo[sel], spec[sel], shin[sel])
-        factor = None if shadows is None else shadows.factor(scene, i, light, P[sel])
+        factor = None if shadows is None else shadows.factor(scene, i, light, P[sel],
+                                                             safe_normalize(N[sel]))
         if factor is not None:
             term = term * factor[:, None]
         colour[sel] += term

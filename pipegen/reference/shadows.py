@@ -7,17 +7,21 @@ a float64 depth map of its tile's size (``reference/raster.py``: GL coverage, de
 against 1.0, no culling, as the shadow passes draw); ``shadow_factor(smap, P, pcf_taps, bias)``
 is the fraction of the PCF taps that see ``P`` lit:
 
-    q = P - direction * bias                       (bias in scene units, towards the light)
+    q = P - direction * offset                     (scene units, towards the light)
+    offset = bias + slope_bias * min(tan(theta), 10)                        (``shadow_offset``)
     c = M @ (q, 1),  M = projection @ view          (the light table's rows, float32 values)
     c.w <= 0: 1 (behind a spot: unlit anyway)
     z = c.z / c.w * 0.5 + 0.5;  uv = (c.xy / c.w * 0.5 + 0.5) * (tile w, tile h)
     side = sqrt(pcf_taps);  base = floor(uv - (side - 1) / 2)
     factor = mean over a, b in [0, side) of  [ z <= map[clamp(base + (a, b), 0, tile - 1)] ]
 
-``pattern = "jittered"`` (``pcf_pattern``) takes Calver's four jittered taps instead:
+theta is the angle between the unit normal N and the direction to the light (a spot's or point
+light's position, a sun's -direction); without a normal (None) or with ``slope_bias`` 0 the
+offset is ``bias``: ``tan = sqrt(max(1 - c^2, 0)) / max(c, 1e-6)``, c = N.l, as the shader
+writes it.  ``pattern = "jittered"`` (``pcf_pattern``) takes Calver's four jittered taps instead:
 ``floor(uv + side / 8 * o)`` for o in (1, 3), (3, -1), (-1, -3), (-3, 1) (a rotated grid).  A point
 light (six tiles, ``ShadowMap.faces``): ``d = (P - (P - L) * bias / |P - L|) - L`` (moved towards
-the light), the face its major axis picks (``face_of``), the face's view coordinates ``v`` (an
+the light, by the offset), the face its major axis picks (``face_of``), the face's view coordinates ``v`` (an
 axis permutation, ``shadows.POINT_FACES``) and ``c = (t v.x, t v.y, p22 v.z + p23, -v.z)`` from
 the light-table rows (``shadows.point_rows``), then the same filter in that face's tile.
 
@@ -54,6 +58,8 @@ class ShadowMap:
     # map's rect and depth) and its light-table rows (float32 values: shadows.point_rows)
     faces: tuple = ()
     rows: Optional[np.ndarray] = None
+    # a spot light's position as the table holds it (float32 values): its slope term's l
+    position: Optional[np.ndarray] = None
 
     def tiles(self) -> list["ShadowMap"]:
         """The maps of every tile the light owns (one, or a point light's six faces)."""
@@ -96,14 +102,18 @@ def shadow_maps(scene, tiles: int, width: int, height: int,
                                tuple(maps), as_float32(S.point_rows(light)))
         else:
             out[i] = maps[0]
+            if light.type == "spot":
+                out[i].position = as_float32(light.position)
     return out
 
 
 class Shadows:
-    """How ``lighting.shade`` shadows the scene's lights: ``factor(scene, i, light, P)`` is the
-    fraction (n,) of light ``i`` reaching the points ``P`` (n, 3), or None: not shadowed."""
+    """How ``lighting.shade`` shadows the scene's lights: ``factor(scene, i, light, P, N)`` is
+    the fraction (n,) of light ``i`` reaching the points ``P`` (n, 3) with unit normals ``N``
+    (n, 3; None: not known), or None: not shadowed."""
 
-    def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
+    def factor(self, scene, i: int, light, P: np.ndarray,
+               N: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
         raise NotImplementedError
 
 
@@ -115,30 +125,59 @@ class MappedShadows(Shadows):
     pcf_taps: int
     bias: float
     pattern: str = "grid"          # pcf_pattern: grid or jittered
+    slope_bias: float = 0.0        # shadow_slope_bias
 
-    def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
+    def factor(self, scene, i: int, light, P: np.ndarray,
+               N: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
         smap = self.maps.get(i)
         return None if smap is None else shadow_factor(smap, P, self.pcf_taps, self.bias,
-                                                       self.pattern)
+                                                       self.pattern, N, self.slope_bias)
 
 
 @dataclass(frozen=True)
 class ExactShadows(Shadows):
     """Every shadow-casting light (``shadows = true``) by its exact ``visibility``."""
 
-    def factor(self, scene, i: int, light, P: np.ndarray) -> Optional[np.ndarray]:
+    def factor(self, scene, i: int, light, P: np.ndarray,
+               N: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
         return visibility(scene, light, P) if S.casts_shadows(light) else None
 
 
 def shadow_factor(smap: ShadowMap, P: np.ndarray, pcf_taps: int, bias: float,
-                  pattern: str = "grid") -> np.ndarray:
-    """(n,) float64 in [0, 1]: the lit fraction of the PCF taps at surface points P (n, 3)."""
+                  pattern: str = "grid", N: Optional[np.ndarray] = None,
+                  slope_bias: float = 0.0) -> np.ndarray:
+    """(n,) float64 in [0, 1]: the lit fraction of the PCF taps at surface points P (n, 3)
+    with unit normals N (n, 3; None: the constant bias alone)."""
     P = np.asarray(P, np.float64)
     if smap.rows is not None:
-        return _point_factor(smap, P, pcf_taps, bias, pattern)
-    q = P - smap.direction * float(np.float32(bias))
+        return _point_factor(smap, P, pcf_taps, bias, pattern, N, slope_bias)
+    if smap.position is None:            # a sun
+        to_light = np.broadcast_to(-smap.direction, P.shape)
+    else:
+        L = smap.position - P
+        to_light = L / np.maximum(np.linalg.norm(L, axis=1), 1e-300)[:, None]
+    q = P - smap.direction * shadow_offset(N, to_light, bias, slope_bias)[:, None]
     c = np.concatenate([q, np.ones((len(q), 1))], axis=1) @ smap.matrix.T
     return pcf(smap, c, pcf_taps, pattern)
+
+
+TAN_MAX = 10.0          # the slope term's tan(theta) clamp (84 degrees)
+
+
+def shadow_offset(N: Optional[np.ndarray], to_light: np.ndarray, bias: float,
+                  slope_bias: float) -> np.ndarray:
+    """(n,): how far each point moves towards the light: ``bias`` plus ``slope_bias`` times
+    tan(theta) (clamped to ``TAN_MAX``), theta between the unit normal and ``to_light``
+    (n, 3, unit); the parameters are float32 values, as the shader holds them."""
+    b = np.full(len(to_light), float(np.float32(bias)))
+    slope = float(np.float32(slope_bias))
+    if N is None or slope == 0.0:
+        return b
+    N = np.asarray(N, np.float64)
+    known = np.einsum("ij,ij->i", N, N) > 0
+    c = np.einsum("ij,ij->i", N, to_light)
+    tan = np.minimum(np.sqrt(np.maximum(1.0 - c * c, 0.0)) / np.maximum(c, 1e-6), TAN_MAX)
+    return np.where(known, b + slope * tan, b)
 
 
 def face_of(d: np.ndarray) -> np.ndarray:
@@ -153,15 +192,18 @@ def face_of(d: np.ndarray) -> np.ndarray:
 
 
 def _point_factor(smap: ShadowMap, P: np.ndarray, pcf_taps: int, bias: float,
-                  pattern: str) -> np.ndarray:
-    """A point light: the point moved ``bias`` towards the light, the face its major axis
-    picks, its view coordinates by the face's axis permutation, then ``pcf`` in that tile."""
+                  pattern: str, N: Optional[np.ndarray], slope_bias: float) -> np.ndarray:
+    """A point light: the point moved ``shadow_offset`` towards the light, the face its major
+    axis picks, its view coordinates by the face's axis permutation, then ``pcf`` in that
+    tile."""
     t, p22, p23 = smap.rows[0, :3]
     light = smap.rows[1, :3]
     d = P - light
     dist = np.linalg.norm(d, axis=1)
     ok = dist > 0
-    d = (P - d * (float(np.float32(bias)) / np.where(ok, dist, 1.0))[:, None]) - light
+    safe = np.where(ok, dist, 1.0)
+    offset = shadow_offset(N, -d / safe[:, None], bias, slope_bias)
+    d = (P - d * (offset / safe)[:, None]) - light
     face = face_of(d)
     out = np.ones(len(P))
     for f, fmap in enumerate(smap.faces):
