@@ -9,7 +9,9 @@ single-sampled index target, the nearest texel of the polygon within one pixel).
   --reference-samples 4``): the mean of each pixel's largest channel error in rgba8 codes, on
   the scene geometry's silhouette pixels and off them, on CL at 64x36;
 - technique 3's search fails where the paper says it does (sub-pixel polygons): its
-  ``edge_miss`` target marks those pixels, many on thin_poles, and they carry its error there.
+  ``edge_miss`` target marks those pixels, many on thin_poles, and they carry its error there;
+  ``run``/``check`` warn before rendering (``mismatches.nearest_texel_misses``: a float64
+  count of the pixels whose polygon covers samples but no pixel centre within one pixel).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import pytest
 from pipegen.proof.accuracy import output_codes
 from pipegen.proof.references import choose_reference
 from pipegen.reference.metrics import reference_codes
+from pipegen.compiler.mismatches import nearest_texel_misses
 from pipegen.testing.api import (assert_backends_agree, for_scene, load_technique,
                                  load_test_scene, render)
 
@@ -100,3 +103,18 @@ def test_the_nearest_edge_search_reports_where_it_fails(measured):
     # on edges (grille bars and poles 1-2 px wide at 192x108) it fails far less often
     on_edges = measured[NEAREST, EDGES][2]["edge_miss"].values > 0
     assert on_edges.sum() <= 0.25 * missed.sum(), on_edges.sum()
+
+
+def test_run_and_check_warn_where_the_search_will_fail(measured):
+    poles = load_test_scene(POLES, SIZE)
+    warned = [m for m in load_technique(NEAREST).mismatches(poles) if m.kind == "search"]
+    assert len(warned) == 1 and "narrower than a pixel" in warned[0].message, warned
+    # the float64 count (2x2 samples per pixel, object ids) against the shader's own (4x
+    # MSAA positions, tangent planes): 295 and 325 px at 64x36
+    counted, _ = nearest_texel_misses(poles)
+    rendered = int((measured[NEAREST, POLES][2]["edge_miss"].values > 0).sum())
+    assert 0.7 * rendered <= counted <= 1.3 * rendered, (counted, rendered)
+    # nothing narrower than a pixel on mixed_lights; techniques 1 and 2 do not search
+    assert nearest_texel_misses(load_test_scene("examples/scenes/mixed_lights.toml", SIZE))[0] == 0
+    for other in (TEXTURE, "pipelines/lidr_transparent.pipe"):
+        assert not [m for m in load_technique(other).mismatches(poles) if m.kind == "search"]

@@ -42,6 +42,9 @@ class Capabilities:
     # draws; 0: every index), and where it is declared ("pass 'P' (file:line)")
     shadow_first: int = 0
     shadow_first_at: str = ""
+    # multisampled scene passes that read a single-sampled light-index target at a texel the
+    # code computes (a nearest-fragment search, Trebilco's MSAA technique 3): (pass, target)
+    index_searches: tuple[tuple[str, str], ...] = ()
 
     def light_type(self, t: str) -> str:
         return dict(self.light_types)[t]
@@ -153,7 +156,31 @@ def capabilities(tech: ir.Technique) -> Capabilities:
     first, first_at = _shadow_first(tech)
     return Capabilities(tuple(out), has_table, translucent, index, slots, rules,
                         shadow_types, shadow_capacity, _translucent_back_reads(tech, rules),
-                        first, first_at)
+                        first, first_at, _index_searches(tech))
+
+
+def _index_searches(tech: ir.Technique) -> tuple:
+    """(pass, target) for each multisampled scene pass that loads a single-sampled
+    light-index packing's target at a coordinate it computes (``load(T, ivec2)``, in its body
+    or a function it reaches): it looks the lights up at another pixel than its own, the
+    nearest-fragment search of Trebilco's MSAA technique 3, which fails where a polygon
+    covers samples but no pixel centre within reach."""
+    samples = {t.name: t.samples for t in tech.targets}
+    index_targets = {dict(k.options).get("target") for k in tech.packings
+                     if k.scheme in INDEX_SCHEMES and k.capacity}
+    out = []
+    for p in tech.passes:
+        attached = list(p.writes) + ([p.depth_target] if p.depth_target else [])
+        if p.draw.kind is not ir.DrawKind.SCENE or max(
+                [samples[n] for n in attached] or [1]) == 1:
+            continue
+        for stmts in [p.body] + [f.body for f in pass_functions(tech, p.body)]:
+            found = sorted({e.target for e in irwalk.walk_exprs(stmts)
+                            if isinstance(e, ir.Load) and e.coord is not None and
+                            e.sample is None and e.target in index_targets and
+                            samples[e.target] == 1})
+            out += [(p.name, t) for t in found if (p.name, t) not in out]
+    return tuple(out)
 
 
 def _shadow_first(tech: ir.Technique) -> tuple[int, str]:

@@ -12,7 +12,9 @@ they are asked only when a technique's capabilities make them matter:
   conservative count of light volumes exceeds it); ``lights_per_pixel_bound(scene)`` is that
   conservative count's maximum;
 - ``translucent_missed_lights(scene, lights)``: the lights a back-face light index misses at
-  the translucent surfaces they reach.
+  the translucent surfaces they reach;
+- ``nearest_texel_misses(scene)``: where a search for the nearest pixel centre of a polygon
+  (Trebilco's MSAA technique 3) finds none within one pixel.
 """
 
 from __future__ import annotations
@@ -73,6 +75,31 @@ def translucent_missed_lights(scene, lights: list[int]) -> tuple[list[int], int]
     return sorted(missed), objects
 
 
+def nearest_texel_misses(scene, n: int = 2) -> tuple[int, int]:
+    """(pixels, objects): the pixels where an opaque object covers one of n x n sub-pixel
+    samples but none of the 3x3 pixel centres around (the nearest-fragment search of
+    Trebilco's MSAA technique 3 fails there: "if a polygon is made up of mostly sub-pixel
+    fragments, (long thin polygon case) searching for a nearest fragment edge may fail"), and
+    how many objects do so.  Object ids rasterised in float64 at the pixel centres and at n x
+    n the resolution (a regular grid standing in for the MSAA pattern)."""
+    from pipegen.reference.raster import rasterize
+    centre = rasterize(scene, ("opaque",)).object_id
+    fine = rasterize(scene.with_size(scene.width * n, scene.height * n), ("opaque",)).object_id
+    h, w = centre.shape
+    pad = np.pad(centre, 1, constant_values=-2)
+    around = np.stack([pad[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+                       for dy in (-1, 0, 1) for dx in (-1, 0, 1)], axis=-1)
+    missed = np.zeros((h, w), bool)
+    objects: set[int] = set()
+    for a in range(n):
+        for b in range(n):
+            ids = fine[a::n, b::n]
+            miss = (ids >= 0) & ~(around == ids[..., None]).any(axis=-1)
+            missed |= miss
+            objects |= set(np.unique(ids[miss]).tolist())
+    return int(missed.sum()), len(objects)
+
+
 def _packed_lights(scene, types: Optional[set], residue: Optional[tuple[int, int]]) -> list:
     """The scene's lights of ``types`` (None: all) whose index in its table is k modulo n for
     ``residue`` (n, k) (an index bank; None: every index)."""
@@ -101,7 +128,7 @@ def lights_per_pixel_bound(scene, types: Optional[set] = None, gbuffer=None,
 
 @dataclass(frozen=True)
 class Mismatch:
-    kind: str          # "light_type", "translucent", "capacity", "table", "order"
+    kind: str          # "light_type", "translucent", "capacity", "table", "order", "search"
     message: str
 
 
@@ -200,6 +227,20 @@ def mismatches(tech: ir.Technique, scene, features: Optional[SceneFeatures] = No
                     f"{'it' if objects == 1 else 'them'} but not the opaque surface behind "
                     f"{'is' if len(missed) == 1 else 'are'} missed (lights "
                     f"{', '.join(map(str, missed))})"))
+    if cap.index_searches:
+        pixels, objects = nearest_texel_misses(scene)
+        if pixels:
+            readers: dict[str, list] = {}
+            for p, t in cap.index_searches:
+                readers.setdefault(p, []).append(f"`{t}`")
+            where = "; ".join(f"pass {p} reads {', '.join(ts)}" for p, ts in readers.items())
+            out.append(Mismatch(
+                "search", f"the nearest-fragment search ({where} at a neighbouring texel) "
+                f"finds no pixel centre of the polygon within one pixel at about "
+                f"{_n(pixels, 'pixel')}, where {_n(objects, 'object')} "
+                f"{'covers' if objects == 1 else 'cover'} samples but no pixel centre near "
+                f"them (polygons narrower than a pixel): those pixels are lit with the "
+                f"lights of the surface behind"))
     if f.translucent_objects >= 2:
         from pipegen.compiler.blend_order import describe, order_dependent_blends
         for p, target, what in order_dependent_blends(tech):
