@@ -35,7 +35,7 @@ PIPE = ROOT / "pipelines/deferred_calver.pipe"
 SCENES = ROOT / "examples/scenes"
 MATERIALS = SCENES / "calver_materials.toml"
 ATLAS = 768                         # 3 x 3 tiles: the point light's six, two spots and the sun
-SHADOW_PARAMS = {"shadow_tiles": 3, "shadow_size": ATLAS, "shadow_bias": 0.25, "pcf_taps": 4}
+SHADOW_PARAMS = {"shadow_tiles": 3, "shadow_size": ATLAS, "shadow_bias": 0.25, "pcf_taps": 16}
 
 
 def materials_scene(edit=lambda text: text):
@@ -111,8 +111,10 @@ BACKENDS = [pytest.param("gl", marks=pytest.mark.gl), pytest.param("cl", marks=p
 
 # Measured (GL and CL alike, non-silhouette pixels): calver_materials max 1 code, mean 0.31 (the
 # r16f shaping tables and the rgba16f accumulator), no pixel over 1 code; the shadow scene
-# max 1, mean 0.074 against the same shadow maps.  Without the table (every field at its
-# default) the reference is 229 / 130 codes off: the fields are what the image shows.
+# (pcf 16, the parameters test_point_shadows compiles too) max 2, mean 0.074 against the same
+# shadow maps, one pixel over 1 code (a PCF tap flipping within float32 rounding: 1/16 of a
+# light).  Without the table (every field at its default) the reference is 229 / 128 codes
+# off: the fields are what the image shows.
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("name", ["calver_materials", "shadows"])
 def test_image_against_the_float64_reference(backend, name):
