@@ -153,7 +153,7 @@ def position(text: str, marker: str, after: str = "") -> str:
     ("repeat per light {\n", "pass outside {\n  draw scene.opaque shadow_volumes\n"
      "  depth ds less nowrite clamp\n  stencil { func always }\n}\nrepeat per light {\n",
      "pass outside", "does not repeat per light"),
-    ("    offset 0 4\n", "    offset 0 4\n    writes color\n", "pass shadow_volumes",
+    ("    offset 0 64\n", "    offset 0 64\n    writes color\n", "pass shadow_volumes",
      "writes only stencil"),
     ("    stencil back { func always zfail incr_wrap }\n"
      "    stencil front { func always zfail decr_wrap }\n", "", "pass shadow_volumes",
@@ -176,7 +176,8 @@ def test_combining_with_the_front_face_technique_is_a_positioned_error():
     text = compile_error(source)
     first = text.splitlines()[0]
     where = position(source, "cull auto", "pass point_index")
-    assert where == "t.pipe:74:5"          # the point_index pass's `cull` statement
+    line = int(where.split(":")[1])      # the point_index pass's `cull` statement, quoted
+    assert f"{line} |     cull auto\n" in text and source.splitlines()[line - 1] == "    cull auto"
     assert first.startswith(f"{where}: error: pass 'point_index' draws light-volume front "
                             "faces (`cull auto`"), first
     assert "\"this will not work if using the Light Volume Front Faces technique for MSAA / " \
@@ -290,9 +291,9 @@ def shadow_edges(s, gb) -> tuple[np.ndarray, int]:
 
 
 # Measured at 64x36 (GL and CL alike): off shadow edges and silhouettes at most 1 code on every
-# scene; on shadow-edge pixels at most 1 code but for shadows' (3 px wide) edge pixels where a
-# volume's side crosses a receiver within the 4-unit offset (measured <= 5 codes at 160x90 on
-# shadows.toml, 721 edge pixels).
+# scene.  Shadow-edge pixels (3 px wide bands) may differ where a pixel centre lies within the
+# 64-unit offset of a volume side crossing a receiver: at 160x90 on shadows.toml 0.4 % of its
+# 721 edge pixels, by at most 11 codes; at 320x180 on shadow_volume_inside 0.3 % of 1530.
 OFF_EDGES_MAX = 2
 EDGE_SHARE_OVER_2 = 0.02
 
