@@ -21,6 +21,14 @@ triangle surface around the region the object hides from the light:
   always, an edge between a light-facing and a back-facing triangle carries two sides.
   Triangles edge-on to the light (facing neither way) hide nothing and cast nothing.
 
+Near caps: a near cap triangle is one of its object's lit faces, which the camera sees; for
+its pixels to count it as behind the surface, the volumes' near vertices (near caps and the
+sides' near edges) are moved ``NEAR_CAP_SHIFT`` of the scene's diagonal away from the light
+along the light's rays: then the cap lies just behind the lit face (and, for an open object,
+behind its own lit triangle), whatever the depth precision or the clipping of the depth
+pre-pass, which a depth offset would have to cover and which would also move every place
+where a side crosses a receiver.  The shadows move by that distance, far below a pixel.
+
 Counting: the pass draws every triangle with depth clamping (no near or far clipping) and,
 where the depth test fails, back faces increment and front faces decrement the stencil (depth
 fail, "Carmack's reverse"): each pixel ends with the number of volumes around its surface
@@ -43,6 +51,8 @@ WELD_TOLERANCE = 1e-6    # corners closer than this times the object's largest c
 EXTRUSION_MARGIN = 1.01  # the far cap's nearest point lies this factor beyond the light radius
 MIN_COSINE = 1e-3        # a caster spanning more than ~179.9 degrees seen from the light: D is
 #                          capped at radius / MIN_COSINE (its far cap may then cut the radius)
+NEAR_CAP_SHIFT = 1e-4    # near caps and sides start this fraction of the scene's diagonal
+#                          farther from the light than the object's surface (``shadow_volume``)
 
 
 @dataclass(frozen=True)
@@ -139,6 +149,13 @@ def extruded(points: np.ndarray, light, distance: float) -> np.ndarray:
     return np.asarray(light.position, np.float64)[None] + u * distance
 
 
+def scene_diagonal(scene) -> float:
+    """The length of the diagonal of the bounding box of every object of ``scene``."""
+    lo = np.min([o.positions.min(axis=0) for o in scene.objects], axis=0)
+    hi = np.max([o.positions.max(axis=0) for o in scene.objects], axis=0)
+    return float(np.linalg.norm(hi - lo))
+
+
 def extrusion_distance(scene, light, pieces: list) -> float:
     """How far a light's volumes extrude (see the module docstring).  Point or spot: over
     every far-cap triangle and side far edge (``pieces``: (positions, far (F, 3), sides (S, 2))
@@ -146,11 +163,8 @@ def extrusion_distance(scene, light, pieces: list) -> float:
     direction, a far point is at least ``D * min(u . c)`` from the light; ``D = radius *
     EXTRUSION_MARGIN / min(u . c)`` (at least ``EXTRUSION_MARGIN`` times the farthest caster
     corner, so every corner moves outwards).  Directional: twice the scene's diagonal."""
-    lo = np.min([o.positions.min(axis=0) for o in scene.objects], axis=0)
-    hi = np.max([o.positions.max(axis=0) for o in scene.objects], axis=0)
-    diagonal = float(np.linalg.norm(hi - lo))
     if light.type == "directional":
-        return 2.0 * diagonal + 1.0
+        return 2.0 * scene_diagonal(scene) + 1.0
     cos_min, far_corner = 1.0, 0.0
     L = np.asarray(light.position, np.float64)
     for points, far, sides in pieces:
@@ -184,14 +198,16 @@ def shadow_volume(scene, light, material: tuple[str, ...] = ("opaque",)) -> Shad
     if not pieces:
         return empty
     D = extrusion_distance(scene, light, pieces)
+    shift = NEAR_CAP_SHIFT * scene_diagonal(scene)
     near_out, far_out, side_out = [], [], []
     for (points, far, sides), near in zip(pieces, caps):
         out = extruded(points, light, D)
-        near_out.append(points[near])
+        start = points + _directions(points, light) * shift      # just behind the lit faces
+        near_out.append(start[near])
         far_out.append(out[far])
         a, b = sides[:, 0], sides[:, 1]
         # the quad a, b, b', a' seen from outside: (a, a', b') and (a, b', b)
-        quads = np.stack([points[a], out[a], out[b], points[a], out[b], points[b]], axis=1)
+        quads = np.stack([start[a], out[a], out[b], start[a], out[b], start[b]], axis=1)
         side_out.append(quads.reshape(-1, 3, 3))
     near_t = np.concatenate(near_out).reshape(-1, 3, 3)
     far_t = np.concatenate(far_out).reshape(-1, 3, 3)
