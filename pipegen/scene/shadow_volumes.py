@@ -43,6 +43,7 @@ receiver lies within it).  Points beyond ``D`` are never in a volume.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,16 +115,29 @@ def facing(verts: np.ndarray, light) -> np.ndarray:
     return np.einsum("tk,tk->t", n, to_light)
 
 
+_WELDED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def welded_mesh(obj) -> tuple[np.ndarray, np.ndarray, bool]:
+    """An object's (welded positions (N, 3), its non-degenerate triangles (T, 3) as vertex
+    ids, whether they are closed): what does not depend on the light, kept per object (the
+    runtimes ask for every light's volumes; welding was most of the time)."""
+    got = _WELDED.get(obj)
+    if got is None:
+        ids, points = weld(obj.positions)
+        tris = ids.reshape(-1, 3)
+        tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2])
+                    & (tris[:, 2] != tris[:, 0])]
+        got = _WELDED[obj] = (points, tris, len(net_edges(tris)[0]) == 0)
+    return got
+
+
 def casters(obj, light) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One object's welded positions (N, 3), near-cap triangles (T, 3) (vertex ids, facing the
     light) and far-cap triangles (F, 3) (to be extruded as they are): a closed object's
     back-facing triangles, an open object's near caps reversed (the module docstring)."""
-    ids, points = weld(obj.positions)
-    tris = ids.reshape(-1, 3)
-    tris = tris[(tris[:, 0] != tris[:, 1]) & (tris[:, 1] != tris[:, 2])
-                & (tris[:, 2] != tris[:, 0])]
+    points, tris, closed = welded_mesh(obj)
     f = facing(points[tris], light)
-    closed = len(net_edges(tris)[0]) == 0
     if closed:
         return points, tris[f > 0], tris[f <= 0]
     near = np.concatenate([tris[f > 0], tris[f < 0][:, ::-1]])     # turned to face the light
