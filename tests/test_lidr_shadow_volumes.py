@@ -384,3 +384,15 @@ def test_float64_evaluation_draws_the_same_volumes(checked):
     assert np.array_equal(f64["ds.stencil"], result.renders["cl"]["ds.stencil"])
     rgb = np.clip(f64["color"][..., :3], 0, 1) * 255
     assert np.abs(result.renders["cl"]["color"][..., :3] - rgb).max() <= 0.5 + 1e-9
+
+
+def test_objects_beyond_a_lights_reach_cast_nothing():
+    """A point light of radius 1 far from the cube: the cube can hide nothing the light reaches
+    (a lit point's segment to the light stays within the radius), so it casts no volume; with
+    radius 20 it does, and with 5.6 (0.1 past the nearest face)."""
+    import dataclasses
+    s = one_object("box", "6, 0, 0")
+    near_light = s.lights[0]
+    assert shadow_volume(s, near_light).triangle_count == 20
+    assert shadow_volume(s, dataclasses.replace(near_light, radius=1.0)).triangle_count == 0
+    assert shadow_volume(s, dataclasses.replace(near_light, radius=5.6)).triangle_count == 20

@@ -4,9 +4,11 @@ indicate where the shadowed areas are, the light volumes can be rendered to igno
 areas").  Both runtimes upload ``shadow_volume(scene, light).positions`` as they are, so GL
 and OpenCL draw the same float32 triangles.
 
-Per object of the draw's material filter (world-space positions, welded: corners within
-``WELD_TOLERANCE`` of the object's size are one vertex), the volume is a closed, outward-facing
-triangle surface around the region the object hides from the light:
+Per object of the draw's material filter that may hide something the light reaches (a point
+or spot light: its bounding box meets the light's radius, ``may_shadow``), from its
+world-space positions welded (corners within ``WELD_TOLERANCE`` of the object's size are one
+vertex), the volume is a closed, outward-facing triangle surface around the region the object
+hides from the light:
 
 - a **closed** object (every edge a -> b matched by an edge b -> a; the shipped box, sphere and
   cylinder meshes are): near cap = its triangles facing the light, far cap = the others
@@ -196,6 +198,19 @@ def extrusion_distance(scene, light, pieces: list) -> float:
                far_corner * EXTRUSION_MARGIN)
 
 
+def may_shadow(obj, light) -> bool:
+    """Whether ``obj`` can hide a point the light reaches from it: a point or spot light
+    reaches points within its radius, and the segment from such a point to the light stays in
+    that ball, so an object whose bounding box lies wholly outside it hides nothing (exact: no
+    volume is left out that could count).  Directional lights: every object."""
+    if light.type == "directional":
+        return True
+    lo, hi = obj.positions.min(axis=0), obj.positions.max(axis=0)
+    L = np.asarray(light.position, np.float64)
+    gap = np.maximum(np.maximum(lo - L, L - hi), 0.0)
+    return float(np.sqrt((gap * gap).sum())) < float(light.radius)
+
+
 def shadow_volume(scene, light, material: tuple[str, ...] = ("opaque",)) -> ShadowVolume:
     """The shadow volumes of ``scene``'s objects of ``material`` for ``light`` (a scene light
     of any type), float32 positions; no triangles for a light that casts no shadows."""
@@ -204,6 +219,8 @@ def shadow_volume(scene, light, material: tuple[str, ...] = ("opaque",)) -> Shad
         return empty
     pieces, caps = [], []
     for obj in scene.select(tuple(material)):
+        if not may_shadow(obj, light):
+            continue
         points, near, far = casters(obj, light)
         sides, count = net_edges(near)
         sides = np.repeat(sides, count, axis=0)
