@@ -396,3 +396,15 @@ def test_objects_beyond_a_lights_reach_cast_nothing():
     assert shadow_volume(s, near_light).triangle_count == 20
     assert shadow_volume(s, dataclasses.replace(near_light, radius=1.0)).triangle_count == 0
     assert shadow_volume(s, dataclasses.replace(near_light, radius=5.6)).triangle_count == 20
+
+
+def test_a_light_inside_a_closed_object():
+    """No face is light-facing: the far cap alone (every face extruded) encloses the light.
+    Outside the cube everything is shadowed, as exact visibility says; inside it reads
+    shadowed too where exact visibility says lit (the documented limit: seen only from inside)."""
+    s = one_object("box", "0.1, 0.05, -0.1")
+    v = shadow_volume(s, s.lights[0])
+    assert (v.near, v.far, v.sides) == (0, 12, 0) and open_edges(v.positions) == 0
+    P = np.array([[3.0, 0.2, 0.1], [0.0, -2.0, 0.0], [0.2, 0.2, 0.2], [-0.3, 0.1, 0.0]])
+    assert np.round(winding_numbers(v.positions, P)).tolist() == [1.0, 1.0, 1.0, 1.0]
+    assert visibility(s, s.lights[0], P).tolist() == [0.0, 0.0, 1.0, 1.0]

@@ -13,9 +13,10 @@ hides from the light:
 - a **closed** object (every edge a -> b matched by an edge b -> a; the shipped box, sphere and
   cylinder meshes are): near cap = its triangles facing the light, far cap = the others
   extruded away from the light, sides = one quad per silhouette edge (between a light-facing
-  and a back-facing triangle), extruded.  The region is the object's shadow (the light
-  outside the object; a light inside a closed object lights what the object encloses only,
-  which a shadow volume cannot express: the light's side of every face is lit);
+  and a back-facing triangle), extruded.  The region is the object's shadow.  With the light
+  inside a closed object no face is light-facing and the far cap alone (every face extruded)
+  encloses the light: all that lies outside the object is shadowed, as it should be, but its
+  inside reads shadowed too, where exact visibility says lit (seen only from inside);
 - an **open** object (the ``plane`` mesh, or any mesh with an edge of one triangle): both sides
   of every triangle occlude, so each triangle, turned to face the light, casts its own prism
   (near cap it, far cap it extruded and reversed, three sides); sides shared by two such
