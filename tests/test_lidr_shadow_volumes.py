@@ -1,11 +1,13 @@
 """LIDR with stencil shadow volumes (issue 28, Trebilco's "Shadows", first way).
 
 - the host extrusion (pipegen/scene/shadow_volumes.py): closed objects give closed volumes,
-  the counts on a cube, open objects (the floor plane), and the volume's winding number
-  against exact ray-cast visibility;
+  the counts on a cube, open objects (the floor plane), the volume's winding number against
+  exact ray-cast visibility, objects beyond a light's reach, a light inside a closed object;
 - the language: ``draw scene… shadow_volumes`` and its errors, and the positioned error for
-  combining shadow volumes with the light-volume front-face technique;
-- GL against OpenCL (``pipegen check``) on four scenes, the vertex data bit for bit;
+  combining shadow volumes with the light-volume front-face technique; run/check's shadow
+  report, and scene specialisation (no casting light: the volume pass is cut);
+- GL against OpenCL (``pipegen check``) on four scenes, the vertex data bit for bit, the CL
+  float64 evaluation;
 - the image against the float64 reference with exact visibility, off shadow edges.
 """
 
@@ -372,6 +374,7 @@ def test_a_scene_without_shadows_specialises_the_volumes_away():
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
 
 
+@pytest.mark.gl
 @pytest.mark.cl
 def test_float64_evaluation_draws_the_same_volumes(checked):
     """The CL float64 evaluation (what ``pipegen sweep`` compares with) sets each light's volumes
