@@ -30,7 +30,11 @@ sides' near edges) are moved ``NEAR_CAP_SHIFT`` of the scene's diagonal away fro
 along the light's rays: then the cap lies just behind the lit face (and, for an open object,
 behind its own lit triangle), whatever the depth precision or the clipping of the depth
 pre-pass, which a depth offset would have to cover and which would also move every place
-where a side crosses a receiver.  The shadows move by that distance, far below a pixel.
+where a side crosses a receiver.  The shadows move by that distance, far below a pixel when
+the scene is in view; a small object seen from very close in a large scene would show a gap of
+it at its contact shadow.  (Measured: 1e-4 of each object's own diagonal instead leaves a
+near cap in front of its face at 1 pixel of overlapping_spot_shadows at 320x180, 9 codes, and
+twice the shadow-edge pixels over 2 codes; the scene's diagonal, none.)
 
 Counting: the pass draws every triangle with depth clamping (no near or far clipping) and,
 where the depth test fails, back faces increment and front faces decrement the stencil (depth
