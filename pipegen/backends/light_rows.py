@@ -15,6 +15,11 @@ A group is formed only where that is the value each read would fetch:
   them would fetch rows the expression may never read: a guarded index may be out of range);
   they still use a group's local where one is already in scope.
 
+Given the material layout (``ir/material_layout.py``), ``materials[id].FIELD`` reads are grouped
+the same way, by (index, record row): the OpenCL wide path gathers each such row lane by lane
+once where the index varies per pixel.  The scalar emitters do not ask for them (their text
+reads each material field where it stands).
+
 Statements are named by paths: the statement's index in its block, after the path of the
 statement holding the block and the block's name (``then``, ``other``, ``body``):
 ``(2, "then", 0)`` is the first statement of the third statement's ``then``.  The emitters
@@ -28,6 +33,7 @@ from typing import Optional, Sequence
 
 from pipegen.ir import nodes as ir
 from pipegen.ir.light_layout import LightLayout, Place
+from pipegen.ir.material_layout import MaterialLayout
 from pipegen.ir.walk import child_exprs, walk_exprs, walk_stmts
 
 Path = tuple
@@ -45,28 +51,39 @@ class RowLoad:
     row: int
     block: Path                   # the block it is declared in
     start: int                    # ... before its statement ``start``
+    material: Optional[str] = None    # a material record's row: one field of it (the row's
+                                      # reads share its record offset and row)
 
 
 class RowPlan:
     """The row loads of one body, and which local each field read takes its value from."""
 
-    def __init__(self, loads: Sequence[RowLoad], layout: LightLayout):
-        self.layout = layout
+    def __init__(self, loads: Sequence[RowLoad], layout: LightLayout,
+                 materials: Optional[MaterialLayout] = None):
+        self.layout, self.materials = layout, materials
         self._before: dict[Path, list[RowLoad]] = {}
         self._groups: dict[tuple, RowLoad] = {}
         for load in loads:
             self._before.setdefault(load.block + (load.start,), []).append(load)
-            self._groups[(load.index, load.row)] = load
+            key = load.row if load.material is None else _material_row(materials, load.material)
+            self._groups[(load.index, key)] = load
 
     def loads_before(self, path: Path) -> list[RowLoad]:
         """The rows to load just before the statement at ``path``."""
         return self._before.get(path, [])
 
-    def local_for(self, path: Path, e: ir.LightField) -> Optional[tuple[str, Place]]:
+    def local_for(self, path: Path, e: "ir.LightField | ir.MaterialField"
+                  ) -> Optional[tuple[str, Place]]:
         """(local, place) of read ``e`` in the statement at ``path``, or None where no load
         of its row is in scope there (the read fetches the row itself)."""
-        place = self.layout.place(e.field)
-        load = self._groups.get((e.index, place.row))
+        if isinstance(e, ir.MaterialField):
+            if self.materials is None:
+                return None
+            place = self.materials.place(e.field)[1]
+            load = self._groups.get((e.index, _material_row(self.materials, e.field)))
+        else:
+            place = self.layout.place(e.field)
+            load = self._groups.get((e.index, place.row))
         if load is None:
             return None
         n = len(load.block)
@@ -75,16 +92,23 @@ class RowPlan:
         return load.name, place
 
 
-def plan_rows(body: Sequence[ir.Stmt], layout: LightLayout,
-              params: Sequence[str] = ()) -> RowPlan:
-    """The row loads of ``body`` (a function's, with parameter names ``params``, or a stage's)."""
+def plan_rows(body: Sequence[ir.Stmt], layout: LightLayout, params: Sequence[str] = (),
+              materials: Optional[MaterialLayout] = None) -> RowPlan:
+    """The row loads of ``body`` (a function's, with parameter names ``params``, or a stage's);
+    with ``materials`` (the technique's material layout) its material rows too."""
     unstable = _unstable_locals(body, params)
     uses: dict[tuple, list[Path]] = {}
+    fields: dict[tuple, str] = {}       # a material row's group -> one field of the row
 
     def visit(e: ir.Expr, path: Path, counted: bool) -> None:
         if isinstance(e, ir.LightField):
             if e.field != "index" and counted and _stable(e.index, unstable):
                 uses.setdefault((e.index, layout.place(e.field).row), []).append(path)
+        if isinstance(e, ir.MaterialField) and materials is not None:
+            if counted and _stable(e.index, unstable):
+                key = (e.index, _material_row(materials, e.field))
+                uses.setdefault(key, []).append(path)
+                fields.setdefault(key, e.field)
         if isinstance(e, ir.Ternary):
             visit(e.cond, path, counted)
             visit(e.then, path, False)
@@ -109,12 +133,24 @@ def plan_rows(body: Sequence[ir.Stmt], layout: LightLayout,
     several = len({index for index, _ in uses}) > 1
     keys = {index: n for n, index in enumerate(dict.fromkeys(index for index, _ in uses))}
     loads = []
-    for (index, row), paths in uses.items():
+    for (index, key), paths in uses.items():
         where, start = _placement(paths)
-        light = f"light{keys[index]}" if several else "light"
-        loads.append(RowLoad(f"pg_{light}_row{row}", index, row, where, start))
-    loads.sort(key=lambda l: (l.block, l.start, keys[l.index], l.row))
-    return RowPlan(loads, layout)
+        light = f"{keys[index]}" if several else ""
+        field = fields.get((index, key))
+        if field is None:
+            loads.append(RowLoad(f"pg_light{light}_row{key}", index, key, where, start))
+        else:                           # a material record's row: its number in the record
+            offset, row = key
+            row += offset * materials.light_rows
+            loads.append(RowLoad(f"pg_material{light}_row{row}", index, row, where, start, field))
+    loads.sort(key=lambda l: (l.block, l.start, keys[l.index], l.material is not None, l.row))
+    return RowPlan(loads, layout, materials)
+
+
+def _material_row(materials: MaterialLayout, field: str) -> tuple[int, int]:
+    """The group key of a material field's row: (light record offset, row in that record)."""
+    offset, place = materials.place(field)
+    return offset, place.row
 
 
 def _placement(paths: list[Path]) -> tuple[Path, int]:

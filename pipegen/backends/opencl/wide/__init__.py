@@ -29,14 +29,25 @@ None when the code uses what this form does not support (the pass then keeps the
   ``discard`` under a varying condition clears lanes of the returned live mask; ``break``
   and ``continue`` under a varying condition make the loop keep masks of the lanes that left
   it (it ends when all have), ``return`` under one a mask of the lanes that returned and
-  their values (the function is rendered again in that form).  Light-table reads at a
-  varying index (light-indexed shading: each lane its own light, measured 2-3x slower
-  wide), varying matrices, varying bit casts and integer division by a varying divisor are
-  not supported (None: the scalar path).  Passes whose estimated work per pixel (``cost``)
-  is below ``MIN_COST`` keep the scalar path too (the batching does not pay there), and the
-  raster kernel shades a triangle's row batch of fewer than ``WMIN`` pixels with the scalar
-  function.  A ``load``/``sample`` counts ``GATHER_COST`` against the estimate (0 since the
-  gathers are wide: see the constant).
+  their values (the function is rendered again in that form);
+- a table read at a varying index (``materials[id].f`` with ``id`` from the G-buffer, or
+  ``lights[i].f`` in light-indexed shading: each lane its own record) is a gather: the row
+  is loaded lane by lane into an array of ``W`` rows (``float4 r[8]``, lane ``j``'s the
+  scalar code's read at lane ``j``'s index; a light's record clamped to the table, since
+  lanes that do not use the light, under a mask, load one too), once per row per lane where
+  ``light_rows.py`` groups the reads (material rows as well as light rows), at the read
+  otherwise; a field is then ``(float8)(r[0].x, ..., r[7].x)``.
+  Varying matrices, varying bit casts and integer division by a varying divisor are not
+  supported (None: the scalar path).
+
+Passes whose estimated work per pixel (``cost``) is below ``MIN_COST`` keep the scalar path
+too (the batching does not pay there), and the raster kernel shades a triangle's row batch of
+fewer than ``WMIN`` pixels with the scalar function.  A ``load``/``sample`` counts
+``GATHER_COST`` against the estimate (0 since the gathers are wide: see the constant), a table
+row gathered lane by lane ``LANE_GATHER_COST`` (counted by the emitter, loops times their
+bounds): deferred_calver's light passes (two material rows against some 1500 of work) pay wide,
+light-indexed shading (LIDR's shade passes: 32-96 light rows, 57-121 of work per row) does
+not reliably and stays scalar (the measurements at the constant).
 
 Builtins the generated code calls with varying operands have ``W``-wide overloads in
 ``wide_helpers()`` (the prelude's definitions applied lane by lane, so the values are the
@@ -67,8 +78,8 @@ from pipegen.backends.opencl.wide.cost import cost, gathers
 from pipegen.backends.opencl.wide.emitter import WideEmitter
 from pipegen.backends.opencl.wide.values import MARK, W, Unsupported
 
-__all__ = ["W", "MARK", "MIN_COST", "GATHER_COST", "WMIN", "ENABLED", "CROSS_TRIANGLE",
-           "wide_fragment", "has_wide", "wide_helpers", "cost", "gathers"]
+__all__ = ["W", "MARK", "MIN_COST", "GATHER_COST", "LANE_GATHER_COST", "WMIN", "ENABLED",
+           "CROSS_TRIANGLE", "wide_fragment", "has_wide", "wide_helpers", "cost", "gathers"]
 
 # Measured (one pass's raster kernel alone, its scalar and wide programs interleaved in one
 # process, 640x360, 2 PoCL threads, medians of 15-21 runs on a shared 2-core machine; scalar
@@ -90,6 +101,25 @@ MIN_COST = 100              # below this estimated work per pixel, the scalar fu
 # wide (lane by lane through the scalar functions, 25 kept point_lights scalar, and forcing it
 # wide measured 35 vs 30 ms; with the wide gathers its kernel is 17-34 % faster wide, above)
 GATHER_COST = 0
+# what a table row read at a varying index (gathered lane by lane: W row loads; counted per
+# pixel, loops times their bounds, by the emitter) costs the wide form: the work a pass must do
+# per gathered row to go wide.  Measured with benchmarks/cl_wide_passes.py (raster kernel,
+# scalar and wide builds' frames interleaved, medians of 21 frames, 2 PoCL threads, load
+# average 4-5 on the shared 2-core machine: spreads of single-frame ratios in brackets),
+# wide/scalar, pass (cost, gathered rows):
+#   deferred_calver, calver_materials 320x180: directional_lights (1441, 2) 0.28 [0.12-2.96],
+#     point_lights (1515, 2) 0.22 [0.09-1.23], spot_lights (1537, 2) 0.18 [0.08-2.35];
+#     many_lights 320x180: point_lights 0.73 [0.38-1.16]
+#   forced wide (--force), 640x360, many_lights / mixed_lights:
+#     lidr_bitplanes shade (1826, 32)       0.85 [0.21-1.14] / 0.63 [0.41-1.05]
+#     lidr_shadow_indexed shade (11594, 96) 1.36 [0.64-3.13] / 1.10 [0.76-1.76]
+#     lidr_transparent shade_opaque (3649, 64) 1.05 [0.64-1.43] / 0.77 [0.40-1.92]
+#   and at 320x180 (15-31 frames): lidr_max_stencil shade (1730, 32) 1.02-1.03, lidr_cpu_sort
+#     shade (1662, 32) 0.90, lidr_bitplanes shade 0.95-0.99 / 0.43-0.67
+# Light-indexed shading is a loss as often as a gain (its slowest, shadow_indexed, has the most
+# work per row: its shadow lookups diverge too), so every LIDR shade pass (57-121 of work per
+# gathered row) stays scalar and material lookups (some 700 per row) go wide; 200 lies between
+LANE_GATHER_COST = 200
 WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by pixel
 # False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
 # before/after benchmarks); the emitted text then is the scalar path's alone
@@ -109,12 +139,17 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
             "sample_mask" in planlib.stage_inputs(p.body, functions):
         return None     # per-sample shading, coverage: the kernel calls the scalar function
     fmap = {f.name: f for f in functions}
-    if cost(p.body, fmap) - GATHER_COST * gathers(p.body, fmap) < MIN_COST:
+    work = cost(p.body, fmap) - GATHER_COST * gathers(p.body, fmap)
+    if work < MIN_COST:
         return None
+    emitter = WideEmitter(tech, p, lang)
     try:
-        return WideEmitter(tech, p, lang).fragment(functions)
+        text = emitter.fragment(functions)
     except Unsupported:
         return None
+    if work - LANE_GATHER_COST * emitter.pass_gathers < MIN_COST:
+        return None
+    return text
 
 
 def has_wide(fragment: Optional[str]) -> bool:

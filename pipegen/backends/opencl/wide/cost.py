@@ -33,9 +33,7 @@ def cost(body, functions: dict) -> int:
         n = 0
         for s in body:
             if isinstance(s, ir.For):
-                b = s.bound.value if isinstance(s.bound, ir.Const) else 8
-                a = s.start.value if isinstance(s.start, ir.Const) else 0
-                n += max(1, int(b) - int(a)) * stmts(s.body)
+                n += iterations(s) * stmts(s.body)
             elif isinstance(s, ir.If):
                 n += expr(s.cond) + stmts(s.then) + stmts(s.other)
             else:
@@ -44,6 +42,13 @@ def cost(body, functions: dict) -> int:
         return n
 
     return stmts(body)
+
+
+def iterations(s: ir.For) -> int:
+    """The iterations a loop is counted with (its constant bounds', 8 for others)."""
+    b = s.bound.value if isinstance(s.bound, ir.Const) else 8
+    a = s.start.value if isinstance(s.start, ir.Const) else 0
+    return max(1, int(b) - int(a))
 
 
 def gathers(body, functions: dict) -> int:

@@ -25,11 +25,14 @@ class WideEmitter(WideStatements, WideExpressions):
         # a function a discarded render emitted is put back without rendering it again
         self.emitted: dict[str, list] = {}
         self.rows, self.path = None, ()     # the body's light-row loads (light_rows.py)
+        self.func_gathers: dict[str, int] = {}   # specialised name -> its lane_gathers
+        self.pass_gathers = 0       # table rows a pixel of the pass gathers lane by lane
 
     # ---- entry -------------------------------------------------------------------------------
     def fragment(self, functions) -> str:
         self.functions = {f.name: f for f in functions}
         body = self._function_body(self.pass_.body, {}, main=True)
+        self.pass_gathers = self.lane_gathers
         lines = [f"static inline int{W} pg_fragment_w(const pg_in *in, const pgw_in *win, "
                  "pgw_out *out) {", f"    int{W} pg_live = (int{W})(-1);", *body,
                  "    return pg_live;", "}"]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from pipegen.ir import expand, nodes as ir
 from pipegen.ir.builtins import BIT_CAST_BUILTINS
+from pipegen.ir.material_layout import technique_material_layout
 from pipegen.ir.nodes import Scalar, Type
 from pipegen.backends.cstyle import guard_call_args, guard_construct_args, guard_shift_count
 from pipegen.backends.opencl.expansions import c_text
@@ -206,49 +207,90 @@ class WideExpressions:
             acc = f"({i} == {k} ? {b.comps[k]} : {acc})"
         return Val([acc], e.type, base.varying)
 
-    def _light_index(self, index: "ir.Expr | None") -> tuple[str, ir.Type]:
-        """A light-table index as (uniform text, its type): the light being drawn for None."""
+    def table_row(self, index: "ir.Expr | None", row_of,
+                  name: "str | None" = None) -> tuple[str, bool]:
+        """A row of the light table (a ``float4`` texel) at ``index`` (None: the light being
+        drawn), as (text, lanes).  Uniform: ``row_of(index text, index type, False)``.  At a
+        varying index the row is gathered lane by lane into a local array of ``W`` rows
+        (lanes True; ``name``: the array's, else a temporary), lane ``j``'s row
+        ``row_of(lane j's index, type, True)``: the scalar code's read at that lane's index."""
         if index is None:
-            return self.lang.render_current_light(), ir.UINT
+            return row_of(self.lang.render_current_light(), ir.UINT, False), False
         iv = self.expr(index)
-        if iv.varying:
-            # each lane its own light (light-indexed shading): measured 2-3x slower than
-            # the scalar function (gathers, and every light type's branch for all lanes)
-            raise Unsupported("varying light index")
-        return iv.comps[0], index.type
+        if not iv.varying:
+            return row_of(iv.comps[0], index.type, False), False
+        i = self.tmp(iv).comps[0]
+        if name is None:
+            self.ntmp += 1
+            name = f"pg_wt{self.ntmp}"
+        rows = ", ".join(row_of(f"{i}.s{j}", index.type, True) for j in range(W))
+        self.lane_gathers += self.loop_weight
+        self.pre.append(f"const {self.lang.type_name(ir.VEC4)} {name}[{W}] = {{{rows}}};")
+        return name, True
+
+    def light_row_of(self, row: int):
+        """``row_of`` for ``table_row``: row ``row`` of a light's record.  A lane's record is
+        clamped to the table: a lane that does not use the light still loads its row (LIDR's
+        ``i - 1u`` of an empty slot, under a lane mask); one that uses it reads the record
+        the scalar code reads."""
+        def row_of(index: str, itype: Type, lane: bool) -> str:
+            if itype != ir.INT:
+                index = self.lang.render_construct(ir.INT, [index], [itype])
+            if lane:
+                index = f"clamp({index}, 0, {self._table_records() - 1})"
+            return self.lang.render_light_row(index, row)
+        return row_of
+
+    def _table_records(self) -> int:
+        """Records in the light table: its lights, then the material records (runtime's
+        ``light_table.table_records``)."""
+        n = max(1, self.tech.lights.capacity)
+        if self.tech.materials is not None:
+            n += technique_material_layout(self.tech).records
+        return n
 
     def _lightfield(self, e: ir.LightField) -> Val:
-        local = None
-        if e.field != "index" and self.rows is not None:
-            local = self.rows.local_for(self.path, e)     # its row, loaded once (light_rows.py)
-        if local is not None:
-            return self._row_field(local[0], local[1], e.type)
-        index, itype = self._light_index(e.index)
         if e.field == "index":
-            c = index if itype == e.type else self.lang.render_construct(e.type, [index], [itype])
-            return Val([c], e.type, False)
-        if itype != ir.INT:
-            index = self.lang.render_construct(ir.INT, [index], [itype])
+            if e.index is None:
+                index, itype = Val([self.lang.render_current_light()], ir.UINT, False), ir.UINT
+            else:
+                index, itype = self.expr(e.index), e.index.type
+            c = self._convert(index.comps[0], itype.scalar, e.type.scalar, index.varying)
+            return Val([c], e.type, index.varying)
         place = self.lang.light_layout.place(e.field)
-        return self._row_field(self.lang.render_light_row(index, place.row), place, e.type)
+        local = None if self.rows is None else self.rows.local_for(self.path, e)
+        if local is not None:       # its row, loaded once (light_rows.py)
+            return self._row_field(local[0], place, e.type, local[0] in self.lane_rows)
+        row, lanes = self.table_row(e.index, self.light_row_of(place.row))
+        return self._row_field(row, place, e.type, lanes)
 
     def _materialfield(self, e: ir.MaterialField) -> Val:
-        iv = self.expr(e.index)
-        if iv.varying:
-            # each lane its own object: a gather per lane, like a varying light index
-            raise Unsupported("varying material index")
-        row, place = self.lang.material_row(e.field, iv.comps[0], e.index.type)
-        return self._row_field(row, place, e.type)
+        local = None if self.rows is None else self.rows.local_for(self.path, e)
+        if local is not None:       # its row, loaded once (light_rows.py)
+            return self._row_field(local[0], local[1], e.type, local[0] in self.lane_rows)
+        place = technique_material_layout(self.tech).place(e.field)[1]
+        row, lanes = self.table_row(e.index, self.material_row_of(e.field))
+        return self._row_field(row, place, e.type, lanes)
 
-    def _row_field(self, row: str, place, t: Type) -> Val:
-        """The components of a light field at ``place`` of ``row`` (uniform)."""
-        comps = []
-        for k in place.components:
-            c = f"{row}.{k}"
-            if t.scalar is not Scalar.FLOAT:
-                c = self.lang.render_construct(Type(t.scalar), [c], [ir.FLOAT])
-            comps.append(c)
-        return Val(comps, t, False)
+    def material_row_of(self, field: str):
+        """``row_of`` for ``table_row``: the row holding material ``field`` (the scalar
+        code's read: the id clamped to the table's ids, so every lane's is in the table)."""
+        return lambda index, itype, lane: self.lang.material_row(field, index, itype)[0]
+
+    def _row_field(self, row: str, place, t: Type, lanes: bool = False) -> Val:
+        """The components of a table field at ``place`` of ``row``: a uniform row's, or (lanes)
+        those of ``row``'s ``W`` lane rows, each lane converted as the scalar code does."""
+        def conv(c: str) -> str:
+            if t.scalar is Scalar.FLOAT:
+                return c
+            return self.lang.render_construct(Type(t.scalar), [c], [ir.FLOAT])
+        if not lanes:
+            return Val([conv(f"{row}.{k}") for k in place.components], t, False)
+        if t.scalar is Scalar.BOOL:
+            raise Unsupported("boolean table field at a varying index")
+        wide = C_TYPES_W[t.scalar]
+        return Val([f"(({wide})({', '.join(conv(f'{row}[{j}].{k}') for j in range(W))}))"
+                    for k in place.components], t, True)
 
     def _gather(self, fn: str, args: list, t: Type) -> Val:
         self.ntmp += 1

@@ -12,13 +12,16 @@ from typing import Optional
 from pipegen.ir import nodes as ir
 from pipegen.ir.nodes import VEC4, Scalar, Type
 from pipegen.backends.light_rows import plan_rows
+from pipegen.ir.material_layout import technique_material_layout
+from pipegen.backends.opencl.wide.cost import iterations
 from pipegen.backends.opencl.wide.values import C_TYPES, W, Unsupported, Val, ctype, widen
 
 # what a function's rendering sets on the emitter: saved and restored around the rendering of
 # a function it calls
 _STATE = ("varying_locals", "env", "fixed", "mask", "dyn", "loop_masks", "loops",
           "masked_loops", "retmode", "main", "ret_type", "ret_varying", "returned_varying",
-          "ntmp", "pre", "final_ret_varying", "dirty", "rows", "path")
+          "ntmp", "pre", "final_ret_varying", "dirty", "rows", "path", "lane_rows",
+          "lane_gathers", "loop_weight")
 
 
 class _Restart(Exception):
@@ -42,8 +45,10 @@ class WideStatements:
         retmode = False
         kept = (len(self.structs), len(self.out_funcs))
         layout = self.lang.light_layout
-        # each light-table row read once (light_rows.py), as the scalar emitter does
-        self.rows = None if layout is None else plan_rows(body, layout, list(params))
+        materials = None if self.tech.materials is None else technique_material_layout(self.tech)
+        # each light-table row read once (light_rows.py), as the scalar emitter does, and
+        # each material row: read at a varying index, a row is a gather of W rows
+        self.rows = None if layout is None else plan_rows(body, layout, list(params), materials)
         for _ in range(200):
             _truncate(self.structs, kept[0])
             _truncate(self.out_funcs, kept[1])
@@ -63,6 +68,10 @@ class WideStatements:
             self.pre: list[str] = []
             self.dirty = False
             self.path = ()
+            self.lane_rows: set = set()      # the rows' locals gathered lane by lane
+            # table rows a pixel gathers lane by lane, loops counted with their bounds (as
+            # cost.py counts them) and calls with their functions' (the wide path's choice)
+            self.lane_gathers, self.loop_weight = 0, 1
             head: list[str] = []
             if retmode:
                 head.append(f"    int{W} pg_wdone = (int{W})(0);")
@@ -155,15 +164,19 @@ class WideStatements:
         return out
 
     def _row_loads(self, depth: int) -> list[str]:
-        """The light-table rows loaded before the current statement (uniform: one light)."""
+        """The table rows loaded before the current statement: a uniform index's row, or a
+        varying index's ``W`` rows, one per lane (``table_row``)."""
         lines = []
         for load in [] if self.rows is None else self.rows.loads_before(self.path):
-            index, itype = self._light_index(load.index)
-            if itype != ir.INT:
-                index = self.lang.render_construct(ir.INT, [index], [itype])
-            row = self.lang.render_light_row(index, load.row)
-            lines += self._flush(depth, [f"{'    ' * depth}const {self.lang.type_name(VEC4)} "
-                                         f"{load.name} = {row};"])
+            row_of = (self.light_row_of(load.row) if load.material is None
+                      else self.material_row_of(load.material))
+            row, lanes = self.table_row(load.index, row_of, load.name)
+            if lanes:
+                self.lane_rows.add(load.name)
+                lines += self._flush(depth, [])
+            else:
+                lines += self._flush(depth, [f"{'    ' * depth}const "
+                                             f"{self.lang.type_name(VEC4)} {load.name} = {row};"])
         return lines
 
     def _flush(self, depth: int, lines: list[str]) -> list[str]:
@@ -259,10 +272,13 @@ class WideStatements:
             key = id(s)
             self.loop_masks.append(self.mask)
             self.loops.append(key)
+            weight = self.loop_weight
+            self.loop_weight *= iterations(s)
             if key not in self.masked_loops:
                 body = self._block(s.body, depth + 1, "body")
                 self.loop_masks.pop()
                 self.loops.pop()
+                self.loop_weight = weight
                 return head + body + [f"{pad}}}"]
             # lanes leave the loop (break) or the iteration (continue) under masks; the loop
             # ends when every lane has left
@@ -276,6 +292,7 @@ class WideStatements:
             self.dyn = self.dyn[:-2]
             self.loop_masks.pop()
             self.loops.pop()
+            self.loop_weight = weight
             left = " | ".join([brk] + [d for d in self.dyn if d == "pg_wdone"])
             return (head + [f"{pad}    int{W} {cont} = (int{W})(0);"] + body
                     + [f"{pad}    if (pgw_all({left})) break;", f"{pad}}}"])
@@ -417,6 +434,7 @@ class WideStatements:
             self._emit_function(f, flags, spec)
             self.emitted[spec] = [(table, k, t) for table, old in zip(
                 (self.structs, self.out_funcs), before) for k, t in table.items() if k not in old]
+        self.lane_gathers += self.func_gathers[spec] * self.loop_weight
         ret = self.func_ret[spec]
         args = ["in", "win"] + [c for v in vals for c in v.comps]
         call = f"{spec}({', '.join(args)})"
@@ -447,6 +465,7 @@ class WideStatements:
         try:
             body = self._function_body(f.body, params, main=False, ret=f.ret)
             rv = self.final_ret_varying
+            self.func_gathers[spec] = self.lane_gathers
         finally:
             for k, v in saved.items():
                 setattr(self, k, v)
