@@ -4,8 +4,9 @@ draw, cached and shared (see ``cl_pipeline``'s docstring for the sharing rules).
 
 ``DrawGeometry(device, plan, tile).pass_triangles(k, pass, width, height, timing, lights)``
 returns the set-up triangles (``Geo``: host arrays and device buffers) and the pass's tile
-bins (``cl_bin.DeviceBins``, binned on the device; ``Bins`` where numpy bins them: the groups
-of ``repeat per light`` passes, and every draw with ``$PIPEGEN_CL_DEVICE_BIN=0``), or None
+bins (``cl_bin.DeviceBins``, binned on the device; ``group_bins.LightBins`` for the lights of
+a ``repeat per light`` group, binned in numpy at once; ``Bins`` where numpy bins a draw on its
+own, every one with ``$PIPEGEN_CL_DEVICE_BIN=0``), or None
 when the pass draws no triangle (bins may still hold no tile: the raster launch checks).
 ``begin_frame(state)`` drops the per-frame caches and takes the frame's ``FrameState``;
 ``use_scene()`` drops the scene's attribute buffers.  The geometry sees the pipeline only
@@ -36,6 +37,7 @@ from pipegen.runtime.cl import (
     bin as cl_bin, context as cl_context, setup_device as cl_setup_device)
 from pipegen.runtime import draws
 from pipegen.runtime.cl.device import Device
+from pipegen.runtime.cl.group_bins import GroupBins
 from pipegen.runtime.cl.setup import bin_pairs, bin_triangles, bins_from_pairs, setup_triangles
 from pipegen.runtime.cl.transfers import write
 
@@ -389,14 +391,12 @@ class DrawGeometry:
         starts = np.zeros((len(batch), ntiles + 1), np.int32)
         np.cumsum(counts, axis=1, out=starts[:, 1:])
         first = np.concatenate([[0], np.cumsum(starts[:, -1])])
-        occupied = counts > 0
+        # one upload of each of the group's arrays, each light's bins views into them
+        group = GroupBins(self.device, starts, first, counts > 0, tile_tris, geo.index)
         drawn = _drawn(geo, spans, cull)
         for j, light in enumerate(batch):
-            n = int(drawn[j])
-            own = tile_tris[first[j]:first[j + 1]]
-            self.frame[("bins", id(geo.tris), (int(light),), cull.value, width, height)] = Bins(
-                self.device, starts[j], own if len(own) else np.zeros(1, np.int32), tiles_x, n,
-                np.flatnonzero(occupied[j]), geo.index)
+            self.frame[("bins", id(geo.tris), (int(light),), cull.value, width, height)] = \
+                group.light(j, tiles_x, int(drawn[j]))
         timing["bin"] = (time.perf_counter() - t0) * 1e3
 
     def _bins(self, geo: Geo, cache: dict, width: int, height: int, timing: dict):
