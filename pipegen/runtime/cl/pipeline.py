@@ -199,6 +199,7 @@ class CLPipeline:
         self._events: list = []
         self._int2s: dict = {}
         self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
+        self._prefetched: set = set()   # per frame: the light passes whose set-up is queued
         self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
 
     def release(self) -> None:
@@ -332,6 +333,7 @@ class CLPipeline:
         captures: list[dict] = []
         runs = self._selection.schedule()
         self._shadows = {}
+        self._prefetched = set()
         for k, light in runs:      # every vertex kernel before the first raster kernel
             self._prefetch(k, light)
         self.geometry.clip_pending()
@@ -420,9 +422,14 @@ class CLPipeline:
         p = self.plan.passes[k]
         lights = None
         if p.draw.kind is ir.DrawKind.LIGHTS:
+            # a light draw sets up its pass's whole light list at once (an instance's lights
+            # are in it: ``DrawGeometry._light_batch``): once per pass, not per light
+            if k in self._prefetched:
+                return
             lights = self._selection.instance(p, light)
             if not lights:
                 return
+            self._prefetched.add(k)
         width, height = self._pass_size(p)
         shadow = self._shadow_view(p, light, width, height) if p.draw.shadow else None
         volume = light if p.draw.shadow_volumes else None
