@@ -563,3 +563,22 @@ def test_quad_volume():
     assert np.all(meshes.face_normals(p.astype(np.float64))[:, 2] == 1.0)
     with pytest.raises(ValueError):
         meshes.light_volume("torus")
+
+
+def test_view_matrix_is_the_look_at_numpy_builds():
+    """``Camera.view_matrix`` takes its cross products by hand (``model._cross``): bit for bit
+    the look-at ``np.cross`` gives, on random cameras across scales."""
+    from pipegen.scene.model import Camera
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        eye, target, up = (tuple(rng.normal(size=3) * 10.0 ** rng.uniform(-3, 3))
+                           for _ in range(3))
+        e = np.asarray(eye, np.float64)
+        f = np.asarray(target, np.float64) - e
+        f /= np.linalg.norm(f)
+        s = np.cross(f, np.asarray(up, np.float64))
+        s /= np.linalg.norm(s)
+        m = np.eye(4)
+        m[0, :3], m[1, :3], m[2, :3] = s, np.cross(s, f), -f
+        m[:3, 3] = -m[:3, :3] @ e
+        assert np.array_equal(Camera(eye, target, up).view_matrix(), m)

@@ -179,6 +179,7 @@ class CLPipeline:
         self.ctx, self.queue = cl_context.get_context(
             cache_dir, key=f"{plan.technique}:{plan.source}")
         self.targets_spec = {t.name: t for t in plan.targets}
+        self._light_rows = schema_layout(plan.lights.fields).rows     # rows a light takes
         self.store = TargetStore(self.ctx, self.queue, plan, alias)
         self.last_timings: list[dict] = []
         self._blend_counts: Optional[dict[str, np.ndarray]] = {}
@@ -293,9 +294,11 @@ class CLPipeline:
         view = cam.view_matrix()
         proj = cam.projection(out_w / out_h)
         prev = getattr(scene, "prev_camera", cam)
-        fr, f8 = _frame_structs(view, proj, prev.view_matrix(), prev.projection(out_w / out_h),
-                                cam.position, scene.ambient, (out_w, out_h), len(scene.lights),
-                                light, schema_layout(self.plan.lights.fields).rows, self.f64)
+        prev_view, prev_proj = (view, proj) if prev is cam else (
+            prev.view_matrix(), prev.projection(out_w / out_h))
+        fr, f8 = _frame_structs(view, proj, prev_view, prev_proj, cam.position, scene.ambient,
+                                (out_w, out_h), len(scene.lights), light, self._light_rows,
+                                self.f64)
         return fr, f8, view, proj
 
     # -- rendering ----------------------------------------------------------------------------------
