@@ -89,6 +89,25 @@ def test_unknown_axis_and_disallowed_value_are_errors():
         plan_variants([INFERRED], {"lbuffer_scale": [0.3]})
 
 
+def test_pareto_labels_name_what_tells_the_points_apart():
+    """A parameter set to one value wherever it appears (shadow_size=768 on every technique)
+    is left out of the plot's labels; the ones that vary stay, led by the technique's name
+    when the sweep has several files; long labels wrap."""
+    from pipegen.tools.sweep.pareto import point_labels
+    rows = [{"technique": "a", "params": "taps=1 size=768"},
+            {"technique": "a", "params": "taps=4 size=768"},
+            {"technique": "b", "params": "size=768"},
+            {"technique": "c", "params": ""}]
+    got = point_labels(rows, several_files=True)
+    assert [got[id(r)] for r in rows] == ["a taps=1", "a taps=4", "b", "c"]
+    one = point_labels(rows[:2], several_files=False)
+    assert [one[id(r)] for r in rows[:2]] == ["taps=1", "taps=4"]
+    pair = [{"technique": "t", "params": "alpha=1 beta=2 gamma=3"},
+            {"technique": "t", "params": "alpha=2 beta=3 gamma=4"}]
+    assert point_labels(pair, several_files=False, width=16)[id(pair[0])] == \
+        "alpha=1 beta=2\ngamma=3"
+
+
 def test_pareto_front():
     pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 6.0), (0.5, 20.0), (2.0, 4.0), (math.nan, 1.0)]
     assert pareto_front(pts) == [3, 0, 4]

@@ -93,6 +93,7 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
     files = sorted({r["file"] for r in result.rows}, key=[r["file"] for r in result.rows].index)
     colours = {f: plt.get_cmap("tab10")(i % 10) for i, f in enumerate(files)}
     names = {"gl": "GL (llvmpipe)", "cl": "CL (PoCL)"}
+    labels = point_labels(result.rows, several_files=len(files) > 1)
     for ax, b in zip(axes[0], backends):
         rows = [r for r in result.rows if r["backend"] == b]
         pts = [(r["rmse_scene"], r["frame_ms"] if timed else mebibytes(r["target_bytes"]))
@@ -105,9 +106,7 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
                        edgecolors="black" if r["agree"] is False else "none")
             if spans is not None and spans[i][0] != spans[i][1]:
                 ax.plot([x, x], spans[i], color="0.25", linewidth=1, zorder=2)
-            label = r["params"] or r["technique"]
-            if len(files) > 1 and r["params"]:
-                label = f"{r['technique']} {r['params']}"
+            label = labels[id(r)]
             # neighbours in y alternate above and below their points: fewer overlaps
             ax.annotate(label, (x, y), textcoords="offset points",
                         xytext=(5, 3 if rank % 2 == 0 else -9), ha="left", fontsize=7)
@@ -148,6 +147,27 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def point_labels(rows: list[dict], several_files: bool, width: int = 38) -> dict[int, str]:
+    """Each row's label (by ``id(row)``): the parameters that tell it from the other rows,
+    wrapped; a parameter set to one value in every row that has it (``-p shadow_size=768`` on
+    every technique) says nothing and is left out (the table lists it).  With several files
+    the technique's name leads (its colour is in the legend too)."""
+    import textwrap
+    parsed = {id(r): dict(kv.split("=", 1) for kv in r["params"].split() if "=" in kv)
+              for r in rows}
+    values: dict[str, set] = {}
+    for d in parsed.values():
+        for k, v in d.items():
+            values.setdefault(k, set()).add(v)
+    out = {}
+    for r in rows:
+        varying = " ".join(f"{k}={v}" for k, v in parsed[id(r)].items() if len(values[k]) > 1)
+        label = f"{r['technique']} {varying}".strip() if several_files or not varying \
+            else varying
+        out[id(r)] = textwrap.fill(label, width)
+    return out
 
 
 def _span(row: dict, y: float) -> tuple[float, float]:
