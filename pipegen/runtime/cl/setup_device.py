@@ -84,6 +84,13 @@ class _Job:
         return int(self.head[0])
 
 
+@dataclasses.dataclass
+class _HostBlock:
+    """The buffer holding a set-up's read-back fields, and each one's byte offset in it."""
+    buf: object
+    offsets: dict
+
+
 class DeviceSetup:
     def __init__(self, ctx, queue, pool: Optional["cl_context.FramePool"] = None):
         """``pool``: where the jobs' buffers come from (``DrawGeometry``'s frame pool; by
@@ -134,8 +141,13 @@ class DeviceSetup:
             return cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=np.ascontiguousarray(a))
 
-        status_buf = buf(n)
-        bufs = {name: buf(n * np.dtype(dt).itemsize * int(np.prod(shape)))
+        # the fields the host reads back (HOST_FIELDS, then the statuses) share one buffer,
+        # each a sub-buffer at an aligned offset: one read-back instead of three
+        layout = {name: (np.dtype(dt), shape) for name, dt, shape in _FIELDS}
+        block, views = self._host_block(n, layout)
+        status_buf = views.pop("status")
+        bufs = {name: views[name] if name in views
+                else buf(n * np.dtype(dt).itemsize * int(np.prod(shape)))
                 for name, dt, shape in _FIELDS}
         coef_buf = buf(n * K * 3 * 16)
         zq_buf = buf(n * 32 if with_zq else 16)
@@ -153,17 +165,15 @@ class DeviceSetup:
         if ntris:
             events.append(cl.enqueue_nd_range_kernel(self.queue, kern,
                                                      (((ntris + 63) // 64) * 64,), (64,)))
-        status = np.zeros(ntris, np.uint8)
-        layout = {name: (np.dtype(dt), shape) for name, dt, shape in _FIELDS}
         layout["coef"] = (np.dtype(f32), (K, 3, 4))
         if with_zq:
             layout["zq"] = (np.dtype(np.float64), (4,))
-        out = {name: np.empty((ntris,) + layout[name][1], layout[name][0])
-               for name in HOST_FIELDS}
+        host = np.empty(block.offsets["status"] + ntris, np.uint8)
+        status = host[block.offsets["status"]:]
+        out = {name: host[block.offsets[name]:block.offsets[name] + ntris * 16].view(
+            layout[name][0]).reshape((ntris,) + layout[name][1]) for name in HOST_FIELDS}
         if ntris:
-            events.append(cl.enqueue_copy(self.queue, status, status_buf, is_blocking=False))
-            for name, arr in out.items():
-                events.append(cl.enqueue_copy(self.queue, arr, bufs[name], is_blocking=False))
+            events.append(cl.enqueue_copy(self.queue, host, block.buf, is_blocking=False))
         params = dict(width=W, height=H, cull=cull, depth_clamp=depth_clamp, flat=flat,
                       scissor=scissor, samples=samples, smooth=list(smooth),
                       pixel_center=pixel_center, w_plane=w_plane, viewport=viewport,
@@ -171,8 +181,25 @@ class DeviceSetup:
         fields = dict(bufs, coef=coef_buf)
         if with_zq:
             fields["zq"] = zq_buf
-        return _Job(events, [status_buf, dummy], fields, n, status, out, layout, params,
-                    clip_kern, head, clip_buf, vary_buf, inputs, int(slots))
+        return _Job(events, [block.buf, status_buf, dummy], fields, n, status, out, layout,
+                    params, clip_kern, head, clip_buf, vary_buf, inputs, int(slots))
+
+    def _host_block(self, rows: int, layout: dict):
+        """One pool buffer for ``rows`` rows of each of ``HOST_FIELDS`` (16-byte rows), then
+        ``rows`` status bytes, each at an offset of the device's base address alignment (what
+        a sub-buffer's origin must be a multiple of): (``_HostBlock``, {name: its sub-buffer},
+        "status" included)."""
+        assert all(layout[name][0].itemsize * int(np.prod(layout[name][1])) == 16
+                   for name in HOST_FIELDS)
+        align = max(16, self.ctx.devices[0].mem_base_addr_align // 8)
+        sizes = {**{name: rows * 16 for name in HOST_FIELDS}, "status": max(16, rows)}
+        offsets, at = {}, 0
+        for name, size in sizes.items():
+            offsets[name] = at
+            at += -(-size // align) * align
+        block = _HostBlock(self.pool.buffer(at), offsets)
+        return block, {name: block.buf.get_sub_region(offsets[name], size)
+                       for name, size in sizes.items()}
 
     def finish(self, job: _Job):
         """Wait for ``job``, clip and set up its clipped triangles, and return ``(tris, bufs,
