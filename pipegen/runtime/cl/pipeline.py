@@ -181,7 +181,8 @@ class CLPipeline:
         self.targets_spec = {t.name: t for t in plan.targets}
         self._light_rows = schema_layout(plan.lights.fields).rows     # rows a light takes
         self.store = TargetStore(self.ctx, self.queue, plan, alias)
-        self.last_timings: list[dict] = []
+        self._timings: list[dict] = []      # ``last_timings``
+        self._timings_pending = False       # raster times still to read from ``_events``
         self._blend_counts: Optional[dict[str, np.ndarray]] = {}
         self._blend_count_bufs: dict = {}
         # every pass's program is built here, none during a frame (a PoCL build takes 0.3-3 s)
@@ -324,7 +325,7 @@ class CLPipeline:
         self._use_scene(scene)
         self.prepare(scene)
         self.clamp_counters.start_frame()
-        self.last_timings = []
+        self._timings, self._timings_pending = [], False
         self._events = []
         self._frame_np, self._frame64_np, view, proj = self._frame(scene)
         self._frame_buf = self.device.buffer(self._frame_np)
@@ -365,9 +366,9 @@ class CLPipeline:
         if cl_clamps.collecting():
             cl_clamps.note(self.last_clamps, self.precision)
         self.queue.finish()
-        for timing, ev in self._events:          # raster kernels run while the host goes on
-            timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
-        self._events = []
+        # the raster kernels' times are read when ``last_timings`` is first asked for: two
+        # profiling queries per launch (~6 us each; deferred launches 165 a frame)
+        self._timings_pending = True
 
     def _run_pass_observed(self, k: int, light: Optional[int], captures: Optional[list]):
         """One pass execution on its own: with ``profile``, the queue drained before and after
@@ -386,6 +387,16 @@ class CLPipeline:
             captures.append({"pass": self.plan.passes[k].name, "light": light,
                              "targets": self.store.read_all(),
                              "blend_counts": self.store.read_blend_counts()})
+
+    @property
+    def last_timings(self) -> list[dict]:
+        """The last frame's per-pass times (the module docstring), the raster kernels'
+        read from their events on first use."""
+        if self._timings_pending:
+            for timing, ev in self._events:
+                timing["raster"] = (ev.profile.end - ev.profile.start) * 1e-6
+            self._events, self._timings_pending = [], False
+        return self._timings
 
     @property
     def last_blend_counts(self) -> dict[str, np.ndarray]:
@@ -472,7 +483,7 @@ class CLPipeline:
         timing = {"pass": p.name, "light": light}
         if batch is not None:
             timing["lights"] = len(batch)
-        self.last_timings.append(timing)
+        self._timings.append(timing)
         lights, drawn = None, None
         if p.draw.kind is ir.DrawKind.LIGHTS:
             lights = self._selection.instance(p, light)
