@@ -86,9 +86,9 @@ def test_the_compiler_pipelines_are_data():
     for pipeline in (pipelines.GENERAL, pipelines.SCENE):
         assert isinstance(pipeline, tuple)
         assert all(isinstance(s, (Pass, Fixpoint)) for s in pipeline)
-    assert pass_names(pipelines.GENERAL) == ["specialise", "fold", "prune"]
+    assert pass_names(pipelines.GENERAL) == ["specialise", "fold", "prune", "hoist"]
     assert compile_file(FORWARD).phases_run == ["lower", "validate", "specialise", "fold",
-                                                "prune"]
+                                                "prune", "hoist"]
     clear_cache()
     special = compile_file(FORWARD, scene=load_scene(SMALL))
     runs = special.phases_run

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import functools
 
-from pipegen.passes import opt_fold_constants, opt_unused_functions, specialise_params
+from pipegen.passes import (opt_fold_constants, opt_hoist_invariants, opt_unused_functions,
+                            specialise_params)
 from pipegen.passes.manager import Fixpoint, Pass, Pipeline, pass_names
 
 GENERAL: Pipeline = (
     Pass("specialise", specialise_params.run),
     Pass("fold", opt_fold_constants.run),
     Pass("prune", opt_unused_functions.run),
+    Pass("hoist", opt_hoist_invariants.run),
 )
 
 

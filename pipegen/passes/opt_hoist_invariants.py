@@ -1,0 +1,255 @@
+"""opt_hoist_invariants: compute once per pixel what a loop recomputes every iteration.
+
+forward's light loop calls ``shade_table_light(i, world_pos, …)``, which passes ``p`` down to
+``blinn_phong_along``, which normalises ``camera_pos - p``: the same view vector for every
+light.  A hand-written shader computes it once before the loop; no shader compiler can, since
+llvmpipe and PoCL inline the calls but do not move code out of loops.  Two steps:
+
+1. lift (repeated until nothing lifts): in a function called, directly or not, from inside a
+   loop, a builtin call whose operands are only constants, stage inputs, technique parameters
+   and the function's never-assigned parameters becomes a new parameter (``pg_invN``); every
+   call site passes that call with the parameters replaced by its arguments.  Only where, at
+   every call site, those arguments are of the same kind in the caller (else the function is
+   left as it is).  So the call climbs the chain: ``blinn_phong_along`` -> ``light_any`` ->
+   ``shade_table_light`` -> the pass body, as ``normalize(camera_pos - world_pos)``.
+2. hoist: in a pass or function body, such a builtin call inside a loop (in the pass body:
+   constants, stage inputs and technique parameters only; in a function, its never-assigned
+   parameters too) is declared once before the outermost loop holding it and read there.
+
+Builtins are pure and total (no traps, no side effects), so evaluating one earlier, once, or
+where a branch would have skipped it gives the same value: every result is bit for bit what it
+was (tests/test_hoist_invariants.py, tests/test_light_table_images.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable, Iterable, Optional
+
+from pipegen.ir import nodes as ir, walk as irwalk
+
+_ROUNDS = 16        # a call climbs one function per round; chains are a few functions deep
+
+
+def run(tech: ir.Technique) -> ir.Technique:
+    for _ in range(_ROUNDS):
+        lifted = _lift(tech)
+        if lifted is tech:
+            break
+        tech = lifted
+    return _hoist(tech)
+
+
+# -- what is invariant -------------------------------------------------------------------------
+def _invariant(e: ir.Expr, fixed: frozenset) -> bool:
+    """Whether ``e`` is built from constants, stage inputs, technique parameters, the locals
+    named in ``fixed`` (never assigned) and builtin calls only."""
+    if isinstance(e, ir.Const):
+        return True
+    if isinstance(e, ir.Var):
+        return e.kind in ("input", "param") or e.name in fixed
+    if isinstance(e, ir.Call) and not e.builtin:
+        return False
+    if isinstance(e, (ir.Unary, ir.Binary, ir.Ternary, ir.Call, ir.Construct, ir.Swizzle,
+                      ir.Index)):
+        return all(_invariant(c, fixed) for c in irwalk.child_exprs(e))
+    return False        # light and material fields, loads, samples, target sizes
+
+
+def _candidates(stmts: Iterable[ir.Stmt], movable: Callable[[ir.Call], bool]) -> list[ir.Call]:
+    """The outermost builtin calls in ``stmts`` that ``movable`` accepts, each once, in order."""
+    found: dict[ir.Call, None] = {}
+
+    def visit(e: ir.Expr) -> None:
+        if isinstance(e, ir.Call) and e.builtin and movable(e):
+            found.setdefault(e)
+            return
+        for c in irwalk.child_exprs(e):
+            visit(c)
+
+    for s in irwalk.walk_stmts(stmts):
+        for e in irwalk.child_exprs(s):
+            visit(e)
+    return list(found)
+
+
+def _assigned(stmts: Iterable[ir.Stmt]) -> set[str]:
+    out = set()
+    for s in irwalk.walk_stmts(stmts):
+        if isinstance(s, ir.Assign):
+            root = s.target
+            while not isinstance(root, ir.Var):
+                root = root.base
+            out.add(root.name)
+        elif isinstance(s, ir.For):
+            out.add(s.var)
+    return out
+
+
+def _fixed_params(f: ir.Function) -> frozenset:
+    return frozenset(name for name, _ in f.params) - _assigned(f.body)
+
+
+def _names(f_params, body) -> set[str]:
+    names = {n for n, _ in f_params}
+    for s in irwalk.walk_stmts(body):
+        if isinstance(s, ir.Declare):
+            names.add(s.name)
+        elif isinstance(s, ir.For):
+            names.add(s.var)
+    return names
+
+
+def _fresh(taken: set[str]) -> str:
+    k = 0
+    while f"pg_inv{k}" in taken:
+        k += 1
+    taken.add(f"pg_inv{k}")
+    return f"pg_inv{k}"
+
+
+# -- 1. lift -----------------------------------------------------------------------------------
+def _user_calls(stmts) -> Iterable[ir.Call]:
+    return (e for e in irwalk.walk_exprs(stmts) if isinstance(e, ir.Call) and not e.builtin)
+
+
+def _in_loops(stmts) -> Iterable[ir.Call]:
+    for s in irwalk.walk_stmts(stmts):
+        if isinstance(s, ir.For):
+            yield from _user_calls(s.body)
+
+
+def _substitute(e: ir.Expr, args: dict[str, ir.Expr]) -> ir.Expr:
+    return irwalk.rewrite_expr(e, lambda x: args.get(x.name, x)
+                               if isinstance(x, ir.Var) and x.kind == "local" else x)
+
+
+class _Chains:
+    """Who calls whom, and which calls can climb to a loop they are invariant in."""
+
+    def __init__(self, tech: ir.Technique):
+        self.by_name = {f.name: f for f in tech.all_functions()}
+        self.fixed = {name: _fixed_params(f) for name, f in self.by_name.items()}
+        # function -> [(call, caller function or None for a pass body, inside a loop there)]
+        self.sites: dict[str, list[tuple[ir.Call, Optional[str], bool]]] = {}
+        bodies = [(None, p.body) for p in tech.passes]
+        bodies += [(f.name, f.body) for f in self.by_name.values()]
+        for caller, body in bodies:
+            looped = set(_in_loops(body))
+            for c in _user_calls(body):
+                self.sites.setdefault(c.name, []).append((c, caller, c in looped))
+        self.in_loops = set()
+        work = [c.name for _, body in bodies for c in _in_loops(body)]
+        while work:
+            name = work.pop()
+            if name in self.in_loops or name not in self.by_name:
+                continue
+            self.in_loops.add(name)
+            work.extend(c.name for c in _user_calls(self.by_name[name].body))
+        self.memo: dict[tuple[str, ir.Expr], bool] = {}
+
+    def liftable(self, e: ir.Expr, fn: str) -> bool:
+        """Whether ``e`` (invariant in function ``fn``) can become a parameter of ``fn``: at
+        every call site the expression it becomes is invariant there and, unless the caller is
+        a pass body, sits in a loop of the caller or can climb further."""
+        key = (fn, e)
+        if key not in self.memo:
+            self.memo[key] = fn in self.in_loops and fn in self.sites and all(
+                self._site_ok(_substitute(e, _bindings(self.by_name[fn], call)), caller, looped)
+                for call, caller, looped in self.sites[fn])
+        return self.memo[key]
+
+    def _site_ok(self, e: ir.Expr, caller: Optional[str], looped: bool) -> bool:
+        if caller is None:
+            return _invariant(e, frozenset())
+        return _invariant(e, self.fixed[caller]) and (looped or self.liftable(e, caller))
+
+
+def _lift(tech: ir.Technique) -> ir.Technique:
+    """One round: each function's calls that ``_Chains.liftable`` accepts become parameters
+    and its call sites pass them.  ``tech`` itself when nothing lifts."""
+    chains = _Chains(tech)
+    lifts: dict[str, list[tuple[str, ir.Call]]] = {}      # function -> (new param, call)
+    for f in tech.functions:
+        fixed, taken = chains.fixed[f.name], _names(f.params, f.body)
+        movable = (lambda e, f=f, fixed=fixed:
+                   _invariant(e, fixed) and chains.liftable(e, f.name))
+        for e in _candidates(f.body, movable):
+            lifts.setdefault(f.name, []).append((_fresh(taken), e))
+    if not lifts:
+        return tech
+    by_name = chains.by_name
+
+    def pass_values(e: ir.Expr) -> ir.Expr:
+        if isinstance(e, ir.Call) and not e.builtin and e.name in lifts:
+            bound = _bindings(by_name[e.name], e)
+            extra = tuple(_substitute(call, bound) for _, call in lifts[e.name])
+            return dataclasses.replace(e, args=e.args + extra)
+        return e
+
+    def fix(f: ir.Function) -> ir.Function:
+        body = irwalk.rewrite_stmts(f.body, pass_values)
+        new = lifts.get(f.name, ())
+        if new:
+            reads = {call: ir.Var(name, call.type) for name, call in new}
+            body = irwalk.rewrite_stmts(body, lambda x: reads.get(x, x)
+                                        if isinstance(x, ir.Call) else x)
+        if body == f.body and not new:
+            return f
+        return dataclasses.replace(f, body=body,
+                                   params=f.params + tuple((n, c.type) for n, c in new))
+
+    # call sites are rewritten before the lifted calls are replaced: a site's arguments hold
+    # the caller's expressions, not the callee's new parameters
+    packings = tuple(dataclasses.replace(k, functions=tuple(fix(f) for f in k.functions))
+                     for k in tech.packings)
+    functions = tuple(fix(f) for f in tech.functions)
+    passes = tuple(dataclasses.replace(p, body=irwalk.rewrite_stmts(p.body, pass_values))
+                   for p in tech.passes)
+    return dataclasses.replace(tech, packings=packings, functions=functions, passes=passes)
+
+
+def _bindings(f: ir.Function, call: ir.Call) -> dict[str, ir.Expr]:
+    return {name: arg for (name, _), arg in zip(f.params, call.args)}
+
+
+# -- 2. hoist ----------------------------------------------------------------------------------
+def _hoist(tech: ir.Technique) -> ir.Technique:
+    def fix_fn(f: ir.Function) -> ir.Function:
+        body = _hoist_body(f.body, _fixed_params(f), _names(f.params, f.body))
+        return f if body is f.body else dataclasses.replace(f, body=body)
+
+    packings = tuple(dataclasses.replace(k, functions=tuple(fix_fn(f) for f in k.functions))
+                     for k in tech.packings)
+    functions = tuple(fix_fn(f) for f in tech.functions)
+    passes = tuple(p if (b := _hoist_body(p.body, frozenset(), _names((), p.body))) is p.body
+                   else dataclasses.replace(p, body=b) for p in tech.passes)
+    if all(a is b for a, b in zip(functions + passes, tech.functions + tech.passes)) and \
+            all(a is b for k, j in zip(packings, tech.packings)
+                for a, b in zip(k.functions, j.functions)):
+        return tech
+    return dataclasses.replace(tech, packings=packings, functions=functions, passes=passes)
+
+
+def _hoist_body(body: tuple, fixed: frozenset, taken: set[str]) -> tuple:
+    """``body`` with each outermost loop's invariant builtin calls declared before it."""
+    out: list[ir.Stmt] = []
+    changed = False
+    for s in body:
+        if isinstance(s, ir.For):
+            calls = _candidates(s.body, lambda e: _invariant(e, fixed))
+            if calls:
+                names = {c: _fresh(taken) for c in calls}
+                out.extend(ir.Declare(names[c], c.type, c) for c in calls)
+                reads = {c: ir.Var(n, c.type) for c, n in names.items()}
+                s = dataclasses.replace(s, body=irwalk.rewrite_stmts(
+                    s.body, lambda x: reads.get(x, x) if isinstance(x, ir.Call) else x))
+                changed = True
+        elif isinstance(s, ir.If):
+            then = _hoist_body(s.then, fixed, taken)
+            other = _hoist_body(s.other, fixed, taken)
+            if then is not s.then or other is not s.other:
+                s = dataclasses.replace(s, then=then, other=other)
+                changed = True
+        out.append(s)
+    return tuple(out) if changed else body
