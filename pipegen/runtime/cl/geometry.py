@@ -325,7 +325,8 @@ class DrawGeometry:
             return self._bins(sub, cache, width, height, timing)
         key = ("bins", id(geo.tris), tuple(lights), cull.value, width, height)
         tb = cache.get(key)
-        if tb is None and len(lights) == 1 and len(batch) > 1 and int(lights[0]) in geo.ranges:
+        if tb is None and p.repeat_group is not None and len(lights) == 1 and len(batch) > 1 \
+                and int(lights[0]) in geo.ranges:
             self._group_bins(geo, batch, cull, width, height, timing)
             tb = cache.get(key)
         if tb is None:
@@ -470,15 +471,34 @@ class DrawGeometry:
         return self._raster_key(p, width, height) + own
 
     def _light_batch(self, k: int, p: PassPlan, lights: list) -> tuple:
-        """The lights a light draw of pass ``k`` sets up at once: its light list this frame
-        (``selection.of``, found once a frame per pass), or ``lights`` where they are not all
-        in it."""
+        """The lights a light draw of pass ``k`` sets up at once (found once a frame per pass):
+        its light list this frame (``selection.of``), or for a pass outside a repeat group the
+        lights of every such pass drawing under the same raster key (``_shared_lights``), or
+        ``lights`` where they are not all in it."""
         got = self.frame.get(("light list", k))
         if got is None:
-            batch = tuple(self.frame_state.selection.of(p.draw))
+            batch = self._shared_lights(k, p) if p.repeat_group is None else None
+            batch = batch or tuple(self.frame_state.selection.of(p.draw))
             got = self.frame[("light list", k)] = (batch, frozenset(batch))
         batch, members = got
         return batch if members.issuperset(lights) else tuple(lights)
+
+    def _shared_lights(self, k: int, p: PassPlan) -> Optional[tuple]:
+        """The light lists of the passes outside repeat groups that draw lights under pass
+        ``k``'s raster key, merged in table order: one set-up for all of them (LIDR's
+        light-index slots draw four disjoint light sets of the same spheres: one vertex and
+        set-up kernel instead of four), each pass drawing its lights' ranges as a repeat
+        group's passes do.  None where a pass's list is not in table order: a set-up's
+        triangles must come by increasing light (``_set_up`` finds each light's range by
+        bisection) and a pass's own must be an increasing run of them (binning)."""
+        sizes, selection = self.frame_state.pass_sizes, self.frame_state.selection
+        key = self._raster_key(p, *sizes[k])
+        lists = [selection.of(q.draw) for j, q in enumerate(self.plan.passes)
+                 if q.draw.kind is ir.DrawKind.LIGHTS and q.repeat_group is None
+                 and self.only in (None, j) and self._raster_key(q, *sizes[j]) == key]
+        if any(any(a >= b for a, b in zip(own, own[1:])) for own in lists):
+            return None
+        return tuple(sorted({light for own in lists for light in own}))
 
     def _scene_group(self, key: tuple) -> tuple:
         """The passes of the plan drawing the scene under raster key ``key`` share one set-up:
