@@ -123,6 +123,25 @@ def test_a_different_cull_mode_sets_up_its_own():
     assert drawn["fronts"] != drawn["backs"] == drawn["backs_again"]
 
 
+def test_light_sets_of_one_volume_share_a_set_up(monkeypatch):
+    """lidr_cpu_sort's slot passes draw disjoint light sets of the same spheres outside any
+    repeat group: one set-up of all their lights (``DrawGeometry._shared_lights``), each pass
+    drawing the triangles of its own lights, as many as its own set-up gives it."""
+    slots = ("slot_r", "slot_g", "slot_b", "slot_a")
+
+    def timings(share: bool) -> list:
+        monkeypatch.setenv("PIPEGEN_CL_SHARE_SETUP", "1" if share else "0")
+        pipe = _compiled("lidr_cpu_sort").pipeline("cl", SIZE)
+        pipe.render(_scene("many_lights"))
+        return [t for t in pipe.last_timings if t["pass"] in slots]
+
+    shared, alone = timings(True), timings(False)
+    assert [t["pass"] for t in shared] == list(slots)
+    assert ["vertex" in t for t in shared] == [True, False, False, False]
+    assert [t["triangles"] for t in shared] == [t["triangles"] for t in alone]
+    assert all(t["triangles"] > 0 for t in shared)
+
+
 def test_a_moved_camera_is_set_up_again(monkeypatch):
     """A frame's set-ups are the frame's: after the camera moves, a pipeline that rendered the
     old view renders what a fresh one renders."""
