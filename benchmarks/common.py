@@ -13,7 +13,9 @@ from pipegen.tools.timing import interleave
 ROOT = Path(__file__).resolve().parents[1]
 # Every shipped technique (pipelines/*.pipe), the default of the benchmarks that take a list.
 TECHNIQUES = ["forward", "forward_multipass", "deferred", "lidr_cpu_sort", "lidr_max_stencil",
-              "lidr_bitplanes", "lidr_transparent", "light_prepass", "inferred", "deferred_calver"]
+              "lidr_bitplanes", "lidr_transparent", "lidr_msaa_texture", "lidr_nearest_edge",
+              "lidr_shadow_volumes", "lidr_shadow_prepass", "lidr_shadow_indexed",
+              "light_prepass", "inferred", "deferred_calver"]
 # The scene of the benchmarks that take ``--scene``.
 DEFAULT_SCENE = ROOT / "examples/scenes/many_lights.toml"
 
