@@ -49,9 +49,10 @@ Set-up triangles are cached per frame and shared by the passes that draw the sam
 under the same raster state (``_geometry``): a scene draw is set up once for every pass of
 the plan drawing it under that state, with the union of their varyings (a pass reading fewer
 gets varying and plane buffers cut from the shared ones); a light draw sets up all lights of
-its light list at once, culled only where every pass drawing them culls the same faces, and
-each pass (each light of a repeat group) draws its lights' consecutive range of triangles
-with its own cull mode; the full-screen triangle is kept across frames.  Per-triangle
+its light list at once (light passes outside repeat groups drawing under one raster state:
+their lists together, ``DrawGeometry._shared_lights``), culled only where every pass drawing
+them culls the same faces, and each pass (each light of a repeat group) draws its lights'
+consecutive range of triangles with its own cull mode; the full-screen triangle is kept across frames.  Per-triangle
 results do not depend on which other triangles or varyings are set up with them, so sharing
 changes no value.  A pass alone in its ``repeat per light`` group that draws the scene,
 clears nothing and writes no depth or stencil (``programs.batches_lights``: multi-pass
@@ -59,7 +60,8 @@ forward's light pass) draws the whole run of its lights in one raster launch, ea
 draw in turn, as launches per light would (``_batched``; bit-identical, tested).  Bins are
 per pass, built on the device from the triangles the pass draws (its lights' ranges, the
 faces its cull mode keeps); a ``repeat per light`` group's bins are found for all its lights
-in one numpy sort.
+in one numpy sort and uploaded in three buffers, each light's bins views into them
+(``group_bins.py``).
 A frame does the host work of all its passes (set-up read-backs, queuing the binning)
 before it queues their clears, resolves and raster kernels in pass order, without waiting
 (on 2 cores, host work done while a raster kernel runs gets a third of them, and the next
