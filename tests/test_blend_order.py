@@ -17,6 +17,8 @@ from pipegen.compiler.driver import compile_file, compile_source
 from pipegen.ir import nodes as ir
 from pipegen.scene.load import load_scene
 
+import shipped
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted((ROOT / "pipelines").glob("*.pipe"))
 # the shipped scene of stacked layers, and three panes overlapping one another
@@ -88,7 +90,7 @@ def test_no_shipped_technique_depends_on_the_order():
 
 @pytest.mark.cl
 @pytest.mark.parametrize("scene_name", SCENES, ids=lambda p: p.stem)
-@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", shipped.params(path=True))
 def test_every_shipped_technique_renders_either_order_alike(path, scene_name):
     scene = load_scene(scene_name).with_size(64, 36)
     assert sum(o.material.translucent for o in scene.objects) >= 2

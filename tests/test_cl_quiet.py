@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+import shipped
+
 pytestmark = pytest.mark.cl
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,7 +54,8 @@ print("\\n---\\n".join(logs))
 # quads, tables, shadows, the wide path; inferred: MSAA, low-resolution targets, packings);
 # --exhaustive builds them for all (CI's 10-minute budget: 5-10 s of PoCL compiles each).
 F64_IN_CI = {"deferred_calver", "inferred"}
-CASES = [pytest.param(name, "f32,f64" if name in F64_IN_CI else "f32", id=name)
+CASES = [pytest.param(name, "f32,f64" if name in F64_IN_CI else "f32", id=name,
+                      marks=(pytest.mark.exhaustive,) if name in shipped.VARIANTS else ())
          for name in TECHNIQUES] + [
          pytest.param(name, "f64", id=f"{name}-f64", marks=pytest.mark.exhaustive)
          for name in TECHNIQUES if name not in F64_IN_CI]

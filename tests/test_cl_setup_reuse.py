@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import shipped
+
 pytestmark = pytest.mark.cl
 pytest.importorskip("pyopencl")
 
@@ -60,7 +62,7 @@ def test_every_technique_names_a_shipped_pipeline():
             "lidr_msaa_texture"} <= set(TECHNIQUES)
 
 
-@pytest.mark.parametrize("technique", TECHNIQUES)
+@pytest.mark.parametrize("technique", shipped.params())
 def test_shared_set_up_renders_what_unshared_renders(technique, monkeypatch):
     compiled = _compiled(technique)
     shared_setups = unshared_setups = 0

@@ -2,7 +2,8 @@
 
 The targets every shipped technique renders on two scenes with every light type (mixed_lights;
 shadows, whose lights cast shadows through the table's shadow fields), general and specialised
-builds, on GL and CL (mixed_lights only with --exhaustive), hashed byte for byte against
+builds, on GL and CL (mixed_lights, and the variants of tests/shipped.py, only with
+--exhaustive), hashed byte for byte against
 ``light_table_images.json``: the images
 rendered before the table was laid out in packed vec4 rows (one field per texel before).  A
 change meant to alter pixels regenerates the file:  python tests/test_light_table_images.py
@@ -17,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+import shipped
 
 ROOT = Path(__file__).resolve().parents[1]
 HASHES = Path(__file__).with_name("data") / "light_table_images.json"
@@ -51,7 +54,8 @@ CASES = [(t, s, b, g) for t in TECHNIQUES for s in SCENES for b in ("gl", "cl")
 # (CI's 10-minute budget: each shipped technique costs eight compiles and renders a scene).
 IN_CI = {"shadows"}
 PARAMS = [pytest.param(*c, id=_key(*c),
-                       marks=() if c[1] in IN_CI else pytest.mark.exhaustive) for c in CASES]
+                       marks=() if c[1] in IN_CI and c[0] not in shipped.VARIANTS
+                       else pytest.mark.exhaustive) for c in CASES]
 
 
 @pytest.mark.gl

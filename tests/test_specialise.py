@@ -19,6 +19,8 @@ from pipegen.scene import Light, load_scene
 from pipegen.compiler.specialise import SCENE_PHASES, clear_cache, specialise, verify
 from pipegen.passes.manager import run_pipeline
 
+import shipped
+
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "examples/scenes"
 SHIPPED = sorted((ROOT / "pipelines").glob("*.pipe"))
@@ -275,7 +277,7 @@ def test_specialised_pipeline_refuses_a_scene_that_breaks_its_facts(backend):
 
 @pytest.mark.gl
 @pytest.mark.cl
-@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", shipped.params(path=True))
 def test_specialised_renders_what_the_general_renders(path):
     """For every shipped technique and example scene: bit for bit on both backends."""
     general = compile_file(path)

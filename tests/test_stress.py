@@ -25,6 +25,8 @@ from pipegen.scene import default_scene, load_scene
 from pipegen.proof import tolerance as B
 from pipegen.tools.stress import cases as C
 
+import shipped
+
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = sorted(p.stem for p in (ROOT / "pipelines").glob("*.pipe"))
 CI_SIZE = (48, 32)
@@ -69,7 +71,7 @@ pass shade {
 
 @pytest.mark.gl
 @pytest.mark.cl
-@pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.parametrize("name", shipped.params())
 def test_shipped_technique_passes_ci_stress(name):
     pytest.importorskip("pyopencl")
     from pipegen.compiler.driver import compile_file
