@@ -2,8 +2,9 @@
 index target multisampled, read per sample) and pipelines/lidr_nearest_edge.pipe (a
 single-sampled index target, the nearest texel of the polygon within one pixel).
 
-- GL = CL (``pipegen check``'s tolerance model) on four scenes: edges, translucent_layers,
-  tests/data/thin_poles (poles 0.3-0.4 px wide at 64x36) and mixed_lights;
+- GL = CL (``pipegen check``'s tolerance model) on five scenes: four example scenes (edges,
+  translucent_layers, mixed_lights, street_lamps: spots and a sun) and tests/data/thin_poles
+  (poles 0.3-0.4 px wide at 64x36);
 - the output against the float64 scene reference supersampled 4 x 4 per pixel (box filter,
   ``choose_reference("scene", ..., 4)``, as test_inferred_msaa and ``sweep
   --reference-samples 4``): the mean of each pixel's largest channel error in rgba8 codes, on
@@ -38,7 +39,8 @@ pytestmark = pytest.mark.cl
 @pytest.mark.gl
 @pytest.mark.parametrize("technique", [TEXTURE, NEAREST])
 @pytest.mark.parametrize("scene", [EDGES, "examples/scenes/translucent_layers.toml", POLES,
-                                   "examples/scenes/mixed_lights.toml"])
+                                   "examples/scenes/mixed_lights.toml",
+                                   "examples/scenes/street_lamps.toml"])
 def test_gl_and_cl_agree(technique, scene):
     result = assert_backends_agree(technique, scene, (48, 27))
     assert {r.name for r in result.rows} >= {"color", "lightidx", "diridx"}
