@@ -27,7 +27,8 @@ from pipegen.core.diagnostics import PipegenError
 from pipegen.core.formats import Format
 from pipegen.ir import nodes as ir
 from pipegen.packing.base import (Scheme, cannot_fit, float_literal, int_option,
-                                  need_target, unorm_code_expr, unorm_codes)
+                                  need_target, unorm_code_expr)
+from pipegen.packing.light_index import code_in_slot, planes_of
 
 _XYZW = "xyzw"
 MAX_BITS = 16         # as split16; a PCF fraction needs far fewer (16 taps: 8 bits err < 1/510)
@@ -124,7 +125,7 @@ class IntensityPlanes(Scheme):
     def mirror(self):
         import numpy as np
         F32 = np.float32
-        b, mask, cap, used = self.b, (1 << self.b) - 1, self.capacity, self.used
+        b, cap, used = self.b, self.capacity, self.used
         L = F32(self.levels)
 
         def codes(x):
@@ -132,21 +133,13 @@ class IntensityPlanes(Scheme):
             return np.floor(x * L + F32(0.5)).astype(np.uint32)
 
         def plane_value(x):
-            code = codes(x)
-            out = np.zeros(code.shape + (4,), dtype=F32)
-            for c in range(used):
-                out[..., c] = (((code >> (c * b)) & mask) << (8 - b)).astype(F32) / F32(255)
-            return out
+            return planes_of(codes(x), b, used)
 
         def unpack(v, k):
             v = np.asarray(v, dtype=F32)
             if not 0 <= k < cap:
                 return np.zeros(v.shape[:-1], dtype=F32)
-            s = 8 - b * (k + 1)
-            code = np.zeros(v.shape[:-1], dtype=np.uint32)
-            for c in range(used):
-                code |= (((unorm_codes(v[..., c], 255) >> s) & mask) << (c * b)).astype(np.uint32)
-            return code.astype(F32) / L
+            return code_in_slot(v, k, b, used).astype(F32) / L
 
         return {"plane_value": plane_value, "unpack": unpack, "codes": codes}
 

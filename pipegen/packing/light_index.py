@@ -121,26 +121,41 @@ class BitPlanes(Scheme):
     def mirror(self):
         import numpy as np
         F32 = np.float32
-        b, C, mask, cap = self.b, self.C, (1 << self.b) - 1, self.capacity
+        b, C, cap = self.b, self.C, self.capacity
 
         def plane_value(index):
-            index = as_uint32(index)
-            out = np.zeros(index.shape + (4,), dtype=F32)
-            for c in range(C):
-                out[..., c] = (((index >> (c * b)) & mask) << (8 - b)).astype(F32) / F32(255)
-            return out
+            return planes_of(as_uint32(index), b, C)
 
         def unpack(v, k):
             v = np.asarray(v, dtype=F32)
             if not 0 <= k < cap:
                 return np.zeros(v.shape[:-1], dtype=np.uint32)
-            s = 8 - b * (k + 1)
-            index = np.zeros(v.shape[:-1], dtype=np.uint32)
-            for c in range(C):     # uint32 throughout (numpy 1.x widens a numpy int k)
-                index |= (((unorm_codes(v[..., c], 255) >> s) & mask) << (c * b)).astype(np.uint32)
-            return index
+            return code_in_slot(v, k, b, C)
 
         return {"plane_value": plane_value, "unpack": unpack}
+
+
+def planes_of(code, b: int, channels: int):
+    """The rgba value (float32, /255) that writes uint32 ``code`` as bit planes: chunk c (``b``
+    bits) of the code in the top bits of channel c, for ``channels`` channels.  Shared by the
+    float64 mirrors of ``bitplanes`` and ``intensity_planes``."""
+    import numpy as np
+    out = np.zeros(np.shape(code) + (4,), dtype=np.float32)
+    mask = (1 << b) - 1
+    for c in range(channels):
+        out[..., c] = (((code >> (c * b)) & mask) << (8 - b)).astype(np.float32) / np.float32(255)
+    return out
+
+
+def code_in_slot(v, k: int, b: int, channels: int):
+    """The uint32 code in slot ``k`` of bit-plane value ``v`` (float32 rgba, 8-bit unorm
+    channels): chunk c taken from bits ``8 - b (k + 1)`` up of channel c."""
+    import numpy as np
+    s, mask = 8 - b * (k + 1), (1 << b) - 1
+    code = np.zeros(v.shape[:-1], dtype=np.uint32)
+    for c in range(channels):     # uint32 throughout (numpy 1.x widens a numpy int k)
+        code |= (((unorm_codes(v[..., c], 255) >> s) & mask) << (c * b)).astype(np.uint32)
+    return code
 
 
 def blend_bitplanes(dst_codes, src_codes, bits_per_write: int, mode: str = "unorm8"):
