@@ -49,7 +49,7 @@ from typing import Callable, Optional, Sequence, Union
 from pipegen.ir import nodes as ir
 from pipegen.core.float32 import f32, f32_str
 from pipegen.ir.light_layout import LightLayout, Place
-from pipegen.ir.material_layout import MATERIAL_IDS, technique_material_layout
+from pipegen.ir.material_layout import MATERIAL_IDS, MaterialLayout, technique_material_layout
 from pipegen.ir.nodes import BOOL, FLOAT, INT, VEC4, Scalar, Type
 from pipegen.backends.light_rows import RowLoad, RowPlan, plan_rows
 
@@ -156,6 +156,7 @@ class CStyleLanguage:
         # statement being rendered (None: outside a body)
         self._rows: Optional[RowPlan] = None
         self._path: Optional[tuple] = None
+        self._materials: Optional[tuple] = None   # (technique, its MaterialLayout)
 
     # ---- names, types, literals ---------------------------------------------------------------
     def type_name(self, t: Type) -> str:
@@ -315,7 +316,7 @@ class CStyleLanguage:
         field's place in it.  The records follow the lights in the light table
         (ir/material_layout.py); the id is clamped to the table's ids, so a stray id reads a
         record, never past the table."""
-        ml = technique_material_layout(self.tech)
+        ml = self.material_layout()
         offset, place = ml.place(field)
         if itype != INT:
             index = self.render_construct(INT, [index], [itype])
@@ -324,6 +325,13 @@ class CStyleLanguage:
             record = f"{ml.stride} * {record}"
         record = f"{ml.base} + {record}" + (f" + {offset}" if offset else "")
         return self.render_light_row(record, place.row), place
+
+    def material_layout(self) -> MaterialLayout:
+        """The material layout of ``self.tech`` (ir/material_layout.py), laid out once per
+        technique: every material read of a pass asks for it."""
+        if self._materials is None or self._materials[0] is not self.tech:
+            self._materials = (self.tech, technique_material_layout(self.tech))
+        return self._materials[1]
 
     def _light_index(self, index: Optional[ir.Expr]) -> str:
         """A light-table index as an int expression (None: the light being drawn)."""

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from pipegen.ir import expand, nodes as ir
 from pipegen.ir.builtins import BIT_CAST_BUILTINS
-from pipegen.ir.material_layout import technique_material_layout
 from pipegen.ir.nodes import Scalar, Type
 from pipegen.backends.cstyle import guard_call_args, guard_construct_args, guard_shift_count
 from pipegen.backends.opencl.expansions import c_text
@@ -246,7 +245,7 @@ class WideExpressions:
         ``light_table.table_records``)."""
         n = max(1, self.tech.lights.capacity)
         if self.tech.materials is not None:
-            n += technique_material_layout(self.tech).records
+            n += self.lang.material_layout().records
         return n
 
     def _lightfield(self, e: ir.LightField) -> Val:
@@ -268,7 +267,7 @@ class WideExpressions:
         local = None if self.rows is None else self.rows.local_for(self.path, e)
         if local is not None:       # its row, loaded once (light_rows.py)
             return self._row_field(local[0], local[1], e.type, local[0] in self.lane_rows)
-        place = technique_material_layout(self.tech).place(e.field)[1]
+        place = self.lang.material_layout().place(e.field)[1]
         row, lanes = self.table_row(e.index, self.material_row_of(e.field))
         return self._row_field(row, place, e.type, lanes)
 

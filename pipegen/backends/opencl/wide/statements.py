@@ -12,7 +12,6 @@ from typing import Optional
 from pipegen.ir import nodes as ir
 from pipegen.ir.nodes import VEC4, Scalar, Type
 from pipegen.backends.light_rows import plan_rows
-from pipegen.ir.material_layout import technique_material_layout
 from pipegen.backends.opencl.wide.cost import iterations
 from pipegen.backends.opencl.wide.values import C_TYPES, W, Unsupported, Val, ctype, widen
 
@@ -45,7 +44,7 @@ class WideStatements:
         retmode = False
         kept = (len(self.structs), len(self.out_funcs))
         layout = self.lang.light_layout
-        materials = None if self.tech.materials is None else technique_material_layout(self.tech)
+        materials = None if self.tech.materials is None else self.lang.material_layout()
         # each light-table row read once (light_rows.py), as the scalar emitter does, and
         # each material row: read at a varying index, a row is a gather of W rows
         self.rows = None if layout is None else plan_rows(body, layout, list(params), materials)
