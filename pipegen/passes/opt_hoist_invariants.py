@@ -24,6 +24,7 @@ was (tests/test_hoist_invariants.py, tests/test_light_table_images.py).
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Callable, Iterable, Optional
 
 from pipegen.ir import nodes as ir, walk as irwalk
@@ -32,8 +33,9 @@ _ROUNDS = 16        # a call climbs one function per round; chains are a few fun
 
 
 def run(tech: ir.Technique) -> ir.Technique:
+    calls: dict = {}        # the bodies' user calls, kept across rounds (_Chains)
     for _ in range(_ROUNDS):
-        lifted = _lift(tech)
+        lifted = _lift(tech, calls)
         if lifted is tech:
             break
         tech = lifted
@@ -109,14 +111,43 @@ def _fresh(taken: set[str]) -> str:
 
 
 # -- 1. lift -----------------------------------------------------------------------------------
-def _user_calls(stmts) -> Iterable[ir.Call]:
-    return (e for e in irwalk.walk_exprs(stmts) if isinstance(e, ir.Call) and not e.builtin)
+def _calls(body: tuple) -> list[tuple[ir.Call, bool]]:
+    """The user-function calls in ``body``, nested statements included, each with whether it
+    sits in the body of a loop (a loop's bounds are outside it): one walk of the body, for
+    ``_Chains``, which needs both for every body in every round."""
+    found: list[tuple[ir.Call, bool]] = []
+
+    def stmts(ss, looped: bool) -> None:
+        for s in ss:
+            stack = list(irwalk.child_exprs(s))
+            while stack:
+                e = stack.pop()
+                if isinstance(e, ir.Call) and not e.builtin:
+                    found.append((e, looped))
+                stack.extend(irwalk.child_exprs(e))
+            for nested in _nested_bodies(s):
+                stmts(nested, looped or isinstance(s, ir.For))
+
+    stmts(body, False)
+    return found
 
 
-def _in_loops(stmts) -> Iterable[ir.Call]:
-    for s in irwalk.walk_stmts(stmts):
-        if isinstance(s, ir.For):
-            yield from _user_calls(s.body)
+@functools.cache
+def _field_names(cls: type) -> tuple[str, ...]:
+    return tuple(f.name for f in dataclasses.fields(cls))
+
+
+def _nested_bodies(s: ir.Stmt) -> Iterable[tuple]:
+    """The statement lists ``s`` holds (an if's branches, a loop's body), as
+    ``irwalk.walk_stmts`` finds them."""
+    for name in _field_names(type(s)):
+        value = getattr(s, name)
+        if isinstance(value, tuple) and value and all(isinstance(v, _STMTS) for v in value):
+            yield value
+
+
+_STMTS = (ir.Declare, ir.Assign, ir.Output, ir.If, ir.For, ir.Break, ir.Continue, ir.Return,
+          ir.Discard, ir.ExprStmt)
 
 
 def _substitute(e: ir.Expr, args: dict[str, ir.Expr]) -> ir.Expr:
@@ -127,25 +158,36 @@ def _substitute(e: ir.Expr, args: dict[str, ir.Expr]) -> ir.Expr:
 class _Chains:
     """Who calls whom, and which calls can climb to a loop they are invariant in."""
 
-    def __init__(self, tech: ir.Technique):
+    def __init__(self, tech: ir.Technique, calls: dict):
+        """``calls``: the ``_calls`` of bodies seen in earlier rounds (id of the body ->
+        (body, its calls)); a round changes few bodies, the rest are not walked again."""
         self.by_name = {f.name: f for f in tech.all_functions()}
         self.fixed = {name: _fixed_params(f) for name, f in self.by_name.items()}
-        # function -> [(call, caller function or None for a pass body, inside a loop there)]
-        self.sites: dict[str, list[tuple[ir.Call, Optional[str], bool]]] = {}
         bodies = [(None, p.body) for p in tech.passes]
         bodies += [(f.name, f.body) for f in self.by_name.values()]
+        self.calls = {}            # function -> the user functions its body calls
+        # function -> [(call, caller function or None for a pass body, inside a loop there)]
+        self.sites: dict[str, list[tuple[ir.Call, Optional[str], bool]]] = {}
+        work = []                  # functions called from inside a loop
         for caller, body in bodies:
-            looped = set(_in_loops(body))
-            for c in _user_calls(body):
+            kept = calls.get(id(body))
+            if kept is None or kept[0] is not body:
+                kept = calls[id(body)] = (body, _calls(body))
+            found = kept[1]
+            # a call equal to one inside a loop counts as inside it
+            looped = {c for c, in_loop in found if in_loop}
+            for c, _ in found:
                 self.sites.setdefault(c.name, []).append((c, caller, c in looped))
+            work += [c.name for c in looped]
+            if caller is not None:
+                self.calls[caller] = [c.name for c, _ in found]
         self.in_loops = set()
-        work = [c.name for _, body in bodies for c in _in_loops(body)]
         while work:
             name = work.pop()
             if name in self.in_loops or name not in self.by_name:
                 continue
             self.in_loops.add(name)
-            work.extend(c.name for c in _user_calls(self.by_name[name].body))
+            work.extend(self.calls[name])
         self.memo: dict[tuple[str, ir.Expr], bool] = {}
 
     def liftable(self, e: ir.Expr, fn: str) -> bool:
@@ -165,12 +207,14 @@ class _Chains:
         return _invariant(e, self.fixed[caller]) and (looped or self.liftable(e, caller))
 
 
-def _lift(tech: ir.Technique) -> ir.Technique:
+def _lift(tech: ir.Technique, calls: dict) -> ir.Technique:
     """One round: each function's calls that ``_Chains.liftable`` accepts become parameters
     and its call sites pass them.  ``tech`` itself when nothing lifts."""
-    chains = _Chains(tech)
+    chains = _Chains(tech, calls)
     lifts: dict[str, list[tuple[str, ir.Call]]] = {}      # function -> (new param, call)
     for f in tech.functions:
+        if f.name not in chains.in_loops or f.name not in chains.sites:
+            continue        # nothing in it is liftable (_Chains.liftable)
         fixed, taken = chains.fixed[f.name], _names(f.params, f.body)
         movable = (lambda e, f=f, fixed=fixed:
                    _invariant(e, fixed) and chains.liftable(e, f.name))
@@ -187,7 +231,12 @@ def _lift(tech: ir.Technique) -> ir.Technique:
             return dataclasses.replace(e, args=e.args + extra)
         return e
 
+    def calls_lifted(body: tuple) -> bool:
+        return any(c.name in lifts for c, _ in calls[id(body)][1])
+
     def fix(f: ir.Function) -> ir.Function:
+        if f.name not in lifts and not calls_lifted(f.body):
+            return f        # what the rewrite would give: no call site, no lifted call
         body = irwalk.rewrite_stmts(f.body, pass_values)
         new = lifts.get(f.name, ())
         if new:
@@ -205,7 +254,7 @@ def _lift(tech: ir.Technique) -> ir.Technique:
                      for k in tech.packings)
     functions = tuple(fix(f) for f in tech.functions)
     passes = tuple(dataclasses.replace(p, body=irwalk.rewrite_stmts(p.body, pass_values))
-                   for p in tech.passes)
+                   if calls_lifted(p.body) else p for p in tech.passes)
     return dataclasses.replace(tech, packings=packings, functions=functions, passes=passes)
 
 
