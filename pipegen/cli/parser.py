@@ -33,9 +33,9 @@ class _Version(argparse.Action):
 
 def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
     """The ``pipegen`` argument parser.  ``command_word``: the first word of the command line,
-    when known; if it names one of ``COMMANDS``, the subcommands implemented elsewhere
-    (``sweep``, ``stress``, ``tune``: their modules import numpy and the scene code, tens of
-    milliseconds) are left out, which changes nothing for that command's parse, help or errors.
+    when known; if it names one of ``COMMANDS``, only that subcommand is added (the others,
+    and above all ``sweep``, ``stress`` and ``tune``, whose modules import numpy and the scene
+    code, tens of milliseconds, change nothing for that command's parse, help or errors).
     ``--version`` leaves them out too (it prints and exits while parsing).  Without it
     (``--help``, an unknown word, ``sweep`` itself) every subcommand is added."""
     everything = "".join(EXAMPLES[c] for c in COMMANDS)
@@ -46,10 +46,16 @@ def build_parser(command_word: str | None = None) -> argparse.ArgumentParser:
         epilog="examples:\n" + everything + "\n" + OUTPUT_NOTE, formatter_class=FORMATTER)
     parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for add in (add_compile, add_run, add_check, add_specialise, add_graph, add_info, add_test):
+    built_in = dict(zip(COMMANDS, (add_compile, add_run, add_check, add_specialise, add_graph,
+                                   add_info, add_test)))
+    if command_word in COMMANDS:
+        # the subcommand the command line names is all its parse, help and errors read: the
+        # others' options (tens of help strings each) are not built
+        built_in[command_word](sub)
+        return parser
+    for add in built_in.values():
         add(sub)
-
-    if command_word in COMMANDS or command_word == "--version":
+    if command_word == "--version":
         return parser
     from pipegen.tools.sweep.command import add_parser as add_sweep  # `pipegen sweep`: tools/sweep/
     add_sweep(sub, size_arg, OUTPUT_NOTE, DEFAULT_SIZE_TEXT, MAX_SIZE, count_arg)
