@@ -71,6 +71,57 @@ pass p {
     assert every.count("-0.00024414062 * (") == 9     # 2^-12, as the printer spells it
 
 
+STEPS = """
+technique steps "every kind of step, each on its own channel"
+target color : rgba32f clear 0
+target more  : rgba32f clear 0
+output color
+pass p {
+  draw fullscreen
+  writes color, more
+  fragment {
+    float x = frag_coord.x / 64.0 + frag_coord.y / 4096.0;
+    float a = x < 0.5 ? 1.0 : 0.0;
+    float b = step(0.25, x) + fract(x * 3.0) + sign(x - 0.5) + mod(x, 0.3);
+    uint k = uint(x * 7.0);
+    float c = round(x * 4.0) + ceil(x * 2.0) + floor(x * 5.0);
+    color = vec4(a, b, float(k) / 7.0, c);
+    more = vec4(floor(vec3(x * 9.0, x * 11.0, x * 13.0)), x >= 0.75 ? 1.0 : 0.0);
+  }
+}
+"""
+
+
+@pytest.mark.cl
+def test_run_time_nudges_render_what_each_recompiled_variant_renders():
+    """One float64 program reads every site's nudge at run time (``nudged_at_run_time``):
+    nudging nothing renders the technique bit for bit, and each set of sites nudged by a
+    level renders what the variant compiled with that constant renders, bit for bit."""
+    from pipegen.compiler.driver import Compiled
+    from pipegen.proof.discontinuity import nudged_at_run_time
+    c = pipegen.compile_source(STEPS, "steps.pipe")
+    n = len(sites(c.technique))
+    assert n == 11
+    scene = pipegen.default_scene().with_size(64, 8)
+    run_time = Compiled(nudged_at_run_time(c.technique), c.params).pipeline("cl", precision="f64")
+    base = c.pipeline("cl", precision="f64").render(scene)
+    run_time.nudge({})
+    still = run_time.render(scene)
+    for key in base:
+        assert np.array_equal(base[key], still[key]), key
+    moved = 0
+    for delta, only in ((LEVELS[-1], frozenset(range(n))), (-LEVELS[-1], frozenset({1, 5, 10})),
+                        (LEVELS[0], frozenset({2})), (LEVELS[-1], frozenset({9}))):
+        fixed = Compiled(nudged(c.technique, delta, only), c.params) \
+            .pipeline("cl", precision="f64").render(scene)
+        run_time.nudge({k: delta for k in only})
+        got = run_time.render(scene)
+        for key in fixed:
+            assert np.array_equal(fixed[key], got[key]), (delta, sorted(only), key)
+        moved += any(not np.array_equal(base[k], got[k]) for k in base)
+    assert moved == 4          # every nudge flipped something: the comparison is not vacuous
+
+
 def test_a_technique_without_steps_has_no_sites():
     # a shipped technique's steps are where its source says: each site's text is on its line
     c = pipegen.compile_file(ROOT / "pipelines" / "deferred.pipe")

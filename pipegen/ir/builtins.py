@@ -195,6 +195,24 @@ FLAT_SCENE_INPUTS = frozenset({"albedo", "specular", "shininess", "alpha", "obje
 # other shader): the previous frame's camera.
 PREVIOUS_FRAME_INPUTS = ("prev_view", "prev_proj")
 
+# The run-time nudges of the discontinuity search (proof/discontinuity.py): ``nudge[k]``, the
+# amount step site ``k`` is moved by in this render, 0 for a site left alone.  Never written
+# by a user (not in STAGE_INPUTS); only the float64 evaluation's CL programs read them, from a
+# buffer the runtime fills before each render, so one program serves every nudge.
+NUDGE_INPUT = "nudge"
+
+
+def nudge_input(k: int) -> str:
+    """The stage input name of site ``k``'s nudge."""
+    return f"{NUDGE_INPUT}[{int(k)}]"
+
+
+def nudge_site(name: str) -> Optional[int]:
+    """The site index of a ``nudge_input`` name, else None."""
+    if name.startswith(NUDGE_INPUT + "[") and name.endswith("]"):
+        return int(name[len(NUDGE_INPUT) + 1:-1])
+    return None
+
 # ``light.FIELD`` (where: Where.LIGHT) and ``lights[i].FIELD`` (everywhere) read these fields.
 # A schema lists the ones a technique uses; the scene loader fills them per light.
 LIGHT_FIELDS: dict[str, ir.Type] = {

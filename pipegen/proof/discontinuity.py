@@ -17,8 +17,9 @@ jumped value than to the unnudged one: it took the other side.  All sites upstre
 target are nudged at once first (two renders per level); only when that explains something are
 the sites split in halves, and each half that still flips something split again, down to the
 one site that names the pixel (about 4 log2(n) renders per site found among n, where trying each
-site in turn cost 2 n).  Every nudged variant is the technique recompiled for the float64
-evaluation, so nothing is paid unless some pixel is a candidate.
+site in turn cost 2 n).  Every render is of one program: the technique compiled once for the
+float64 evaluation with each step's move a run-time input (``nudged_at_run_time``; 0 leaves a
+site exactly as it was), made only when some pixel is a candidate.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import numpy as np
 from pipegen.core.diagnostics import Span
 from pipegen.ir import nodes as ir
 from pipegen.ir import printer, walk
+from pipegen.ir.builtins import nudge_input
 from pipegen.proof.f64_compare import error
 
 # the nudges tried, relative to the operands' magnitude (and absolute below 1): 2^-12 is
@@ -76,11 +78,18 @@ def _float(t: ir.Type) -> bool:
     return t.scalar is ir.Scalar.FLOAT and not t.mat
 
 
-def _nudge(x: ir.Expr, scale: ir.Expr, delta: float) -> ir.Expr:
-    """``x + delta * (scale + 1)``."""
+def _nudge(x: ir.Expr, scale: ir.Expr, delta) -> ir.Expr:
+    """``x + delta * (scale + 1)``; ``delta`` a number, or the name of a run-time nudge
+    (``nudge[k]``): then ``nudge[k] != 0 ? x + nudge[k] * (scale + 1) : x``, exactly ``x``
+    wherever the site is left alone (even where ``scale`` is infinite)."""
     t = x.type
     grow = ir.Binary("+", scale, ir.Const(ir.FLOAT, 1.0), scale.type)
-    return ir.Binary("+", x, ir.Binary("*", ir.Const(ir.FLOAT, delta), grow, grow.type), t)
+    amount = ir.Var(delta, ir.FLOAT, "input") if isinstance(delta, str) \
+        else ir.Const(ir.FLOAT, delta)
+    moved = ir.Binary("+", x, ir.Binary("*", amount, grow, grow.type), t)
+    if isinstance(delta, str):
+        return ir.Ternary(ir.Binary("!=", amount, ir.Const(ir.FLOAT, 0.0), ir.BOOL), moved, x, t)
+    return moved
 
 
 def _abs(x: ir.Expr) -> ir.Expr:
@@ -101,7 +110,7 @@ def _step_input(e: ir.Expr) -> Optional[int]:
     return None
 
 
-def _nudged_site(e: ir.Expr, delta: float) -> ir.Expr:
+def _nudged_site(e: ir.Expr, delta) -> ir.Expr:
     if isinstance(e, ir.Binary):            # a < b  ->  a + delta * (|a| + |b| + 1) < b
         a, b = e.left, e.right
         scale = ir.Binary("+", _abs(a), _abs(b), a.type if a.type.size >= b.type.size
@@ -191,6 +200,22 @@ def nudged(tech: ir.Technique, delta: float, only=None) -> ir.Technique:
     return walk.map_technique_code(tech, fn)
 
 
+def nudged_at_run_time(tech: ir.Technique) -> ir.Technique:
+    """The technique with every step's input moved by a run-time amount, ``nudge[k]`` for
+    site ``k`` (``builtins.nudge_input``; the float64 CL runtime's ``CLPipeline.nudge``
+    sets them): one program for every nudge the search tries, where a constant per variant
+    cost a compile and a PoCL build each (0.3-1 s a pass program)."""
+    count = [0]
+
+    def fn(e):
+        if _step_input(e) is None:
+            return e
+        k = count[0]
+        count[0] += 1
+        return _nudged_site(e, nudge_input(k))
+    return walk.map_technique_code(tech, fn)
+
+
 Convert = Callable[[str, np.ndarray], np.ndarray]
 
 
@@ -207,6 +232,7 @@ class Explainer:
         self.convert = convert or (lambda key, v: np.asarray(v, np.float64))
         self.sites = sites(compiled.technique)
         self._renders: dict = {}
+        self._pipeline = None           # the float64 program with run-time nudges
         self.renders_made = 0
 
     def upstream(self, target: str) -> set:
@@ -236,13 +262,17 @@ class Explainer:
 
     def _render(self, delta: float, only) -> dict:
         if isinstance(only, frozenset) and len(only) == 1:
-            only = next(iter(only))      # one site: the same variant as nudging it alone
+            only = next(iter(only))      # one site: the same render as nudging it alone
         key = (delta, only)
         if key not in self._renders:
-            from pipegen.compiler.driver import Compiled
-            variant = Compiled(nudged(self.compiled.technique, delta, only),
-                               self.compiled.params)
-            self._renders[key] = variant.pipeline("cl", precision="f64").render(self.scene)
+            if self._pipeline is None:      # one float64 program for every nudge
+                from pipegen.compiler.driver import Compiled
+                variant = Compiled(nudged_at_run_time(self.compiled.technique),
+                                   self.compiled.params)
+                self._pipeline = variant.pipeline("cl", precision="f64")
+            chosen = {only} if isinstance(only, int) else only
+            self._pipeline.nudge({k: delta for k in chosen})
+            self._renders[key] = self._pipeline.render(self.scene)
             self.renders_made += 1
         return self._renders[key]
 

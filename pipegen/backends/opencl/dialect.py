@@ -13,7 +13,7 @@ from typing import Optional
 from pipegen.ir import nodes as ir
 from pipegen.ir.light_layout import table_layout
 from pipegen.ir.nodes import Scalar, Type
-from pipegen.ir.builtins import BIT_CAST_BUILTINS
+from pipegen.ir.builtins import BIT_CAST_BUILTINS, nudge_site
 from pipegen.passes import lower_mix_constant
 from pipegen.backends.cstyle import CStyleLanguage, texel_select
 
@@ -350,6 +350,10 @@ class OpenCLLanguage64(OpenCLLanguage):
             # double comparisons give long masks; bvecs are int masks
             return f"convert_{self.type_name(t)}(({a}) != 0)"
         return super()._convert_vec(a, at, t)
+
+    def render_input(self, name: str, t: Type) -> str:
+        k = nudge_site(name)      # the discontinuity search's run-time nudge of site k
+        return f"in->nudges[{k}]" if k is not None else super().render_input(name, t)
 
     def render_float(self, x: float) -> str:
         """The literal's own value (the shortest decimal that reads back as the same double)."""

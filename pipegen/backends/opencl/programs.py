@@ -13,7 +13,7 @@ from typing import Optional
 from pipegen.core import formats as F
 from pipegen.core.float32 import f32
 from pipegen.ir import access, nodes as ir
-from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS
+from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS, nudge_site
 from pipegen.ir.light_layout import schema_layout
 from pipegen.backends import templating
 from pipegen.backends.cstyle import FLT_MIN
@@ -153,6 +153,8 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
     batch = batches_lights(plan, pass_, dynamic)
+    # the discontinuity search's run-time nudges (proof/discontinuity.py): a buffer argument
+    nudges = f64 and any(nudge_site(n) is not None for n in inputs)
     return templating.render(
         "cl_pass.cl.j2",
         technique=plan.technique, pass_name=pass_.name, prelude=prelude,
@@ -169,7 +171,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
         wide_w=cl_wide.W, batch=batch, per_sample="sample_id" in inputs,
-        mask_input="sample_mask" in inputs)
+        mask_input="sample_mask" in inputs, nudges=nudges)
 
 
 def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:

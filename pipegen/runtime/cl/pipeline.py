@@ -100,6 +100,7 @@ from typing import Optional
 import numpy as np
 
 from pipegen.ir import nodes as ir
+from pipegen.ir.builtins import nudge_site
 from pipegen.ir.light_layout import schema_layout
 from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
@@ -205,6 +206,23 @@ class CLPipeline:
         self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
         self._prefetched: set = set()   # per frame: the light passes whose set-up is queued
         self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
+        # the float64 programs of the discontinuity search read run-time nudges (``nudges``)
+        self._nudged = [self.f64 and any(nudge_site(n) is not None for n in p.code.inputs)
+                        for p in plan.passes]
+        sites = [nudge_site(n) for p in plan.passes for n in p.code.inputs]
+        self._nudges = np.zeros(1 + max([k for k in sites if k is not None], default=-1),
+                                np.float64)
+        self._nudges_buf = None
+
+    def nudge(self, amounts: dict) -> None:
+        """Move step site ``k`` by ``amounts[k]`` in the next renders, every other site by 0
+        (a float64 program compiled with run-time nudges, ``proof/discontinuity.py``)."""
+        values = np.zeros_like(self._nudges)
+        for k, amount in amounts.items():
+            if 0 <= k < values.size:       # a site no pass of this program runs: nothing moves
+                values[k] = amount
+        self._nudges = values
+        self._nudges_buf = None
 
     def release(self) -> None:
         """Drop the device buffers this pipeline holds (targets, blend counts, set-up geometry,
@@ -557,6 +575,10 @@ class CLPipeline:
                 volume = light if p.draw.shadow_volumes else None
                 attrs = self.geometry.attributes(p.draw, volume)[1]
             args += [bufs["h"], bufs["parent"], frame64_buf, self._lights64_buf, *attrs]
+            if self._nudged[k]:
+                if self._nudges_buf is None:
+                    self._nudges_buf = dev.buffer(self._nudges)
+                args.append(self._nudges_buf)
         kern = dev.kernel(k, "pg_raster")
         cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
         T = self.tile
