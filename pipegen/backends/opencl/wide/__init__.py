@@ -76,7 +76,7 @@ from pipegen.backends import plan as planlib
 from pipegen.backends.opencl.wide import helpers
 from pipegen.backends.opencl.wide.cost import cost, gathers
 from pipegen.backends.opencl.wide.emitter import WideEmitter
-from pipegen.backends.opencl.wide.values import MARK, W, Unsupported
+from pipegen.backends.opencl.wide.values import MARK, W, TooManyGathers, Unsupported
 
 __all__ = ["W", "MARK", "MIN_COST", "GATHER_COST", "LANE_GATHER_COST", "WMIN", "ENABLED",
            "CROSS_TRIANGLE", "wide_fragment", "has_wide", "wide_helpers", "cost", "gathers"]
@@ -142,12 +142,15 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
     work = cost(p.body, fmap) - GATHER_COST * gathers(p.body, fmap)
     if work < MIN_COST:
         return None
-    emitter = WideEmitter(tech, p, lang)
+    def too_many(lane_gathers: int) -> bool:
+        return work - LANE_GATHER_COST * lane_gathers < MIN_COST
+
+    emitter = WideEmitter(tech, p, lang, too_many)
     try:
         text = emitter.fragment(functions)
-    except Unsupported:
+    except (Unsupported, TooManyGathers):
         return None
-    if work - LANE_GATHER_COST * emitter.pass_gathers < MIN_COST:
+    if too_many(emitter.pass_gathers):
         return None
     return text
 

@@ -13,8 +13,11 @@ class WideEmitter(WideStatements, WideExpressions):
     """The lowering of one pass (``tech``, ``pass_``) through ``lang`` (``OpenCLLanguage``: the
     scalar dialect, whose spellings of literals, inputs and builtins it shares)."""
 
-    def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang):
+    def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang, too_many=lambda gathers: False):
         self.tech, self.pass_, self.lang = tech, pass_, lang
+        # whether the pass body's count of rows gathered lane by lane rules the wide form out
+        # (wide_fragment's test): rendering stops as soon as a render of the body passes it
+        self.too_many_gathers = too_many
         self.functions: dict = {}
         # what the emitted text holds: the structs and specialised functions the current
         # render uses (a discarded render's additions are taken back, see _function_body)

@@ -223,7 +223,7 @@ class WideExpressions:
             self.ntmp += 1
             name = f"pg_wt{self.ntmp}"
         rows = ", ".join(row_of(f"{i}.s{j}", index.type, True) for j in range(W))
-        self.lane_gathers += self.loop_weight
+        self.count_gathers(self.loop_weight)
         self.pre.append(f"const {self.lang.type_name(ir.VEC4)} {name}[{W}] = {{{rows}}};")
         return name, True
 

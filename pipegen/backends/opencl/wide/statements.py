@@ -13,7 +13,8 @@ from pipegen.ir import nodes as ir
 from pipegen.ir.nodes import VEC4, Scalar, Type
 from pipegen.backends.light_rows import plan_rows
 from pipegen.backends.opencl.wide.cost import iterations
-from pipegen.backends.opencl.wide.values import C_TYPES, W, Unsupported, Val, ctype, widen
+from pipegen.backends.opencl.wide.values import (
+    C_TYPES, W, TooManyGathers, Unsupported, Val, ctype, widen)
 
 # what a function's rendering sets on the emitter: saved and restored around the rendering of
 # a function it calls
@@ -119,6 +120,16 @@ class WideStatements:
         sname = self._struct(t, True)
         return ([f"{pad}{{ {sname} pg_wr;"] + [f"{pad}  pg_wr.c[{k}] = pg_wrv{k};" for k in range(t.size)]
                 + [f"{pad}  return pg_wr; }}"])
+
+    def count_gathers(self, rows: int) -> None:
+        """``rows`` more table rows gathered lane by lane per pixel.  In the pass body, a count
+        that rules the wide form out ends the rendering (``TooManyGathers``): no render counts
+        more than the last one does (each render reads every table read site once, and its
+        varying locals and arguments only grow from one render to the next), so the last
+        render's count would rule it out as well."""
+        self.lane_gathers += rows
+        if self.main and self.too_many_gathers(self.lane_gathers):
+            raise TooManyGathers()
 
     def _mark_varying(self, name: str) -> None:
         """``name`` is varying: the function is rendered again with it declared varying.  The
@@ -433,7 +444,7 @@ class WideStatements:
             self._emit_function(f, flags, spec)
             self.emitted[spec] = [(table, k, t) for table, old in zip(
                 (self.structs, self.out_funcs), before) for k, t in table.items() if k not in old]
-        self.lane_gathers += self.func_gathers[spec] * self.loop_weight
+        self.count_gathers(self.func_gathers[spec] * self.loop_weight)
         ret = self.func_ret[spec]
         args = ["in", "win"] + [c for v in vals for c in v.comps]
         call = f"{spec}({', '.join(args)})"

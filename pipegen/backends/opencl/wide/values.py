@@ -30,6 +30,11 @@ class Unsupported(Exception):
     """The code uses something the wide form does not support."""
 
 
+class TooManyGathers(Exception):
+    """The pass body gathers more table rows lane by lane than its work pays for: the wide
+    form would be dropped (``wide_fragment``), so its rendering stops."""
+
+
 @record
 class Val:
     comps: list            # C expressions, one per component (a matrix: one, the matrix)
