@@ -16,8 +16,11 @@ class WideEmitter(WideStatements, WideExpressions):
     def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang, too_many=lambda gathers: False):
         self.tech, self.pass_, self.lang = tech, pass_, lang
         # whether the pass body's count of rows gathered lane by lane rules the wide form out
-        # (wide_fragment's test): rendering stops as soon as a render of the body passes it
+        # (wide_fragment's test): rendering stops as soon as what it counted passes it
         self.too_many_gathers = too_many
+        # the functions being rendered for a call: (the caller's count before the call, the
+        # call's loop weight), outermost first (count_gathers)
+        self.callers: list[tuple[int, int]] = []
         self.functions: dict = {}
         # what the emitted text holds: the structs and specialised functions the current
         # render uses (a discarded render's additions are taken back, see _function_body)

@@ -122,13 +122,18 @@ class WideStatements:
                 + [f"{pad}  return pg_wr; }}"])
 
     def count_gathers(self, rows: int) -> None:
-        """``rows`` more table rows gathered lane by lane per pixel.  In the pass body, a count
-        that rules the wide form out ends the rendering (``TooManyGathers``): no render counts
-        more than the last one does (each render reads every table read site once, and its
-        varying locals and arguments only grow from one render to the next), so the last
-        render's count would rule it out as well."""
+        """``rows`` more table rows gathered lane by lane per pixel.  A count that rules the
+        wide form out ends the rendering (``TooManyGathers``).  The count that decides is the
+        pass body's in its last render; what is counted so far, in the body and in the
+        functions being rendered for its calls (``callers``: each caller's count before the
+        call and the call's loop weight), is at most that: no render counts more than the
+        last one does (each render reads every table read site once, and its varying locals
+        and arguments only grow from one render to the next)."""
         self.lane_gathers += rows
-        if self.main and self.too_many_gathers(self.lane_gathers):
+        counted = self.lane_gathers
+        for before, weight in reversed(self.callers):
+            counted = before + weight * counted
+        if self.too_many_gathers(counted):
             raise TooManyGathers()
 
     def _mark_varying(self, name: str) -> None:
@@ -472,11 +477,13 @@ class WideStatements:
             names = self._local_names(n, t)
             params[n] = Val(names, t, v)
             decl += [f"{ctype(t.scalar, v)} {x}" for x in names]
+        self.callers.append((self.lane_gathers, self.loop_weight))
         try:
             body = self._function_body(f.body, params, main=False, ret=f.ret)
             rv = self.final_ret_varying
             self.func_gathers[spec] = self.lane_gathers
         finally:
+            self.callers.pop()
             for k, v in saved.items():
                 setattr(self, k, v)
         if f.ret.is_void:
