@@ -99,6 +99,10 @@ class WideStatements:
                 continue
             if self.dirty:
                 varying = set(self.varying_locals)
+                # a value it returned varying is varying in the last render too (varying
+                # locals only grow): the next render returns varying values already, instead
+                # of a render more to learn it
+                ret_varying[0] = ret_varying[0] or (not main and self.returned_varying)
                 continue
             if not main and self.returned_varying and not ret_varying[0]:
                 ret_varying[0] = True
