@@ -55,6 +55,31 @@ from pipegen.backends.light_rows import RowLoad, RowPlan, plan_rows
 
 FLT_MIN = 2.0 ** -126   # smallest normal float32: the normalize() guard
 
+# The row plans (light_rows.plan_rows) of the bodies emitted lately, by the identity of the body
+# (held, so that its id stays its own) and whether material rows are planned: each pass's
+# program emits every function the pass calls, so a function several passes call, in GLSL and
+# in OpenCL, was planned once per pass and backend.  The plan is a function of the body, the
+# layouts and the parameter names, which a hit must match.  A compile builds new bodies, so
+# nothing is reused from one compile to the next; the bound is what a long-lived process keeps.
+_ROW_PLANS: dict[tuple[int, bool], tuple] = {}
+_ROW_PLANS_MAX = 1024
+
+
+def row_plan(body: Sequence[ir.Stmt], layout: LightLayout, params: Sequence[str] = (),
+             materials: Optional[MaterialLayout] = None) -> RowPlan:
+    """``plan_rows(body, layout, params, materials)``, planned once per body."""
+    params = tuple(params)
+    key = (id(body), materials is not None)
+    hit = _ROW_PLANS.get(key)
+    if hit is not None and hit[0] is body and hit[1] == (layout, params, materials):
+        return hit[2]
+    plan = plan_rows(body, layout, params, materials)
+    if isinstance(body, tuple):      # a list may change: planned each time
+        if len(_ROW_PLANS) >= _ROW_PLANS_MAX:
+            _ROW_PLANS.clear()
+        _ROW_PLANS[key] = (body, (layout, params, materials), plan)
+    return plan
+
 # C precedence, higher binds tighter.
 PREC = {"||": 3, "^^": 4, "&&": 5, "|": 6, "^": 7, "&": 8, "==": 9, "!=": 9, "<": 10,
         "<=": 10, ">": 10, ">=": 10, "<<": 11, ">>": 11, "+": 12, "-": 12, "*": 13, "/": 13,
@@ -160,7 +185,8 @@ class CStyleLanguage:
 
     # ---- names, types, literals ---------------------------------------------------------------
     def type_name(self, t: Type) -> str:
-        return self.type_names.get(t, str(t))
+        name = self.type_names.get(t)
+        return str(t) if name is None else name     # str(t) only when needed: it is not cheap
 
     def ident(self, name: str) -> str:
         if name in self.helpers:
@@ -393,7 +419,7 @@ class CStyleLanguage:
         if self._path is None:
             if self.light_layout is None:
                 return [line for s in body for line in self.stmt(s, depth)]
-            self._rows, self._path = plan_rows(body, self.light_layout, params), ()
+            self._rows, self._path = row_plan(body, self.light_layout, params), ()
             try:
                 return self.stmts(body, depth)
             finally:

@@ -11,7 +11,7 @@ from typing import Optional
 
 from pipegen.ir import nodes as ir
 from pipegen.ir.nodes import VEC4, Scalar, Type
-from pipegen.backends.light_rows import plan_rows
+from pipegen.backends.cstyle import row_plan
 from pipegen.backends.opencl.wide.cost import iterations
 from pipegen.backends.opencl.wide.values import (
     C_TYPES, W, TooManyGathers, Unsupported, Val, ctype, widen)
@@ -48,7 +48,7 @@ class WideStatements:
         materials = None if self.tech.materials is None else self.lang.material_layout()
         # each light-table row read once (light_rows.py), as the scalar emitter does, and
         # each material row: read at a varying index, a row is a gather of W rows
-        self.rows = None if layout is None else plan_rows(body, layout, list(params), materials)
+        self.rows = None if layout is None else row_plan(body, layout, params, materials)
         for _ in range(200):
             _truncate(self.structs, kept[0])
             _truncate(self.out_funcs, kept[1])
