@@ -33,9 +33,9 @@ _ROUNDS = 16        # a call climbs one function per round; chains are a few fun
 
 
 def run(tech: ir.Technique) -> ir.Technique:
-    calls: dict = {}        # the bodies' user calls, kept across rounds (_Chains)
+    memo = _Memo()
     for _ in range(_ROUNDS):
-        lifted = _lift(tech, calls)
+        lifted = _lift(tech, memo)
         if lifted is tech:
             break
         tech = lifted
@@ -58,20 +58,40 @@ def _invariant(e: ir.Expr, fixed: frozenset) -> bool:
     return False        # light and material fields, loads, samples, target sizes
 
 
-def _candidates(stmts: Iterable[ir.Stmt], movable: Callable[[ir.Call], bool]) -> list[ir.Call]:
-    """The outermost builtin calls in ``stmts`` that ``movable`` accepts, each once, in order."""
-    found: dict[ir.Call, None] = {}
+def _invariant_calls(stmts: Iterable[ir.Stmt], fixed: frozenset) -> list:
+    """The builtin calls in ``stmts`` that ``_invariant`` accepts (with ``fixed``), outermost
+    first, in order, each as ``(call, the same list of the calls inside it)``: the tree
+    ``_candidates`` picks from, so that a lift round walks only these calls."""
+    def collect(e: ir.Expr, out: list) -> None:
+        if isinstance(e, ir.Call) and e.builtin and _invariant(e, fixed):
+            inner: list = []
+            for c in irwalk.child_exprs(e):
+                collect(c, inner)
+            out.append((e, inner))
+        else:
+            for c in irwalk.child_exprs(e):
+                collect(c, out)
 
-    def visit(e: ir.Expr) -> None:
-        if isinstance(e, ir.Call) and e.builtin and movable(e):
-            found.setdefault(e)
-            return
-        for c in irwalk.child_exprs(e):
-            visit(c)
-
+    top: list = []
     for s in irwalk.walk_stmts(stmts):
         for e in irwalk.child_exprs(s):
-            visit(e)
+            collect(e, top)
+    return top
+
+
+def _candidates(calls: list, accept: Callable[[ir.Call], bool]) -> list[ir.Call]:
+    """The outermost of ``calls`` (an ``_invariant_calls`` tree) that ``accept`` accepts,
+    each once, in order: where a call is refused, the calls inside it are offered."""
+    found: dict[ir.Call, None] = {}
+
+    def pick(tree: list) -> None:
+        for call, inner in tree:
+            if accept(call):
+                found.setdefault(call)
+            else:
+                pick(inner)
+
+    pick(calls)
     return list(found)
 
 
@@ -155,14 +175,42 @@ def _substitute(e: ir.Expr, args: dict[str, ir.Expr]) -> ir.Expr:
                                if isinstance(x, ir.Var) and x.kind == "local" else x)
 
 
+class _Memo:
+    """What the lift rounds find in a body, kept across rounds by the identity of the body
+    (held, so that the id stays its own): a round changes few bodies, the others are not
+    walked again."""
+
+    def __init__(self):
+        self._calls: dict[int, tuple] = {}
+        self._invariant: dict[tuple[int, frozenset], tuple] = {}
+        self._fixed: dict[int, tuple] = {}
+
+    def calls(self, body: tuple) -> list[tuple[ir.Call, bool]]:
+        kept = self._calls.get(id(body))
+        if kept is None or kept[0] is not body:
+            kept = self._calls[id(body)] = (body, _calls(body))
+        return kept[1]
+
+    def invariant_calls(self, body: tuple, fixed: frozenset) -> list:
+        key = (id(body), fixed)
+        kept = self._invariant.get(key)
+        if kept is None or kept[0] is not body:
+            kept = self._invariant[key] = (body, _invariant_calls(body, fixed))
+        return kept[1]
+
+    def fixed_params(self, f: ir.Function) -> frozenset:
+        kept = self._fixed.get(id(f))
+        if kept is None or kept[0] is not f:
+            kept = self._fixed[id(f)] = (f, _fixed_params(f))
+        return kept[1]
+
+
 class _Chains:
     """Who calls whom, and which calls can climb to a loop they are invariant in."""
 
-    def __init__(self, tech: ir.Technique, calls: dict):
-        """``calls``: the ``_calls`` of bodies seen in earlier rounds (id of the body ->
-        (body, its calls)); a round changes few bodies, the rest are not walked again."""
+    def __init__(self, tech: ir.Technique, memo: _Memo):
         self.by_name = {f.name: f for f in tech.all_functions()}
-        self.fixed = {name: _fixed_params(f) for name, f in self.by_name.items()}
+        self.fixed = {name: memo.fixed_params(f) for name, f in self.by_name.items()}
         bodies = [(None, p.body) for p in tech.passes]
         bodies += [(f.name, f.body) for f in self.by_name.values()]
         self.calls = {}            # function -> the user functions its body calls
@@ -170,10 +218,7 @@ class _Chains:
         self.sites: dict[str, list[tuple[ir.Call, Optional[str], bool]]] = {}
         work = []                  # functions called from inside a loop
         for caller, body in bodies:
-            kept = calls.get(id(body))
-            if kept is None or kept[0] is not body:
-                kept = calls[id(body)] = (body, _calls(body))
-            found = kept[1]
+            found = memo.calls(body)
             # a call equal to one inside a loop counts as inside it
             looped = {c for c, in_loop in found if in_loop}
             for c, _ in found:
@@ -207,19 +252,19 @@ class _Chains:
         return _invariant(e, self.fixed[caller]) and (looped or self.liftable(e, caller))
 
 
-def _lift(tech: ir.Technique, calls: dict) -> ir.Technique:
+def _lift(tech: ir.Technique, memo: _Memo) -> ir.Technique:
     """One round: each function's calls that ``_Chains.liftable`` accepts become parameters
     and its call sites pass them.  ``tech`` itself when nothing lifts."""
-    chains = _Chains(tech, calls)
+    chains = _Chains(tech, memo)
     lifts: dict[str, list[tuple[str, ir.Call]]] = {}      # function -> (new param, call)
     for f in tech.functions:
         if f.name not in chains.in_loops or f.name not in chains.sites:
             continue        # nothing in it is liftable (_Chains.liftable)
-        fixed, taken = chains.fixed[f.name], _names(f.params, f.body)
-        movable = (lambda e, f=f, fixed=fixed:
-                   _invariant(e, fixed) and chains.liftable(e, f.name))
-        for e in _candidates(f.body, movable):
-            lifts.setdefault(f.name, []).append((_fresh(taken), e))
+        invariant = memo.invariant_calls(f.body, chains.fixed[f.name])
+        found = _candidates(invariant, lambda e, f=f: chains.liftable(e, f.name))
+        if found:
+            taken = _names(f.params, f.body)
+            lifts[f.name] = [(_fresh(taken), e) for e in found]
     if not lifts:
         return tech
     by_name = chains.by_name
@@ -232,7 +277,7 @@ def _lift(tech: ir.Technique, calls: dict) -> ir.Technique:
         return e
 
     def calls_lifted(body: tuple) -> bool:
-        return any(c.name in lifts for c, _ in calls[id(body)][1])
+        return any(c.name in lifts for c, _ in memo.calls(body))
 
     def fix(f: ir.Function) -> ir.Function:
         if f.name not in lifts and not calls_lifted(f.body):
@@ -286,7 +331,7 @@ def _hoist_body(body: tuple, fixed: frozenset, taken: set[str]) -> tuple:
     changed = False
     for s in body:
         if isinstance(s, ir.For):
-            calls = _candidates(s.body, lambda e: _invariant(e, fixed))
+            calls = _candidates(_invariant_calls(s.body, fixed), lambda e: True)
             if calls:
                 names = {c: _fresh(taken) for c in calls}
                 out.extend(ir.Declare(names[c], c.type, c) for c in calls)
