@@ -8,19 +8,21 @@ from __future__ import annotations
 
 import dataclasses
 
-from pipegen.ir import nodes as ir, walk as irwalk
+from pipegen.ir import facts, nodes as ir
 
 
 def run(tech: ir.Technique) -> ir.Technique:
     by_name = {f.name: f for f in tech.all_functions()}
     reachable: set[str] = set()
-    work = [c.name for p in tech.passes for c in _user_calls(p.body)]
+    # the calls as code_facts lists them: the bodies that stay are walked once per compile
+    # (emission asks the same facts of them)
+    work = [name for p in tech.passes for name in facts.code_facts(p.body).calls]
     while work:
         name = work.pop()
         if name in reachable or name not in by_name:
             continue
         reachable.add(name)
-        work.extend(c.name for c in _user_calls(by_name[name].body))
+        work.extend(facts.code_facts(by_name[name].body).calls)
 
     packings = tuple(dataclasses.replace(
         p, functions=tuple(f for f in p.functions if f.name in reachable))
@@ -28,10 +30,3 @@ def run(tech: ir.Technique) -> ir.Technique:
     functions = tuple(f for f in tech.functions if f.name in reachable)
     return dataclasses.replace(tech, packings=packings, functions=functions)
 
-
-def called_functions(stmts) -> set[str]:
-    return {c.name for c in _user_calls(stmts)}
-
-
-def _user_calls(stmts):
-    return (e for e in irwalk.walk_exprs(stmts) if isinstance(e, ir.Call) and not e.builtin)
