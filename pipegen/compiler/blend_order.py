@@ -25,7 +25,6 @@ the nearest wins (ties aside) and order does not matter.
 from __future__ import annotations
 
 from pipegen.ir import nodes as ir
-from pipegen.ir.printer import blend_equation
 
 F = ir.BlendFactor
 _READS_DST = {F.DST_COLOR, F.ONE_MINUS_DST_COLOR, F.DST_ALPHA, F.ONE_MINUS_DST_ALPHA,
@@ -70,6 +69,7 @@ def order_dependent_blends(tech: ir.Technique) -> list[tuple[ir.Pass, str, str]]
                     out.append((p, target, "no blend and no depth write: the last fragment "
                                            "drawn wins"))
                 continue
+            from pipegen.ir.printer import blend_equation   # only to word a warning
             bad = [f"{part} {blend_equation(eq)}" for part, eq, mask in
                    (("rgb", b.rgb, any(b.write_mask[:3])), ("alpha", b.alpha, b.write_mask[3]))
                    if mask and not commutes(eq)]
