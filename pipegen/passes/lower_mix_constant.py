@@ -14,16 +14,16 @@ expressions rendered in tests).
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Optional
 
 from pipegen.ir import nodes as ir, walk as irwalk
 from pipegen.core.float32 import f32
+from pipegen.passes.bodies import map_bodies
 
 
 def run(tech: ir.Technique) -> ir.Technique:
     """The technique with every body that holds such a ``mix`` rewritten; the others are
-    kept as they are (the same objects: what emission learnt of them is reused)."""
+    kept as they are (``bodies.map_bodies``: what emission learnt of them is reused)."""
     def lower(body: tuple) -> tuple:
         # lowering a call never makes another one lowerable: a body without one is kept
         if not any(type(e) is ir.Call and lower_call(e) is not None
@@ -31,16 +31,7 @@ def run(tech: ir.Technique) -> ir.Technique:
             return body
         return irwalk.rewrite_stmts(body, _lower_expr)
 
-    def function(f: ir.Function) -> ir.Function:
-        body = lower(f.body)
-        return f if body is f.body else dataclasses.replace(f, body=body)
-
-    packings = tuple(dataclasses.replace(p, functions=tuple(function(f) for f in p.functions))
-                     for p in tech.packings)
-    functions = tuple(function(f) for f in tech.functions)
-    passes = tuple(p if (body := lower(p.body)) is p.body else dataclasses.replace(p, body=body)
-                   for p in tech.passes)
-    return dataclasses.replace(tech, packings=packings, functions=functions, passes=passes)
+    return map_bodies(tech, lower)
 
 
 def _lower_expr(e: ir.Expr) -> ir.Expr:

@@ -14,6 +14,7 @@ import operator
 
 from pipegen.ir import nodes as ir, walk as irwalk
 from pipegen.core.float32 import f32
+from pipegen.passes.bodies import map_bodies
 
 _ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul}
 _COMPARE = {"==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,
@@ -22,7 +23,16 @@ _BITS = {"&": operator.and_, "|": operator.or_, "^": operator.xor}
 
 
 def run(tech: ir.Technique) -> ir.Technique:
-    return irwalk.map_technique_code(tech, fold_expr, _fold_stmt)
+    return map_bodies(tech, _fold_body)
+
+
+def _fold_body(body: tuple) -> tuple:
+    """``body`` folded; itself (bodies.map_bodies) when none of its expressions and statements
+    folds: folding rewrites bottom-up, so a body where nothing folds as it is stays as it is."""
+    if not (any(fold_expr(e) is not e for e in irwalk.walk_exprs(body))
+            or any(_fold_stmt(s) is not None for s in irwalk.walk_stmts(body))):
+        return body
+    return irwalk.rewrite_stmts(body, fold_expr, _fold_stmt)
 
 
 def _scalar_const(e: ir.Expr) -> bool:

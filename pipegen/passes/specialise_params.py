@@ -8,6 +8,7 @@ feature switches).
 from __future__ import annotations
 
 from pipegen.ir import nodes as ir, walk as irwalk
+from pipegen.passes.bodies import map_bodies
 
 
 def run(tech: ir.Technique) -> ir.Technique:
@@ -19,7 +20,13 @@ def run(tech: ir.Technique) -> ir.Technique:
             return ir.Const(e.type, _typed(p.default, e.type))
         return e
 
-    return irwalk.map_technique_code(tech, replace)
+    def specialise(body: tuple) -> tuple:
+        # a body that reads no parameter is kept as it is (bodies.map_bodies)
+        if not any(type(e) is ir.Var and e.kind == "param" for e in irwalk.walk_exprs(body)):
+            return body
+        return irwalk.rewrite_stmts(body, replace)
+
+    return map_bodies(tech, specialise)
 
 
 def _typed(value, t: ir.Type):
