@@ -28,7 +28,10 @@ technique.
 ``--stages`` prints where the time of one ``compile`` goes, in a fresh process (imports, front
 end, emission); ``--many-passes`` times ``compile_source`` in this process on forward.pipe with
 100, 200 and 400 trivial full-screen passes added and prints how the time grows with the count
-(linear: about 2x per doubling).
+(linear: about 2x per doubling).  ``--against TREE`` compares this checkout with another one
+(``git worktree add TREE REV``), fresh processes of the two in turn, best of ``--repeat`` each;
+``--instructions`` adds each compile's instruction count (valgrind's callgrind), the figure to
+compare on a shared machine.
 
 The runs use compiled bytecode, as an installed pipegen does (pip writes the ``.pyc`` files):
 ``PYTHONDONTWRITEBYTECODE`` is unset and ``PYTHONPYCACHEPREFIX`` points at a temporary folder,
@@ -76,6 +79,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
+import shutil
 import statistics
 import subprocess
 import sys
@@ -96,12 +101,12 @@ def _pipegen_command() -> list[str]:
     return [sys.executable, "-m", "pipegen.cli"]
 
 
-def time_run(cmd: list[str], env: dict) -> tuple[float, float]:
+def time_run(cmd: list[str], env: dict, cwd: Path = ROOT) -> tuple[float, float]:
     """(wall, CPU) seconds of one run; the CPU time (user + system of the child) is the steadier
     figure on a machine other work shares."""
     cpu0 = _children_cpu()
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    proc = subprocess.run(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                           text=True, env=env)
     elapsed = time.perf_counter() - t0
     if proc.returncode != 0:
@@ -226,10 +231,18 @@ def main() -> int:
                     help="compile every module from source in every run")
     ap.add_argument("--many-passes", action="store_true",
                     help="compile time against the number of passes (in this process)")
+    ap.add_argument("--against", metavar="TREE",
+                    help="compare with another checkout (git worktree add TREE REV): fresh "
+                         "processes of the two run in turn")
+    ap.add_argument("--instructions", action="store_true",
+                    help="with --against: also count each compile's instructions (valgrind)")
     ap.add_argument("techniques", nargs="*", default=ALL)
     args = ap.parse_args()
     if args.many_passes:
         return many_passes(args.repeat)
+    if args.against:
+        return against(Path(args.against).resolve(), args.techniques, args.repeat,
+                       args.instructions)
 
     base = _pipegen_command()
     print(f"load average before: {_load()}")
@@ -293,6 +306,72 @@ def main() -> int:
             subprocess.run([sys.executable, "-c", STAGES, f"pipelines/{name}.pipe",
                             f"{tmp}/stages"], cwd=ROOT, env=env, check=True)
     return 0
+
+
+def against(tree: Path, names: list[str], repeat: int, instructions: bool) -> int:
+    """``pipegen compile`` of each technique as a fresh process, by this checkout and by
+    ``tree`` in turn (so that the machine's drift falls on both alike): best wall and CPU
+    times of ``repeat`` runs each and their ratios; with ``instructions`` also the
+    instructions of one compile each (callgrind: a count the machine's load does not
+    change).  Each tree runs as ``python -m pipegen.cli`` (from a folder of neither, so that
+    PYTHONPATH picks the tree) with its own bytecode and caches, warmed first; both compile
+    this checkout's ``pipelines/``."""
+    for folder in ("templates", "grammar"):
+        if not (tree / "pipegen" / folder).exists():
+            # the editable install maps pipegen.templates to this checkout's folder
+            raise SystemExit(f"{tree}/pipegen/{folder} is missing: ln -s ../{folder} "
+                             f"{tree}/pipegen/{folder}")
+    if instructions and shutil.which("valgrind") is None:
+        raise SystemExit("--instructions needs valgrind")
+    trees = {"this": ROOT, "other": tree}
+    with tempfile.TemporaryDirectory(prefix="pipegen-against-") as tmp:
+        envs = {}
+        for label, root in trees.items():
+            env = dict(os.environ, PYTHONPATH=str(root), PYTHONPYCACHEPREFIX=f"{tmp}/pyc-{label}",
+                       PIPEGEN_CACHE_DIR=f"{tmp}/cache-{label}")
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            envs[label] = env
+
+        def cmd(label: str, name: str) -> list[str]:
+            return [sys.executable, "-m", "pipegen.cli", "compile",
+                    str(ROOT / "pipelines" / f"{name}.pipe"), "-o", f"{tmp}/{label}-{name}"]
+
+        def run(label: str, name: str) -> tuple[float, float]:
+            return time_run(cmd(label, name), envs[label], cwd=Path(tmp))
+
+        for name in names:                    # bytecode, parser, trees, templates
+            for label in trees:
+                run(label, name)
+        print(f"this checkout: {ROOT}; other: {tree}; load average before: {_load()}")
+        print(f"{'technique':<20} {'other s':>8} {'this s':>7} {'ratio':>6}   {'other CPU':>9} "
+              f"{'this CPU':>8} {'ratio':>6}" + ("   other M   this M   ratio" if instructions
+                                                  else ""))
+        for name in names:
+            runs: dict[str, list] = {label: [] for label in trees}
+            for _ in range(repeat):
+                for label in trees:
+                    runs[label].append(run(label, name))
+            (ow, oc), (tw, tc) = ((min(w for w, _ in runs[k]), min(c for _, c in runs[k]))
+                                  for k in ("other", "this"))
+            line = f"{name:<20} {ow:8.3f} {tw:7.3f} {tw / ow:6.2f}   {oc:9.3f} {tc:8.3f} " \
+                   f"{tc / oc:6.2f}"
+            if instructions:
+                oi, ti = (_instructions(cmd(k, name), envs[k], Path(tmp)) / 1e6
+                          for k in ("other", "this"))
+                line += f"   {oi:7.1f}  {ti:7.1f}  {ti / oi:6.2f}"
+            print(line)
+        print(f"load average after: {_load()}")
+    return 0
+
+
+def _instructions(cmd: list[str], env: dict, cwd: Path) -> int:
+    """Instructions one run of ``cmd`` executes (valgrind's callgrind)."""
+    proc = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                           *cmd], cwd=cwd, env=env, capture_output=True, text=True)
+    found = re.search(r"Collected : (\d+)", proc.stderr)
+    if proc.returncode != 0 or found is None:
+        raise SystemExit(f"valgrind {' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    return int(found.group(1))
 
 
 def _edit(name: str, folder: Path, tag: str) -> str:
