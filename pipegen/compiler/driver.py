@@ -47,6 +47,8 @@ class Compiled:
     phases_run: list[str] = field(default_factory=list)
     specialisation: Optional["Specialisation"] = None    # set when compiled for a scene
     _plans: dict = field(default_factory=dict, repr=False)
+    # output size -> report text: `pipegen compile` writes report.txt and prints it
+    _reports: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def name(self) -> str:
@@ -75,8 +77,11 @@ class Compiled:
         return b.runtime_class()(self._plans[key], size)
 
     def report(self, output_size: tuple[int, int] = (1280, 720)) -> str:
-        from pipegen.views.report import render_report
-        return render_report(self, output_size)
+        key = tuple(output_size)
+        if key not in self._reports:
+            from pipegen.views.report import render_report
+            self._reports[key] = render_report(self, output_size)
+        return self._reports[key]
 
     def warnings(self) -> list[str]:
         """What compiling found suspicious in the technique itself, each located in its
