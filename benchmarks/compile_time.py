@@ -40,39 +40,64 @@ template caches; the user's own cache is left alone).  ``--no-bytecode`` measure
 module compiled from source in every run instead (``PYTHONDONTWRITEBYTECODE=1`` and no ``.pyc``
 anywhere).
 
-Figures (issue 26 item 7).  Before: 6ad8ea5; after: this change (f32_str cached by bits,
-CLPassCode.included without whole-prelude searches, the verifier's messages formatted only
-on failure, pyrepr not scanning long strings at every level); both with the same pipelines.
+Figures (issue 26 item 7), second round.  Before: f7c9dd1; after: fa1ca60.  What changed:
+opt_hoist_invariants walks each body once per compile and keeps what it found across its lift
+rounds; specialise_params, opt_fold_constants and lower_mix_constant keep the bodies they do
+not change as the same objects (passes/bodies.py), so a body's code facts and light-row plans
+are worked out once; a body's light-row plan is made once for every pass and both backends
+(cstyle.row_plan); the CL wide path stops rendering a pass once its rows gathered lane by lane
+rule the wide form out, and keeps what a render learnt of the return; the material layout once
+per pass, the report once per compile; build_parser builds only the subcommand named; the
+command freezes what its imports built for the collector (gc.freeze); the IR printer is
+imported only to word a warning.  The emitted text is unchanged.  (A first round, 6ad8ea5 to
+its successor, cut 3-9 %; the techniques have grown since.)
 
-Instructions of one ``pipegen compile pipelines/X.pipe`` in a fresh process with warm caches
-(``valgrind --tool=callgrind python -m pipegen.cli compile ...``: a count the machine's load
-does not change), in millions.  The floor: ``python -c pass`` 147 M; the interpreter with
-every module a compile imports 412 M.
+    git worktree add /tmp/before f7c9dd1
+    ln -s ../templates /tmp/before/pipegen/templates
+    ln -s ../grammar /tmp/before/pipegen/grammar
+    LP_NUM_THREADS=2 POCL_MAX_PTHREAD_COUNT=2 python benchmarks/compile_time.py \\
+        --against /tmp/before --instructions
 
-    technique            before   after
-    deferred              852.4   790.2   -7.3 %
-    deferred_calver      1137.4  1038.9   -8.7 %
-    forward               746.3   723.3   -3.1 %
-    forward_multipass     690.6   664.9   -3.7 %
-    inferred             1099.9  1036.2   -5.8 %
-    lidr_bitplanes        855.9   811.9   -5.1 %
-    lidr_cpu_sort         965.2   881.3   -8.7 %
-    lidr_max_stencil      869.9   813.5   -6.5 %
-    lidr_transparent     1058.3   969.2   -8.4 %
-    light_prepass         883.4   836.3   -5.3 %
+Instructions of one ``pipegen compile`` in a fresh process with warm caches (callgrind: a count
+the machine's load does not change), in millions, and the best wall time of 5 runs, the two
+trees' runs in turn (load average 1.7 before, 3.8 after, from other work: the wall ratios
+scatter around the instruction ratios, 0.71-1.10):
 
-Wall clock before, ``LP_NUM_THREADS=2 POCL_MAX_PTHREAD_COUNT=2 python
-benchmarks/compile_time.py`` on a quiet machine (load average 0.05 before, 0.93 after): best
-of 5 in a fresh process 0.212 s (forward) to 0.319 s (lidr_transparent), just edited
-0.335-0.488 s; warm in one process (load 2.7) 0.024-0.107 s.  No quiet machine was to be had
-for the after figures (load average 7-14 from other work: wall times 2-3x those above and
-noisier than the 3-9 % difference), hence the instruction counts.
+    technique            instructions (M)            fresh process, best of 5 (s)
+                         before   after            before  after  ratio
+    deferred               930.4   836.5  -10.1 %     0.292  0.249   0.85
+    deferred_calver       1714.9  1406.5  -18.0 %     0.432  0.360   0.83
+    forward               1139.8   894.5  -21.5 %     0.315  0.289   0.92
+    forward_multipass      748.7   686.1   -8.4 %     0.239  0.241   1.01
+    inferred              1291.0  1115.9  -13.6 %     0.482  0.419   0.87
+    lidr_bitplanes        1156.6   903.1  -21.9 %     0.386  0.336   0.87
+    lidr_cpu_sort         1269.4   998.8  -21.3 %     0.443  0.361   0.81
+    lidr_max_stencil      1161.0   912.2  -21.4 %     0.433  0.368   0.85
+    lidr_msaa_texture     1066.2   858.8  -19.5 %     0.367  0.344   0.94
+    lidr_nearest_edge     1242.2   951.5  -23.4 %     0.348  0.307   0.88
+    lidr_shadow_indexed   1517.5  1095.3  -27.8 %     0.452  0.319   0.71
+    lidr_shadow_prepass   1922.4  1345.8  -30.0 %     0.513  0.420   0.82
+    lidr_shadow_volumes   1169.4   914.8  -21.8 %     0.263  0.219   0.83
+    lidr_transparent      1562.5  1154.1  -26.1 %     0.551  0.440   0.80
+    light_prepass         1010.9   884.1  -12.5 %     0.328  0.362   1.10
 
-The 0.2 s target is met by a warm compile in one process, not by a fresh process: its floor
-here is about 0.12 s (``python -c pass`` 0.04-0.05 s, of which about 0.03 s are this
-environment's ``.pth`` hooks: the editable install's finder, a certifi hook; jinja2's import
-about 0.03 s), leaving 0.08 s where deferred_calver's compile takes 0.13-0.15 s (627 M
-instructions after the imports' 412 M: it would have to lose 40 %).
+Every technique runs 8-30 % fewer instructions (21 % fewer in all).  The floor: ``python -c
+pass`` 144 M; the interpreter with every module a compile imports (``import pipegen.cli.main,
+pipegen.compiler.driver, pipegen.backends.glsl, pipegen.backends.opencl.emit,
+pipegen.backends.templating``) 436 M before, 438 M after: jinja2 87 M of it, the standard
+library's modules 62 M, pipegen's own about 145 M (ir/nodes.py 38 M and frontend/ast.py 21 M,
+their ~130 record classes going through ``dataclass``).
+
+The 0.2 s target is still not met by a fresh process: here today ``python -c pass`` takes
+0.05-0.08 s and the imports bring it to 0.16-0.19 s, so a compile would have to stay within
+about 100 M instructions beyond the imports' 438 M, where it takes 250-970 M.  A warm compile
+in one process meets it (0.19 s at most, deferred_calver).  What is left: the walks over the
+IR (ir/walk.py's ``child_exprs`` and what is built on it: the light-row plans, the code facts,
+the verifier, the passes) are the largest single cost, then the two emitters' per-node Python;
+core/records.py's classes still go through ``dataclass`` at import; core/outdir.py hashes each
+output four times (the folder checks before and while writing, the staged file, the file it
+replaces: 35 M of forward's 900 M), which is what keeps it from overwriting a file someone
+changed, so it was left as it is.
 """
 
 from __future__ import annotations
