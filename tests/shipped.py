@@ -3,8 +3,7 @@
 ``ALL``: every ``pipelines/*.pipe``, by name.  ``params(...)``: them as pytest parameters, the
 variants (``VARIANTS``) marked ``exhaustive``: CI runs the expensive generic per-technique
 checks (stress, quiet builds, float32 within a code of float64, specialised = general, either
-blend order, image hashes, set-up
-reuse) on one technique of each family, and ``--exhaustive`` on all.  Each variant is its base
+blend order, image hashes, set-up reuse) on one technique of each family, and ``--exhaustive`` on all.  Each variant is its base
 technique plus one feature, checked in its own test file (GL = CL on four scenes, its float64
 bounds, what it adds); fifteen techniques through every generic check would not fit CI's
 10 minutes on two cores (each costs PoCL builds of its kernels in a clean clone).
