@@ -126,9 +126,19 @@ def test_control_flow_lowering_is_exact(monkeypatch, wmin):
         assert np.count_nonzero(out["color"][..., :3]) > 0.3 * out["color"][..., :3].size
 
 
+def _ci(names, exhaustive):
+    """``names`` as parameters, those in ``exhaustive`` only with --exhaustive: their wide
+    passes (full-screen and light-volume passes reading a G-buffer) go through the lowerings
+    of the ones CI keeps, each tested construct by construct above (CI's 10-minute budget)."""
+    return [pytest.param(*n if isinstance(n, tuple) else (n,),
+                         marks=pytest.mark.exhaustive if (n[0] if isinstance(n, tuple) else n)
+                         in exhaustive else ()) for n in names]
+
+
 @pytest.mark.cl
-@pytest.mark.parametrize("technique", ["forward", "forward_multipass", "light_prepass",
-                                       "inferred", "deferred", "deferred_calver"])
+@pytest.mark.parametrize("technique", _ci(["forward", "forward_multipass", "light_prepass",
+                                           "inferred", "deferred", "deferred_calver"],
+                                          {"forward_multipass", "light_prepass", "deferred"}))
 def test_shipped_techniques_are_exact(monkeypatch, technique):
     scalar, wide = _pipes(lambda: compile_file(ROOT / f"pipelines/{technique}.pipe"),
                           monkeypatch, wmin=1)
@@ -138,8 +148,9 @@ def test_shipped_techniques_are_exact(monkeypatch, technique):
 
 
 @pytest.mark.cl
-@pytest.mark.parametrize("technique,wmin", [("deferred_calver", 1), ("light_prepass", None),
-                                            ("inferred", None), ("deferred", 1)])
+@pytest.mark.parametrize("technique,wmin", _ci([("deferred_calver", 1), ("light_prepass", None),
+                                                ("inferred", None), ("deferred", 1)],
+                                               {"inferred", "deferred"}))
 def test_cross_triangle_batches_are_exact(monkeypatch, technique, wmin):
     """Light passes batch the pixels of consecutive triangles with the same flat words
     (cl_pass.cl.j2): every target and blend count as with batches of one triangle's row
