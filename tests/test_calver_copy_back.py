@@ -76,7 +76,11 @@ def test_copy_back_matches_blending_within_the_rounding_bound(backend, name):
 
 @pytest.mark.gl
 @pytest.mark.cl
-@pytest.mark.parametrize("name", ["small", "mixed_lights", "street_lamps", "shadows"])
+# CI: every light type (mixed_lights) and every light casting (shadows); small and
+# street_lamps with --exhaustive (each scene is a variant compiled and built for it)
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=() if n in ("mixed_lights", "shadows") else pytest.mark.exhaustive)
+    for n in ("small", "mixed_lights", "street_lamps", "shadows")])
 def test_check_agrees_gl_cl_in_copy_back(name, tmp_path, capsys):
     pytest.importorskip("pyopencl")
     from pipegen.cli.main import main

@@ -200,7 +200,10 @@ def test_layout_compiles_with_its_targets(layout):
 @pytest.mark.gl
 @pytest.mark.cl
 @pytest.mark.parametrize("layout", LAYOUTS)
-@pytest.mark.parametrize("scene", ("shadows", "mixed_lights"))
+# CI: shadows (every light type, every light casting); mixed_lights, the same light types
+# without shadows, with --exhaustive (each scene is a variant compiled and built for it)
+@pytest.mark.parametrize("scene", ("shadows", pytest.param("mixed_lights",
+                                                            marks=pytest.mark.exhaustive)))
 def test_backends_agree(layout, scene):
     from pipegen.testing.api import assert_backends_agree
     assert_backends_agree(_path(layout), SCENES / f"{scene}.toml", size=SMALL)
