@@ -185,10 +185,9 @@ def _source(e: ir.Expr) -> str:
     return printer.expr(e)
 
 
-def nudged(tech: ir.Technique, delta: float, only=None) -> ir.Technique:
-    """The technique with every step (``only``: the one of that index, or those of a set of
-    indices) nudged by ``delta``."""
-    chosen = {only} if isinstance(only, int) else only
+def _map_sites(tech: ir.Technique, rewrite) -> ir.Technique:
+    """The technique with each step site ``e`` replaced by ``rewrite(k, e)``, ``k`` its index
+    in walk order (``sites``)."""
     count = [0]
 
     def fn(e):
@@ -196,8 +195,16 @@ def nudged(tech: ir.Technique, delta: float, only=None) -> ir.Technique:
             return e
         k = count[0]
         count[0] += 1
-        return _nudged_site(e, delta) if chosen is None or k in chosen else e
+        return rewrite(k, e)
     return walk.map_technique_code(tech, fn)
+
+
+def nudged(tech: ir.Technique, delta: float, only=None) -> ir.Technique:
+    """The technique with every step (``only``: the one of that index, or those of a set of
+    indices) nudged by ``delta``."""
+    chosen = {only} if isinstance(only, int) else only
+    return _map_sites(tech, lambda k, e: _nudged_site(e, delta)
+                      if chosen is None or k in chosen else e)
 
 
 def nudged_at_run_time(tech: ir.Technique) -> ir.Technique:
@@ -205,15 +212,7 @@ def nudged_at_run_time(tech: ir.Technique) -> ir.Technique:
     site ``k`` (``builtins.nudge_input``; the float64 CL runtime's ``CLPipeline.nudge``
     sets them): one program for every nudge the search tries, where a constant per variant
     cost a compile and a PoCL build each (0.3-1 s a pass program)."""
-    count = [0]
-
-    def fn(e):
-        if _step_input(e) is None:
-            return e
-        k = count[0]
-        count[0] += 1
-        return _nudged_site(e, nudge_input(k))
-    return walk.map_technique_code(tech, fn)
+    return _map_sites(tech, lambda k, e: _nudged_site(e, nudge_input(k)))
 
 
 Convert = Callable[[str, np.ndarray], np.ndarray]
