@@ -9,19 +9,12 @@ the statements after that block reachable.
 
 from __future__ import annotations
 
-import dataclasses
-
 from pipegen.ir import nodes as ir
+from pipegen.passes.bodies import map_bodies
 
 
 def run(tech: ir.Technique) -> ir.Technique:
-    packings = tuple(_packing(k) for k in tech.packings)
-    functions = tuple(_function(f) for f in tech.functions)
-    passes = tuple(_pass(p) for p in tech.passes)
-    if _same(packings, tech.packings) and _same(functions, tech.functions) \
-            and _same(passes, tech.passes):
-        return tech
-    return dataclasses.replace(tech, packings=packings, functions=functions, passes=passes)
+    return map_bodies(tech, until_return)      # the technique itself when nothing follows
 
 
 def until_return(body: tuple) -> tuple:
@@ -31,21 +24,3 @@ def until_return(body: tuple) -> tuple:
             return body if k + 1 == len(body) else tuple(body[:k + 1])
     return body
 
-
-def _same(new: tuple, old: tuple) -> bool:
-    return all(a is b for a, b in zip(new, old))
-
-
-def _function(f: ir.Function) -> ir.Function:
-    body = until_return(f.body)
-    return f if body is f.body else dataclasses.replace(f, body=body)
-
-
-def _pass(p: ir.Pass) -> ir.Pass:
-    body = until_return(p.body)
-    return p if body is p.body else dataclasses.replace(p, body=body)
-
-
-def _packing(k: ir.Packing) -> ir.Packing:
-    functions = tuple(_function(f) for f in k.functions)
-    return k if _same(functions, k.functions) else dataclasses.replace(k, functions=functions)
