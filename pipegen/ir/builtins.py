@@ -213,6 +213,11 @@ def nudge_site(name: str) -> Optional[int]:
         return int(name[len(NUDGE_INPUT) + 1:-1])
     return None
 
+
+def reads_nudges(inputs) -> bool:
+    """Whether code reading the stage inputs ``inputs`` reads a run-time nudge."""
+    return any(nudge_site(n) is not None for n in inputs)
+
 # ``light.FIELD`` (where: Where.LIGHT) and ``lights[i].FIELD`` (everywhere) read these fields.
 # A schema lists the ones a technique uses; the scene loader fills them per light.
 LIGHT_FIELDS: dict[str, ir.Type] = {

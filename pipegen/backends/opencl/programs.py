@@ -13,7 +13,7 @@ from typing import Optional
 from pipegen.core import formats as F
 from pipegen.core.float32 import f32
 from pipegen.ir import access, nodes as ir
-from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS, nudge_site
+from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS, reads_nudges
 from pipegen.ir.light_layout import schema_layout
 from pipegen.backends import templating
 from pipegen.backends.cstyle import FLT_MIN
@@ -154,7 +154,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
     batch = batches_lights(plan, pass_, dynamic)
     # the discontinuity search's run-time nudges (proof/discontinuity.py): a buffer argument
-    nudges = f64 and any(nudge_site(n) is not None for n in inputs)
+    nudges = f64 and reads_nudges(inputs)
     return templating.render(
         "cl_pass.cl.j2",
         technique=plan.technique, pass_name=pass_.name, prelude=prelude,

@@ -100,7 +100,7 @@ from typing import Optional
 import numpy as np
 
 from pipegen.ir import nodes as ir
-from pipegen.ir.builtins import nudge_site
+from pipegen.ir.builtins import nudge_site, reads_nudges
 from pipegen.ir.light_layout import schema_layout
 from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
@@ -207,8 +207,7 @@ class CLPipeline:
         self._prefetched: set = set()   # per frame: the light passes whose set-up is queued
         self.profile: Optional[list] = None    # a list: per-pass drained times (docstring)
         # the float64 programs of the discontinuity search read run-time nudges (``nudges``)
-        self._nudged = [self.f64 and any(nudge_site(n) is not None for n in p.code.inputs)
-                        for p in plan.passes]
+        self._nudged = [self.f64 and reads_nudges(p.code.inputs) for p in plan.passes]
         sites = [nudge_site(n) for p in plan.passes for n in p.code.inputs]
         self._nudges = np.zeros(1 + max([k for k in sites if k is not None], default=-1),
                                 np.float64)
@@ -233,7 +232,8 @@ class CLPipeline:
         self.device = None
         self.clamp_counters = None
         self._events = []
-        for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf"):
+        for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf",
+                     "_nudges_buf"):
             if hasattr(self, name):
                 setattr(self, name, None)
         self._scene = None
