@@ -39,6 +39,12 @@ def recorded(self, options=(), *args, **kwargs):
     programs.append({"source": self.get_info(cl.program_info.SOURCE), "options": list(options)})
     return build(self, options, *args, **kwargs)
 cl.Program.build = recorded
+compile_ = cl.Program.compile
+def compiled_unit(self, options=(), *args, **kwargs):    # a repeat group's linked units
+    programs.append({"source": self.get_info(cl.program_info.SOURCE), "options": list(options),
+                     "unit": True})
+    return compile_(self, options, *args, **kwargs)
+cl.Program.compile = compiled_unit
 
 compiled = compile_file(sys.argv[1])
 scene = default_scene().with_size(24, 16)
@@ -57,7 +63,8 @@ logs = []
 for p in json.load(open(sys.argv[1])):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")      # the log is read below, whole
-        program = cl.Program(ctx, p["source"]).build(options=p["options"])
+        program = cl.Program(ctx, p["source"])
+        program = (program.compile if p.get("unit") else program.build)(options=p["options"])
     for device in program.get_info(cl.program_info.DEVICES):
         log = program.get_build_info(device, cl.program_build_info.LOG).strip()
         if log:
@@ -73,9 +80,10 @@ print("\\n---\\n".join(logs))
 # --exhaustive builds them for all (CI's 10-minute budget: 5-10 s of PoCL compiles each).
 F64_IN_CI = {"deferred_calver", "inferred"}
 # float32 in CI: those two, lidr_transparent (per-sample MSAA shading, front-face volumes,
-# translucency) and forward (the shadow atlas and PCF, a table loop); the others, whose
+# translucency), forward (the shadow atlas and PCF, a table loop) and deferred (a repeat
+# group fused into one launch: its passes' units, compiled and linked); the others, whose
 # programs are built from the same templates and emitter paths, with --exhaustive.
-F32_IN_CI = F64_IN_CI | {"lidr_transparent", "forward"}
+F32_IN_CI = F64_IN_CI | {"lidr_transparent", "forward", "deferred"}
 CASES = [pytest.param(name, "f32,f64" if name in F64_IN_CI else "f32", id=name,
                       marks=() if name in F32_IN_CI else (pytest.mark.exhaustive,))
          for name in TECHNIQUES] + [
@@ -93,6 +101,8 @@ def test_every_program_of_a_shipped_technique_builds_with_an_empty_log(name, pre
                            precisions, str(listing)], capture_output=True, text=True, env=env,
                           cwd=tmp_path, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    if name == "deferred":      # its light volumes' group: units compiled to be linked
+        assert '"unit": true' in listing.read_text()
     env.update(POCL_CACHE_DIR=str(tmp_path / "pocl"), POCL_KERNEL_CACHE="0")
     proc = subprocess.run([sys.executable, "-c", BUILD, str(listing)], capture_output=True,
                           text=True, env=env, cwd=tmp_path, timeout=600)

@@ -99,10 +99,14 @@ def pass_prelude(pass_: PassPlan, tile: int, precision: str) -> tuple[str, str]:
     return prelude_file(precision, previous), prelude_source(tile, precision, previous)
 
 
-def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int = TILE) -> str:
+def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int = TILE,
+                 row_fn: Optional[str] = None) -> str:
     """The complete OpenCL program of one pass (``dynamic``: state from a kernel argument),
     in the plan's precision (``plan.precision``: "f32", or "f64" for the float64 evaluation:
-    the same program with double arithmetic and storage, docs/internals.md)."""
+    the same program with double arithmetic and storage, docs/internals.md).  ``row_fn``:
+    instead the unit a repeat group's fused kernel links (``group.py``): no kernels, the
+    raster kernel's body a function of that name drawing one tile row (its tile an argument),
+    every program-scope name static."""
     if not 1 <= int(tile) <= 64:       # pg_raster keeps a row's drawn pixels in a ulong mask
         raise ValueError(f"tile size {tile}: the raster kernel supports 1 to 64")
     precision = plan.precision
@@ -171,7 +175,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
         wide_w=cl_wide.W, batch=batch, per_sample="sample_id" in inputs,
-        mask_input="sample_mask" in inputs, nudges=nudges)
+        mask_input="sample_mask" in inputs, nudges=nudges, row_fn=row_fn)
 
 
 def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:

@@ -24,10 +24,11 @@ import hashlib
 import os
 import tempfile
 import threading
+import warnings
 from typing import Optional
 
-__all__ = ["configure_cache", "get_context", "build_program", "describe", "BUILD_OPTIONS",
-           "cache_dir", "FramePool"]
+__all__ = ["configure_cache", "get_context", "build_program", "link_program", "describe",
+           "BUILD_OPTIONS", "cache_dir", "FramePool"]
 
 # correctly rounded / and sqrt: llvmpipe's are (measured), OpenCL's default allows 2.5 ulp
 BUILD_OPTIONS = ("-cl-denorms-are-zero", "-cl-std=CL1.2", "-cl-fp32-correctly-rounded-divide-sqrt")
@@ -106,6 +107,32 @@ def build_program(source: str, options: tuple[str, ...] = ()):
             numbered = "\n".join(f"{i + 1:5d}  {line}" for i, line in enumerate(source.split("\n")))
             raise RuntimeError(f"OpenCL build failed: {exc}\n--- source ---\n{numbered}") from None
         _programs[key] = prog
+    return prog
+
+
+def link_program(sources: tuple[str, ...]):
+    """Compile each of ``sources`` on its own and link them into one ``pyopencl.Program``
+    (once per process; a repeat group's fused kernel and its passes' units, whose
+    program-scope names are static, ``backends/opencl/group.py``)."""
+    import pyopencl as cl
+
+    ctx, _ = get_context()
+    opts = tuple(BUILD_OPTIONS) + tuple(os.environ.get("PIPEGEN_CL_OPTIONS", "").split())
+    key = hashlib.sha256(("\0\0".join(sources) + "\0" + " ".join(opts)).encode()).hexdigest()
+    prog = _programs.get(key)
+    if prog is None:
+        units = []
+        for source in sources:
+            try:
+                with warnings.catch_warnings():     # "defeats compiler caching": pyopencl's
+                    warnings.simplefilter("ignore")  # own cache is off (PoCL's is used)
+                    units.append(cl.Program(ctx, source).compile(options=list(opts)))
+            except cl.RuntimeError as exc:
+                numbered = "\n".join(f"{i + 1:5d}  {line}"
+                                     for i, line in enumerate(source.split("\n")))
+                raise RuntimeError(f"OpenCL compile failed: {exc}\n--- source ---\n{numbered}"
+                                   ) from None
+        prog = _programs[key] = cl.link_program(ctx, units)
     return prog
 
 

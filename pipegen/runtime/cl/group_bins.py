@@ -33,6 +33,7 @@ class GroupBins:
         self.start_row = -(-ntiles1 // ints) * ints
         self.list_row = -(-max(ntiles1 - 1, 1) // ints) * ints
         self.starts, self.first, self.tile_tris = starts, first, tile_tris
+        self.occupied = occupied
         absolute = np.zeros((lights, self.start_row), np.int32)
         absolute[:, :ntiles1] = starts + first[:-1, None]
         owner, tiles = np.nonzero(occupied)        # by light, each light's tiles increasing

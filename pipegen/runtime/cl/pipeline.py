@@ -94,7 +94,7 @@ starts later renders with a target holding given codes (tests).
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -106,6 +106,7 @@ from pipegen.backends.opencl import abi as cl_abi, programs as cl_programs
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan, plan_from_dict
 from pipegen.runtime.cl import clamps as cl_clamps, context as cl_context
 from pipegen.runtime import draws
+from pipegen.runtime.cl.group_launch import GroupLauncher
 from pipegen.runtime.common import check_param_overrides, check_scene, scene_as_drawn
 from pipegen.runtime.light_table import light_rows
 from pipegen.runtime.cl.device import Device
@@ -164,6 +165,34 @@ def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
     return fr, f8
 
 
+@dataclass(eq=False)
+class PassRun:
+    """A pass execution's host work, done (``CLPipeline._prepare_pass``: its set-up triangles
+    and bins, ``drawn``); calling it queues its device work: clears, then the raster kernel.
+    ``scheduled``: the schedule's light entry (a light, or the tuple of a batched run)."""
+    pipe: "CLPipeline"
+    k: int
+    p: PassPlan
+    light: Optional[int]
+    batch: Optional[tuple]
+    timing: dict
+    width: int
+    height: int
+    drawn: Optional[tuple]
+    frame_buf: object
+    frame64_buf: object
+    scheduled: object
+
+    def __call__(self) -> None:
+        store = self.pipe.store
+        store.begin_pass(self.k)        # targets sharing storage start here (alias)
+        for name, c in self.p.clears:
+            store.clear_for_pass(name, c)
+        if self.drawn is not None:
+            self.pipe._launch(self.k, self.p, self.light, self.timing, self.width, self.height,
+                              self.drawn, self.frame_buf, self.frame64_buf, self.batch)
+
+
 class CLPipeline:
     def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None,
                  cache_dir: Optional[str] = None, dynamic_state: bool = False,
@@ -195,6 +224,8 @@ class CLPipeline:
         # per pass: its raster kernel draws a run of lights in one launch (``_batched``)
         self._batches = [cl_programs.batches_lights(plan, p, dynamic_state)
                          for p in plan.passes]
+        # repeat groups whose passes run as one launch (``group_launch``), built here too
+        self.groups = GroupLauncher(self)
         self.clamp_counters = cl_clamps.ClampCounters(self.ctx, self.queue, plan)
         self._clamps: Optional[list] = []
         self._presets: dict = {}
@@ -368,10 +399,13 @@ class CLPipeline:
             # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
             # frames interleaved in one process, medians of 15: light_prepass 37.9 -> 35.0
             # ms, inferred 30.8 -> 27.3, deferred_calver and deferred within 2 %)
-            prepared = [(k, light, self._prepare_pass(k, light))
-                        for k, light in self._batched(runs)]
-            for k, light, launch in prepared:
-                self._run_pass(k, light, launch)
+            prepared = [self._prepare_pass(k, light) for k, light in self._batched(runs)]
+            # a fusable repeat group's pass executions as one launch (``group_launch``)
+            for run in self.groups.fuse(prepared):
+                if isinstance(run, PassRun):
+                    self._run_pass(run.k, run.scheduled, run)
+                else:
+                    run()
         else:       # pass by pass: drained around each (profile), or read after each
             for k, light in runs:
                 self._run_pass_observed(k, light, captures if capture_passes else None)
@@ -516,14 +550,8 @@ class CLPipeline:
             drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow,
                                                  volume)
 
-        def launch() -> None:
-            self.store.begin_pass(k)        # targets sharing storage start here (alias)
-            for name, c in p.clears:
-                self.store.clear_for_pass(name, c)
-            if drawn is not None:
-                self._launch(k, p, light, timing, width, height, drawn, frame_buf, frame64_buf,
-                             batch)
-        return launch
+        return PassRun(self, k, p, light, batch, timing, width, height, drawn, frame_buf,
+                       frame64_buf, batch if batch is not None else light)
 
     def _launch(self, k: int, p: PassPlan, light: Optional[int], timing: dict, width: int,
                 height: int, drawn: tuple, frame_buf, frame64_buf,
@@ -535,6 +563,24 @@ class CLPipeline:
         geo, tb = drawn
         if not tb.ntiles:
             return
+        args = self._raster_args(k, p, light, width, height, drawn, frame_buf, frame64_buf,
+                                 batch)
+        kern = self.device.kernel(k, "pg_raster")
+        cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
+        T = self.tile
+        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
+        self._events.append((timing, ev))
+        for name in p.attached:
+            if self._targets[name].samples > 1:
+                self._targets[name].dirty = True
+        timing["triangles"] = tb.triangles
+        timing["tile_entries"] = tb.entries
+
+    def _raster_args(self, k: int, p: PassPlan, light: Optional[int], width: int, height: int,
+                     drawn: tuple, frame_buf, frame64_buf, batch: Optional[tuple] = None) -> list:
+        """The arguments of pass ``k``'s raster kernel, in its parameters' order (queues the
+        resolves of the targets it reads and the zeroing of blend counts it first uses)."""
+        geo, tb = drawn
         bufs = geo.bufs
         dev = self.device
         st = dev.dummy
@@ -579,16 +625,7 @@ class CLPipeline:
                 if self._nudges_buf is None:
                     self._nudges_buf = dev.buffer(self._nudges)
                 args.append(self._nudges_buf)
-        kern = dev.kernel(k, "pg_raster")
-        cl_context.set_args(kern, *args)     # scalar types declared (~90 us a launch else)
-        T = self.tile
-        ev = cl.enqueue_nd_range_kernel(self.queue, kern, (tb.ntiles * T,), (T,))
-        self._events.append((timing, ev))
-        for name in p.attached:
-            if self._targets[name].samples > 1:
-                self._targets[name].dirty = True
-        timing["triangles"] = tb.triangles
-        timing["tile_entries"] = tb.entries
+        return args
 
     def _shadow_view(self, p: PassPlan, light: int, width: int, height: int) -> ShadowView:
         """A shadow-map draw of atlas tile ``light`` (the schedule's slot; ``draws.shadow_casters``):
