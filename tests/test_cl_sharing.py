@@ -88,6 +88,10 @@ def test_bins_of_a_subset():
     rng_subset = np.arange(lo, hi)[front[lo:hi]]
     want = CS.bin_triangles(tris, 100, 70, 16, subset=rng_subset)
     assert np.array_equal(cut[0], want[0]) and np.array_equal(cut[1], want[1])
+    # the pairs of the front faces are those of every face filtered (DrawGeometry._pairs)
+    kept = front[tri]
+    own = CS.bin_pairs(tris, 100, 70, 16, subset=np.flatnonzero(front))
+    assert np.array_equal(own[0], tri[kept]) and np.array_equal(own[1], tile_id[kept])
 
 
 def test_fma32_fast_path_is_the_exact_rounding():

@@ -361,9 +361,18 @@ class DrawGeometry:
         key = ("pairs", id(geo.tris), width, height, keep)
         pairs = self.frame.get(key)
         if pairs is None:
-            subset = None if keep is None else np.flatnonzero(geo.front == keep)
-            pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.tile,
-                                                subset=subset)
+            every = self.frame.get(key[:-1] + (None,))
+            if keep is not None and every is not None:
+                # the pairs of every face, binned for a pass that culls none, filtered: a
+                # triangle's tiles depend on it alone, and both are in triangle order
+                # (deferred's shading pass after its marking pass)
+                tri, tile_id, tiles_x, tiles_y = every
+                kept = geo.front[tri] == keep
+                pairs = self.frame[key] = (tri[kept], tile_id[kept], tiles_x, tiles_y)
+            else:
+                subset = None if keep is None else np.flatnonzero(geo.front == keep)
+                pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.tile,
+                                                    subset=subset)
         return pairs
 
     def _group_bins(self, geo: Geo, batch: tuple, cull: ir.CullMode, width: int, height: int,

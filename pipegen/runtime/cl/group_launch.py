@@ -43,7 +43,7 @@ class GroupLauncher:
     def __init__(self, pipe):
         self.pipe = pipe
         self.groups: dict = {}           # repeat group -> (GroupProgram, pg_group kernel)
-        if not enabled() or pipe.tile < 1:
+        if not enabled():
             return
         import pyopencl as cl
         plan = pipe.plan

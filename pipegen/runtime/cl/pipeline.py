@@ -57,7 +57,10 @@ results do not depend on which other triangles or varyings are set up with them,
 changes no value.  A pass alone in its ``repeat per light`` group that draws the scene,
 clears nothing and writes no depth or stencil (``programs.batches_lights``: multi-pass
 forward's light pass) draws the whole run of its lights in one raster launch, each light's
-draw in turn, as launches per light would (``_batched``; bit-identical, tested).  Bins are
+draw in turn, as launches per light would (``_batched``; bit-identical, tested).  A repeat group
+whose passes draw light volumes and read nothing the group writes (deferred's stencil-marked
+volumes) runs all its lights' executions as one launch of a fused kernel
+(``group_launch.py``, ``backends/opencl/group.py``; bit-identical, tested).  Bins are
 per pass, built on the device from the triangles the pass draws (its lights' ranges, the
 faces its cull mode keeps); a ``repeat per light`` group's bins are found for all its lights
 in one numpy sort and uploaded in three buffers, each light's bins views into them
