@@ -306,6 +306,15 @@ class DrawGeometry:
     def _light_triangles(self, k: int, p: PassPlan, width: int, height: int, timing: dict,
                          lights: list):
         cache = self.frame
+        if len(lights) == 1:
+            # a repeat group's next light: its bins were made with the first's (_group_bins),
+            # under the geometry and cull mode the first found (deferred: 162 a frame)
+            seen = cache.get(("light pass", k, width, height))
+            if seen is not None:
+                tb = cache.get(("bins", id(seen[0].tris), (int(lights[0]),), seen[1], width,
+                                height))
+                if tb is not None:
+                    return seen[0], tb
         batch = self._light_batch(k, p, lights)
         geo = self._geometry(k, p, width, height, timing, batch)
         if geo is None:
@@ -329,6 +338,7 @@ class DrawGeometry:
                 and int(lights[0]) in geo.ranges:
             self._group_bins(geo, batch, cull, width, height, timing)
             tb = cache.get(key)
+            cache[("light pass", k, width, height)] = (geo, cull.value)
         if tb is None:
             t0 = time.perf_counter()
             n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
