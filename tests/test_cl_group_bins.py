@@ -1,6 +1,8 @@
 """A ``repeat per light`` group's bins are found for all its lights at once
 (``DrawGeometry._group_bins``): the render is bit-identical to binning each light's pairs on
-its own, and each light's cached bins are the ones the per-light path builds."""
+its own, and each light's cached bins are the ones the per-light path builds.  (With the group
+fused into one launch, the default, no bins per light are made: the pass executions one by
+one are what falls back where a frame does not fit, ``runtime/cl/group_launch.py``.)"""
 
 from pathlib import Path
 
@@ -20,6 +22,8 @@ def _render(technique: str, scene_name: str, grouped: bool, monkeypatch):
         monkeypatch.setattr(G.DrawGeometry, "_group_bins", lambda *a, **k: None)
     else:
         monkeypatch.undo()
+    # the executions one by one: a fused group (group_launch.py) bins each pass once
+    monkeypatch.setenv("PIPEGEN_CL_FUSE_GROUPS", "0")
     scene = load_scene(ROOT / "examples" / "scenes" / f"{scene_name}.toml")
     pipe = compile_file(ROOT / "pipelines" / f"{technique}.pipe").pipeline("cl", (96, 54))
     out = pipe.render(scene)

@@ -6,8 +6,8 @@ stencil-marked light volumes (two passes per light, the first clearing the stenc
 the same targets, blend counts and clamps bit for bit fused and not: specialised to a
 point-only scene (two members), general on a scene with point and spot lights (four members,
 two clearing), general on the point-only scene (two members no light reaches: never called),
-and with one point light (its bins are not a group's: the frame falls back).  A group that
-reads what it writes is not fused.
+with one point light, and a frame that does not fit (targets sharing storage) falling back to
+a launch per execution.  A group that reads what it writes is not fused.
 """
 
 from __future__ import annotations
@@ -81,9 +81,9 @@ def test_deferred_light_volumes_fused_render_what_launches_per_pass_render(
     assert fused[3] < alone[3] - lights
 
 
-def test_a_light_alone_of_its_type_falls_back_to_launches_per_pass(monkeypatch):
-    """One point light: its bins are its own, not a group's, and the frame runs pass by pass
-    (fusion needs the group's bins); nothing changes either way."""
+def test_a_light_alone_of_its_type_is_fused_too(monkeypatch):
+    """One point light: a group of one light's executions (no bins per light are made for
+    it either way) renders the same in one launch."""
     import dataclasses
     s = _scene("many_lights")
     one = dataclasses.replace(s, lights=tuple(l for l in s.lights if l.type == "point")[:1])
@@ -91,7 +91,24 @@ def test_a_light_alone_of_its_type_falls_back_to_launches_per_pass(monkeypatch):
     fused = _render(compiled, one, True, monkeypatch)
     alone = _render(compiled, one, False, monkeypatch)
     _assert_same(fused[0], alone[0])
-    assert fused[4] == 0 and fused[3] == alone[3]
+    _assert_same(fused[1], alone[1])
+    assert fused[4] == 2 and fused[3] == alone[3] - 1
+
+
+def test_a_frame_that_does_not_fit_falls_back_to_launches_per_pass(monkeypatch):
+    """Targets sharing storage (``alias``): the executions run one by one, and render the
+    same as without it."""
+    compiled = _compiled("deferred", "many_lights")
+    s = _scene("many_lights")
+    monkeypatch.setenv("PIPEGEN_CL_FUSE_GROUPS", "1")
+    pipe = compiled.pipeline("cl", SIZE)
+    pipe.alias = True
+    out = pipe.render(s)
+    assert pipe.groups.groups and not any(t.get("fused") for t in pipe.last_timings)
+    plain = _render(compiled, s, True, monkeypatch)[0]
+    for name in out:
+        if name not in pipe.store.memory.aliased:
+            assert np.array_equal(out[name].view(np.uint8), plain[name].view(np.uint8)), name
 
 
 def test_a_group_reading_what_it_writes_is_not_fused():

@@ -10,12 +10,16 @@ clears, then its triangles) leaves every pixel as the launches one after another
 The group program links:
 
 * each member pass's unit, ``pass_program(..., row_fn="pg_row_K")``: the pass's own program
-  with its raster kernel's body as a function drawing one tile row (the same text, so the
-  same arithmetic), no kernels, program-scope names static (``clLinkProgram`` joins units
-  whose names would clash: each pass has its own ``pg_in``, ``pg_fragment``, ``PG_SX``);
-* the fused kernel ``pg_group`` (``cl_group.cl.j2``): one work-group per tile any step draws,
-  a loop over the frame's steps ``(member, light, bins row, stencil clear)``, each calling
-  its member's row function with that light's bins.
+  with its raster kernel's body as a function drawing one run of a tile row's triangle list
+  (the same text, so the same arithmetic), no kernels, program-scope names static
+  (``clLinkProgram`` joins units whose names would clash: each pass has its own ``pg_in``,
+  ``pg_fragment``, ``PG_SX``);
+* the fused kernel ``pg_group`` (``cl_group.cl.j2``): one work-group per tile some light's
+  volume touches, a loop over the frame's steps ``(member, light, 0, stencil clear)``, each
+  calling its member's row function on that light's run of the tile's list.  A member's bins
+  are those of all its lights' triangles, submitted light by light in the order the steps
+  visit them, so a light's run is the next one whose ``tri_flat.w`` is that light: one
+  cursor per member (``runtime/cl/group_launch.py`` checks the order, frame by frame).
 
 Its parameters are the members' parameters, cut from their row functions' signatures (the
 one source of their order): ``SHARED`` ones and a target's buffers (``w_``/``bc_``/``r_``
@@ -44,8 +48,8 @@ __all__ = ["GroupProgram", "fusable", "group_program", "group_members", "SHARED"
 
 # parameters with one value for every member of a group (the same size, frame and light table)
 SHARED = ("width", "height", "tiles_x", "frame", "lights", "pg_st")
-# parameters the fused kernel supplies per step rather than binding
-STEP = ("tile_list", "tile_start", "repeat_light")
+# the row function's own parameters: the tile and the run of its list to draw
+ROW = ("tile", "pg_beg", "pg_end")
 
 
 @record(frozen=True)
@@ -127,18 +131,12 @@ def group_program(plan: Plan, members: tuple[int, ...], tile: int) -> GroupProgr
         unit = pass_program(plan, plan.passes[k], tile=tile, row_fn=fn)
         units.append(unit)
         args = []
-        signatures.append(tuple((d, n) for d, n in _params(unit) if n != "tile"))
+        signatures.append(tuple((d, n) for d, n in _params(unit) if n not in ROW))
         for decl, name in _params(unit):
-            if name == "tile":
-                args.append("tile")
-            elif name == "tile_list":
-                args.append("tile_list")
+            if name in ROW or name == "tile_list":
+                args.append({"pg_beg": "b", "pg_end": f"cur{i}"}.get(name, name))
             elif name == "repeat_light":
                 args.append("(uint)st.y")
-            elif name == "tile_start":
-                args.append(f"m{i}_tile_start + st.z")
-                kernel_params.append(decl.replace(name, f"m{i}_{name}"))
-                params.append((i, name))
             elif _shared(name):
                 args.append(name)
                 if name not in seen:

@@ -1,18 +1,25 @@
 """A repeat group's pass executions as one raster launch (``backends/opencl/group.py``).
 
 ``GroupLauncher(pipe)`` builds, when the pipeline is made, the fused program of each repeat
-group ``group.fusable`` accepts; ``fuse(runs)`` takes a frame's prepared pass executions
-(``PassRun``, in schedule order) and gives them back with each fusable group's run replaced
-by one callable that queues the group's clears and a single ``pg_group`` launch.  Its steps
-are the executions in order, ``(member, light, row of the light's tile starts in its pass's
-group bins, 1 + stencil clear or 0)``, over the union of the tiles any step draws.
+group ``group.fusable`` accepts.  ``prepare(runs, prepare_pass)`` does a frame's host work
+(``CLPipeline._draw``): each run of a fusable group's executions becomes one callable that
+queues the group's first clear and a single ``pg_group`` launch; every other execution is
+``prepare_pass(k, light)`` as before.
 
-It falls back to the executions one by one (same images, more launches) where a frame does
-not fit what the kernel reads: a step's bins not the group's (``group_bins.LightBins``: a
-light alone of its type, ``cull auto``, set-up sharing off), two geometries for one member,
-passes of different sizes, targets sharing storage (``alias``), a wrapped ``_run_pass``
-(the float64 read perturbation), or a clearing member that does not run first (its clear is
-done over the whole target before the launch, and per row inside it).
+A fused group needs no bins per light: each member pass draws the triangles of all its lights
+(one set-up, as for every light of a group, ``DrawGeometry``) binned once (on the device, as
+any pass), and since they are submitted light by light in the order the steps visit the
+lights, a step's triangles in a tile are the next run of the tile's list whose light
+(``tri_flat.w``) is the step's.  The kernel keeps one cursor per member and tile row.  Its
+steps are the executions in order, ``(member, light, 0, 1 + stencil clear or 0)``, over the
+tiles any light's triangles' boxes touch.
+
+It falls back to the executions one by one (same images, more launches, each light's bins
+cut from one sort: ``DrawGeometry._group_bins``) where a frame does not fit: a member whose
+steps do not visit its light list in order, passes of different sizes, targets sharing
+storage (``alias``), a wrapped ``_run_pass`` (the float64 read perturbation), a clearing
+member that does not run first (its clear is done over the whole target before the launch,
+and per row inside it).
 
 ``$PIPEGEN_CL_FUSE_GROUPS=0`` (read when a pipeline is made) turns fusion off: the tests
 compare the two, bit for bit."""
@@ -20,13 +27,12 @@ compare the two, bit for bit."""
 from __future__ import annotations
 
 import os
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
 from pipegen.backends.opencl.group import SHARED, fusable, group_members, group_program
 from pipegen.runtime.cl import context as cl_context
-from pipegen.runtime.cl.group_bins import LightBins
 
 __all__ = ["GroupLauncher", "enabled"]
 
@@ -53,107 +59,134 @@ class GroupLauncher:
                 prog = cl_context.link_program(gp.sources)
                 self.groups[g] = (gp, cl.Kernel(prog, "pg_group"))
 
-    def fuse(self, runs: list) -> list:
-        """``runs`` with each fusable group's consecutive executions as one callable."""
-        if not self.groups:
-            return runs
+    def prepare(self, runs: list, prepare_pass: Callable) -> list:
+        """The host work of a frame's executions ``runs`` (``(k, light)``, in schedule order),
+        each fusable group's run as one callable (or its executions one by one where the
+        frame does not fit), the rest ``prepare_pass(k, light)``."""
         out, i = [], 0
+        passes = self.pipe.plan.passes
         while i < len(runs):
-            g = runs[i].p.repeat_group
+            g = passes[runs[i][0]].repeat_group
             if g not in self.groups:
-                out.append(runs[i])
+                out.append(prepare_pass(*runs[i]))
                 i += 1
                 continue
             j = i
-            while j < len(runs) and runs[j].p.repeat_group == g:
+            while j < len(runs) and passes[runs[j][0]].repeat_group == g:
                 j += 1
-            fused = self._fused(g, runs[i:j])
-            if fused is None:
-                out.extend(runs[i:j])
-            else:
-                out.append(fused)
+            fused = self._prepare(g, runs[i:j])
+            out.extend([fused] if fused is not None
+                       else [prepare_pass(k, light) for k, light in runs[i:j]])
             i = j
         return out
 
-    def _fused(self, g: int, steps: list):
-        """One callable for ``steps`` (a group's executions), or None where the frame does not
-        fit the fused kernel (module docstring)."""
+    def _prepare(self, g: int, steps: list):
+        """The fused launch of a group's executions ``steps``, its geometry and bins made, or
+        None where the frame does not fit (module docstring)."""
         pipe = self.pipe
-        if pipe.store.alias or "_run_pass" in vars(pipe):
+        if pipe.store.alias or "_run_pass" in vars(pipe) or pipe.profile is not None:
             return None
         gp, kernel = self.groups[g]
+        passes = pipe.plan.passes
         member = {k: i for i, k in enumerate(gp.members)}
-        sizes = {(s.width, s.height) for s in steps}
-        if len(sizes) != 1 or any(s.batch is not None for s in steps):
+        if any(not isinstance(light, (int, np.integer)) for _, light in steps):
             return None
-        if any(c is not None for c in gp.clears) \
-                and gp.clears[member[steps[0].k]] is None:
+        sizes = {pipe._pass_size(passes[k]) for k, _ in steps}
+        if len(sizes) != 1:
             return None
-        drawn: dict[int, tuple] = {}     # member -> (first step drawing, its geometry, group)
-        for s in steps:
-            if s.drawn is None or not s.drawn[1].ntiles:
+        if any(c is not None for c in gp.clears) and gp.clears[member[steps[0][0]]] is None:
+            return None
+        width, height = sizes.pop()
+        geometry, selection = pipe.geometry, pipe._selection
+        drawn: dict[int, tuple] = {}        # member -> (geometry, bins, its pass)
+        timings = []
+        for k, light in steps:
+            timings.append({"pass": passes[k].name, "light": light, "fused": True})
+        for k in dict.fromkeys(k for k, _ in steps):
+            p = passes[k]
+            lights = [int(l) for kk, l in steps if kk == k and selection.instance(p, l)]
+            if not lights:
                 continue
-            geo, tb = s.drawn
-            if not isinstance(tb, LightBins):
-                return None
-            i = member[s.k]
-            got = drawn.setdefault(i, (s, geo, tb.group))
-            if got[1] is not geo or got[2] is not tb.group:
-                return None
-        return lambda: self._launch(gp, kernel, steps, drawn, member)
+            if list(geometry._light_batch(k, p, lights)) != lights:
+                return None        # the member's triangles are not its steps' lights in order
+            timing = next(t for t, (kk, _) in zip(timings, steps) if kk == k)
+            got = geometry.pass_triangles(k, p, width, height, timing, lights)
+            if got is not None and not all(l in got[0].ranges for l in lights):
+                return None        # no light ranges to find the tiles by (``cull auto``)
+            if got is not None:
+                drawn[member[k]] = (got[0], got[1], p, lights)
+                timing["triangles"] = got[1].triangles
+        pipe._timings.extend(timings)
+        return lambda: self._launch(gp, kernel, steps, drawn, member, timings[0], width, height)
 
-    def _launch(self, gp, kernel, steps: list, drawn: dict, member: dict) -> None:
+    def _tiles(self, drawn: dict, width: int, height: int) -> np.ndarray:
+        """The tiles any drawn light's triangles' boxes touch (a superset of those with
+        triangles: a tile without any draws nothing)."""
+        T = self.pipe.tile
+        tiles_x, tiles_y = -(-width // T), -(-height // T)
+        hit = np.zeros((tiles_y, tiles_x), bool)
+        for geo, _, _, lights in drawn.values():
+            spans = np.array([geo.ranges[l] for l in lights if l in geo.ranges], np.int64)
+            spans = spans[spans[:, 1] > spans[:, 0]] if len(spans) else spans
+            if not len(spans):
+                continue
+            bb = geo.tris.bbox
+            lo = np.minimum.reduceat(bb[:, :2], spans[:, 0])
+            hi = np.maximum.reduceat(bb[:, 2:], spans[:, 0])
+            # reduceat runs to the next start: cut each light's range at its own end
+            for r, (a, b) in enumerate(spans):
+                if r + 1 < len(spans) and spans[r + 1, 0] != b:
+                    lo[r] = bb[a:b, :2].min(axis=0)
+                    hi[r] = bb[a:b, 2:].max(axis=0)
+            x0, y0 = np.clip(lo // T, 0, None).T
+            x1, y1 = np.minimum(hi // T, (tiles_x - 1, tiles_y - 1)).T
+            for a, b, c, d in zip(x0, y0, x1, y1):
+                hit[b:d + 1, a:c + 1] = True
+        return np.flatnonzero(hit.ravel()).astype(np.int32)
+
+    def _launch(self, gp, kernel, steps: list, drawn: dict, member: dict, timing: dict,
+                width: int, height: int) -> None:
         import pyopencl as cl
         pipe = self.pipe
         dev, store = pipe.device, pipe.store
-        for s in steps:
-            store.begin_pass(s.k)        # nothing without alias (``_fused`` checks)
-        for name, c in steps[0].p.clears:     # the first clear, over the whole target
+        for k, _ in steps:
+            store.begin_pass(k)        # nothing without alias (``_prepare`` checks)
+        for name, c in pipe.plan.passes[steps[0][0]].clears:   # the first clear, everywhere
             store.clear_for_pass(name, c)
-        width, height = steps[0].width, steps[0].height
+        if not drawn:
+            return
+        tiles = self._tiles(drawn, width, height)
+        if not len(tiles):
+            return
         # each member's raster arguments, by parameter name
         values: list[Optional[dict]] = [None] * len(gp.members)
         shared: dict = {}
-        for i, (s, geo, group) in drawn.items():
-            args = pipe._raster_args(s.k, s.p, s.light, width, height, s.drawn,
-                                     s.frame_buf, s.frame64_buf)
-            names = [n for _, n in gp.signatures[i]]
-            v = dict(zip(names, args))
-            v["tile_start"], v["tile_tris"] = group.start_buf, group.tris_buf
-            values[i] = v
+        for i, (geo, tb, p, lights) in drawn.items():
+            args = pipe._raster_args(gp.members[i], p, lights[0], width, height, (geo, tb),
+                                     pipe._frame_buf, pipe._frame64_buf)
+            values[i] = v = dict(zip([n for _, n in gp.signatures[i]], args))
             shared.update({n: x for n, x in v.items() if _shared(n)})
-        rows = []
-        lights: dict = {}                # bins group -> the rows of it some step draws
-        for s in steps:
-            i = member[s.k]
-            clear = gp.clears[i]
-            z = -1
-            if s.drawn is not None and s.drawn[1].ntiles:
-                tb = s.drawn[1]
-                z = tb.j * tb.group.start_row
-                lights.setdefault(tb.group, []).append(tb.j)
-                s.timing["triangles"] = tb.triangles
-                s.timing["tile_entries"] = tb.entries
-            rows.append((i, s.light or 0, z, 0 if clear is None else clear + 1))
-            s.timing["fused"] = True
-        if not lights:
-            return
-        # the tiles some step draws (every group's bins cover the same tiles: one size)
-        tiles = np.flatnonzero(np.logical_or.reduce(
-            [group.occupied[js].any(axis=0) for group, js in lights.items()]))
-        args = [dev.buffer(tiles.astype(np.int32)), dev.buffer(np.array(rows, np.int32)),
-                np.int32(len(steps))]
+        rows = np.array([(member[k], light, 0,
+                          0 if gp.clears[member[k]] is None else gp.clears[member[k]] + 1)
+                         for k, light in steps], np.int32)
+        args = [dev.buffer(tiles), dev.buffer(rows), np.int32(len(steps))]
+        empty = None
         for i, name in gp.params:
             if _shared(name) and name in shared:
                 args.append(shared[name])
             elif values[i] is not None:
                 args.append(values[i][name])
-            else:                         # a member no step draws: never called
+            elif name == "tile_start":       # a member no light draws: every tile empty
+                if empty is None:
+                    T = pipe.tile
+                    empty = dev.buffer(np.zeros(-(-width // T) * -(-height // T) + 1, np.int32))
+                args.append(empty)
+            else:
                 args.append(self._placeholder(gp.signatures[i], name))
         cl_context.set_args(kernel, *args)
         T = pipe.tile
         ev = cl.enqueue_nd_range_kernel(pipe.queue, kernel, (len(tiles) * T,), (T,))
-        pipe._events.append((steps[0].timing, ev))
+        pipe._events.append((timing, ev))
 
     def _placeholder(self, signature, name: str):
         """An argument of the declared type for a parameter no step reads."""

@@ -402,9 +402,8 @@ class CLPipeline:
             # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
             # frames interleaved in one process, medians of 15: light_prepass 37.9 -> 35.0
             # ms, inferred 30.8 -> 27.3, deferred_calver and deferred within 2 %)
-            prepared = [self._prepare_pass(k, light) for k, light in self._batched(runs)]
             # a fusable repeat group's pass executions as one launch (``group_launch``)
-            for run in self.groups.fuse(prepared):
+            for run in self.groups.prepare(self._batched(runs), self._prepare_pass):
                 if isinstance(run, PassRun):
                     self._run_pass(run.k, run.scheduled, run)
                 else:
