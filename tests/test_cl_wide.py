@@ -149,13 +149,16 @@ def test_shipped_techniques_are_exact(monkeypatch, technique):
 
 @pytest.mark.cl
 @pytest.mark.parametrize("technique,wmin", _ci([("deferred_calver", 1), ("light_prepass", None),
-                                                ("inferred", None), ("deferred", 1)],
+                                                ("inferred", None), ("deferred", 1),
+                                                ("forward", 1), ("forward_multipass", None)],
                                                {"inferred", "deferred"}))
 def test_cross_triangle_batches_are_exact(monkeypatch, technique, wmin):
-    """Light passes batch the pixels of consecutive triangles with the same flat words
-    (cl_pass.cl.j2): every target and blend count as with batches of one triangle's row
-    (point, spot and directional lights, ``cull auto``'s inside lights, quads, ``repeat per
-    light``; with every batch wide and with the scalar function for small ones)."""
+    """Light passes batch the pixels of consecutive triangles with the same flat words, and
+    scene passes those with the same flat words and flat varyings, each lane interpolating
+    its own triangle's smooth ones (cl_pass.cl.j2): every target and blend count as with
+    batches of one triangle's row (point, spot and directional lights, ``cull auto``'s inside
+    lights, quads, ``repeat per light``, materials changing between objects, a run of lights
+    in one launch; with every batch wide and with the scalar function for small ones)."""
     if wmin is not None:
         monkeypatch.setattr(cl_wide, "WMIN", wmin)
     path = ROOT / f"pipelines/{technique}.pipe"
@@ -172,13 +175,17 @@ def test_cross_triangle_batches_are_exact(monkeypatch, technique, wmin):
 
 
 def test_which_passes_batch_across_triangles():
-    """Wide passes without varyings batch across triangles; scene passes (varyings) do not."""
+    """Wide passes batch across triangles: light volumes, and scene passes with varyings
+    (each lane its own triangle's, a batch's flat ones equal) unless shaded per sample; a
+    pass that is not wide does not."""
     def batched(t):
         plan = compile_file(ROOT / f"pipelines/{t}.pipe").plan("cl")
         return {p.name for p in plan.passes if p.code.kernel and "lane_t[" in p.code.kernel}
     assert {"point_lights", "spot_lights"} <= batched("deferred_calver")
     assert "light_accumulation" in batched("light_prepass")
-    assert "material" not in batched("inferred") and "gbuffer" not in batched("deferred_calver")
+    assert "material" in batched("inferred") and "shade" in batched("forward")
+    assert "per_light" in batched("forward_multipass")      # inside its run of lights
+    assert "gbuffer" not in batched("deferred_calver")      # scalar: nothing to batch
 
 
 def test_what_stays_scalar():

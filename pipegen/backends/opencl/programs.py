@@ -150,9 +150,12 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
     wide = not f64 and cl_wide.has_wide(code.fragment)
     early_z = code.discard and not _writes_stencil(pass_, stencil_bits, dynamic)
     depth_store = dynamic or _writes_depth(pass_)
-    # batches across triangles (cl_pass.cl.j2): wide passes without varyings, unless a
-    # fragment's late depth write could be one a later triangle's early test must see
-    xbatch = wide and cl_wide.CROSS_TRIANGLE and not varyings and not (early_z and depth_store)
+    # batches across triangles (cl_pass.cl.j2): wide passes, unless a fragment's late depth
+    # write could be one a later triangle's early test must see; with varyings (each lane
+    # interpolates its own triangle's, a batch's flat ones equal) not per sample
+    xbatch = wide and cl_wide.CROSS_TRIANGLE and not (early_z and depth_store) and (
+        not varyings or (cl_wide.CROSS_TRIANGLE_VARYINGS and "sample_id" not in inputs
+                         and "sample_mask" not in inputs))
     if f64:
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
@@ -185,8 +188,9 @@ def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:
     draws and no draw changes what the next one tests: the pass is alone in its ``repeat per
     light`` group (else the group's passes alternate), draws the scene (the same triangles for
     every light), clears nothing, writes no depth or stencil, with one sample, in float32 and
-    baked state; and not a cross-triangle batch (``xbatch``: a wide pass without varyings has
-    its own loop).  Multi-pass forward's light passes: 255 launches a frame become one."""
+    baked state, reading varyings.  (A cross-triangle batch, ``xbatch``, runs its own loop
+    inside the light loop.)  Multi-pass forward's light passes: 255 launches a frame become
+    one."""
     if dynamic or plan.precision != "f32" or pass_.repeat_group is None:
         return False
     if sum(q.repeat_group == pass_.repeat_group for q in plan.passes) != 1:
@@ -198,7 +202,7 @@ def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:
     if plan.pass_samples(pass_) != 1 or _writes_depth(pass_) \
             or _writes_stencil(pass_, stencil_bits, False):
         return False
-    # with varyings the kernel is never a cross-triangle batch (xbatch needs none)
+    # scene draws read varyings (a pass without them is left to its own kernel)
     code = pass_.code
     return code is not None and bool(code.fragment) and bool(varying_slots(pass_))
 

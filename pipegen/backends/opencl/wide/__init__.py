@@ -79,7 +79,7 @@ from pipegen.backends.opencl.wide.emitter import WideEmitter
 from pipegen.backends.opencl.wide.values import MARK, W, TooManyGathers, Unsupported
 
 __all__ = ["W", "MARK", "MIN_COST", "GATHER_COST", "LANE_GATHER_COST", "WMIN", "ENABLED",
-           "CROSS_TRIANGLE", "wide_fragment", "has_wide", "wide_helpers", "cost", "gathers"]
+           "CROSS_TRIANGLE", "CROSS_TRIANGLE_VARYINGS", "wide_fragment", "has_wide", "wide_helpers", "cost", "gathers"]
 
 # Measured (one pass's raster kernel alone, its scalar and wide programs interleaved in one
 # process, 640x360, 2 PoCL threads, medians of 15-21 runs on a shared 2-core machine; scalar
@@ -127,6 +127,9 @@ ENABLED = os.environ.get("PIPEGEN_CL_WIDE", "1") != "0"
 # False (or PIPEGEN_CL_XBATCH=0): a wide pass batches the pixels of one triangle's row only,
 # never across triangles (cl_pass.cl.j2's cross-triangle batches; comparisons)
 CROSS_TRIANGLE = os.environ.get("PIPEGEN_CL_XBATCH", "1") != "0"
+# ... for passes with varyings too (scene draws: small triangles cover a few pixels of a row
+# each; each lane interpolates its own triangle's varyings, a batch's flat ones are equal)
+CROSS_TRIANGLE_VARYINGS = os.environ.get("PIPEGEN_CL_XBATCH_VARYINGS", "1") != "0"
 
 
 def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
