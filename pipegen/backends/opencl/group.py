@@ -44,7 +44,8 @@ from pipegen.backends.opencl.programs import batches_lights, pass_program, prelu
 from pipegen.backends.plan import PassPlan, Plan
 from pipegen.core.records import record
 
-__all__ = ["GroupProgram", "fusable", "group_program", "group_members", "SHARED"]
+__all__ = ["GroupProgram", "fusable", "group_program", "group_members", "shared_param",
+           "SHARED"]
 
 # parameters with one value for every member of a group (the same size, frame and light table)
 SHARED = ("width", "height", "tiles_x", "frame", "lights", "pg_st")
@@ -118,7 +119,9 @@ def _params(unit: str) -> list[tuple[str, str]]:
     return [(d, re.findall(r"\w+", d)[-1]) for d in decls if d]
 
 
-def _shared(name: str) -> bool:
+def shared_param(name: str) -> bool:
+    """Whether a raster parameter has one value for every member of a group: ``SHARED``, and a
+    target's buffers (named by the target; the depth target is the same for all members)."""
     return name in SHARED or name.startswith(("w_", "bc_", "r_"))
 
 
@@ -137,7 +140,7 @@ def group_program(plan: Plan, members: tuple[int, ...], tile: int) -> GroupProgr
                 args.append({"pg_beg": "b", "pg_end": f"cur{i}"}.get(name, name))
             elif name == "repeat_light":
                 args.append("(uint)st.y")
-            elif _shared(name):
+            elif shared_param(name):
                 args.append(name)
                 if name not in seen:
                     seen[name] = decl

@@ -31,7 +31,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from pipegen.backends.opencl.group import SHARED, fusable, group_members, group_program
+from pipegen.backends.opencl.group import fusable, group_members, group_program, shared_param
 from pipegen.runtime.cl import context as cl_context
 
 __all__ = ["GroupLauncher", "enabled"]
@@ -39,10 +39,6 @@ __all__ = ["GroupLauncher", "enabled"]
 
 def enabled() -> bool:
     return os.environ.get("PIPEGEN_CL_FUSE_GROUPS", "1") != "0"
-
-
-def _shared(name: str) -> bool:
-    return name in SHARED or name.startswith(("w_", "bc_", "r_"))
 
 
 class GroupLauncher:
@@ -98,7 +94,7 @@ class GroupLauncher:
             return None
         width, height = sizes.pop()
         geometry, selection = pipe.geometry, pipe._selection
-        drawn: dict[int, tuple] = {}        # member -> (geometry, bins, its pass)
+        drawn: dict[int, tuple] = {}        # member -> (geometry, bins, its pass, its lights)
         timings = []
         for k, light in steps:
             timings.append({"pass": passes[k].name, "light": light, "fused": True})
@@ -165,14 +161,14 @@ class GroupLauncher:
             args = pipe._raster_args(gp.members[i], p, lights[0], width, height, (geo, tb),
                                      pipe._frame_buf, pipe._frame64_buf)
             values[i] = v = dict(zip([n for _, n in gp.signatures[i]], args))
-            shared.update({n: x for n, x in v.items() if _shared(n)})
+            shared.update({n: x for n, x in v.items() if shared_param(n)})
         rows = np.array([(member[k], light, 0,
                           0 if gp.clears[member[k]] is None else gp.clears[member[k]] + 1)
                          for k, light in steps], np.int32)
         args = [dev.buffer(tiles), dev.buffer(rows), np.int32(len(steps))]
         empty = None
         for i, name in gp.params:
-            if _shared(name) and name in shared:
+            if shared_param(name) and name in shared:
                 args.append(shared[name])
             elif values[i] is not None:
                 args.append(values[i][name])
