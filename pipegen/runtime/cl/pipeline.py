@@ -62,8 +62,8 @@ whose passes draw light volumes and read nothing the group writes (deferred's st
 volumes) runs all its lights' executions as one launch of a fused kernel
 (``group_launch.py``, ``backends/opencl/group.py``; bit-identical, tested).  Bins are
 per pass, built on the device from the triangles the pass draws (its lights' ranges, the
-faces its cull mode keeps); a ``repeat per light`` group's bins are found for all its lights
-in one numpy sort and uploaded in three buffers, each light's bins views into them
+faces its cull mode keeps); an unfused ``repeat per light`` group's bins are found for all
+its lights in one numpy sort and uploaded in three buffers, each light's bins views into them
 (``group_bins.py``).
 A frame does the host work of all its passes (set-up read-backs, queuing the binning)
 before it queues their clears, resolves and raster kernels in pass order, without waiting
@@ -172,7 +172,7 @@ def _frame_structs(view, proj, prev_view, prev_proj, camera_pos, ambient,
 class PassRun:
     """A pass execution's host work, done (``CLPipeline._prepare_pass``: its set-up triangles
     and bins, ``drawn``); calling it queues its device work: clears, then the raster kernel.
-    ``scheduled``: the schedule's light entry (a light, or the tuple of a batched run)."""
+    ``light``: the light drawn, the first of ``batch`` for a run drawn in one launch."""
     pipe: "CLPipeline"
     k: int
     p: PassPlan
@@ -184,7 +184,11 @@ class PassRun:
     drawn: Optional[tuple]
     frame_buf: object
     frame64_buf: object
-    scheduled: object
+
+    @property
+    def scheduled(self):
+        """The schedule's light entry: the light, or the tuple of a batched run."""
+        return self.batch if self.batch is not None else self.light
 
     def __call__(self) -> None:
         store = self.pipe.store
@@ -553,7 +557,7 @@ class CLPipeline:
                                                  volume)
 
         return PassRun(self, k, p, light, batch, timing, width, height, drawn, frame_buf,
-                       frame64_buf, batch if batch is not None else light)
+                       frame64_buf)
 
     def _launch(self, k: int, p: PassPlan, light: Optional[int], timing: dict, width: int,
                 height: int, drawn: tuple, frame_buf, frame64_buf,
