@@ -55,6 +55,9 @@ kernels in a 54 ms frame).  The changes' own effects, in one process with frames
 interleaved: multi-pass forward's lights in one launch (160x90 0.65x, 320x180 0.59x, 255
 lights at 640x360 0.69x of the frame), vector kernel arguments declared (deferred's light
 pass 47.8 -> ~5 us a set_args), raster keys and light lists once a frame (deferred 0.96x).
+A later round ran deferred's light volumes as one launch (a repeat group fused on CL:
+``benchmarks/cl_fused_groups.py``), which brought deferred to 0.92-1.01x at 160x90; the
+README's small-frame table gives all 15 techniques after it, two runs of each size.
 """
 
 from __future__ import annotations
