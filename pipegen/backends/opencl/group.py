@@ -27,11 +27,12 @@ one source of their order): ``SHARED`` ones and a target's buffers (``w_``/``bc_
 the rest once per member as ``m<i>_<name>``.  ``GroupProgram.params`` says where each comes
 from, for the runtime (``runtime/cl/group_launch.py``) to bind.
 
-``fusable`` says which groups qualify: float32, baked state, two passes or more, every one
-drawing light volumes (not shadow maps or shadow volumes) at one sample, none batched
-(``batches_lights``), no target one member writes read by another (a read may fetch other
-pixels), no clear but a stencil clear of the depth target (done per row in the kernel, and
-once over the whole target first, for the tiles no step draws)."""
+``fusable`` says which groups qualify: float32, baked state, two passes or more (so none of
+them draws its run of lights in one launch: ``batches_lights`` takes a pass alone in its
+group), every one drawing light volumes (not shadow maps or shadow volumes) at one sample, no
+target one member writes read by another (a read may fetch other pixels), no clear but a
+stencil clear of the depth target (done per row in the kernel, and once over the whole target
+first, for the tiles no step draws)."""
 
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ from typing import Optional
 
 from pipegen.ir import nodes as ir
 from pipegen.backends import templating
-from pipegen.backends.opencl.programs import batches_lights, pass_program, prelude_source
+from pipegen.backends.opencl.programs import pass_program, prelude_source
 from pipegen.backends.plan import PassPlan, Plan
 from pipegen.core.records import record
 
@@ -102,7 +103,7 @@ def fusable(plan: Plan, members: tuple[int, ...], dynamic: bool = False) -> bool
         d = p.draw
         if d.kind is not ir.DrawKind.LIGHTS or d.shadow or d.shadow_volumes \
                 or p.code is None or p.sample_reads or plan.pass_samples(p) != 1 \
-                or batches_lights(plan, p, dynamic) or not _stencil_clear(p)[0]:
+                or not _stencil_clear(p)[0]:
             return False
         written.update(p.attached)
     return not any(set(p.reads) & written for p in passes)

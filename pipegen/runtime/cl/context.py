@@ -91,23 +91,39 @@ def get_context(cache: Optional[str] = None, key: str = "default"):
         return _state["ctx"], _state["queue"]
 
 
+def _options(extra: tuple[str, ...] = ()) -> tuple[str, ...]:
+    return tuple(BUILD_OPTIONS) + tuple(extra) + tuple(
+        os.environ.get("PIPEGEN_CL_OPTIONS", "").split())
+
+
+def _failed(what: str, exc: Exception, source: str) -> RuntimeError:
+    """The error of a failed build, with the numbered source next to the log."""
+    numbered = "\n".join(f"{i + 1:5d}  {line}" for i, line in enumerate(source.split("\n")))
+    return RuntimeError(f"OpenCL {what} failed: {exc}\n--- source ---\n{numbered}")
+
+
+def _cached(sources: tuple[str, ...], opts: tuple[str, ...], make):
+    """The program for ``sources`` built with ``opts``, made by ``make`` once per process."""
+    key = hashlib.sha256(("\0\0".join(sources) + "\0" + " ".join(opts)).encode()).hexdigest()
+    prog = _programs.get(key)
+    if prog is None:
+        prog = _programs[key] = make()
+    return prog
+
+
 def build_program(source: str, options: tuple[str, ...] = ()):
     """Build (once per process) and return the ``pyopencl.Program`` for ``source``."""
     import pyopencl as cl
 
     ctx, _ = get_context()
-    opts = tuple(BUILD_OPTIONS) + tuple(options) + tuple(
-        os.environ.get("PIPEGEN_CL_OPTIONS", "").split())
-    key = hashlib.sha256((source + "\0" + " ".join(opts)).encode()).hexdigest()
-    prog = _programs.get(key)
-    if prog is None:
+    opts = _options(options)
+
+    def make():
         try:
-            prog = cl.Program(ctx, source).build(options=list(opts))
-        except cl.RuntimeError as exc:  # keep the numbered source next to the build log
-            numbered = "\n".join(f"{i + 1:5d}  {line}" for i, line in enumerate(source.split("\n")))
-            raise RuntimeError(f"OpenCL build failed: {exc}\n--- source ---\n{numbered}") from None
-        _programs[key] = prog
-    return prog
+            return cl.Program(ctx, source).build(options=list(opts))
+        except cl.RuntimeError as exc:
+            raise _failed("build", exc, source) from None
+    return _cached((source,), opts, make)
 
 
 def link_program(sources: tuple[str, ...]):
@@ -117,10 +133,9 @@ def link_program(sources: tuple[str, ...]):
     import pyopencl as cl
 
     ctx, _ = get_context()
-    opts = tuple(BUILD_OPTIONS) + tuple(os.environ.get("PIPEGEN_CL_OPTIONS", "").split())
-    key = hashlib.sha256(("\0\0".join(sources) + "\0" + " ".join(opts)).encode()).hexdigest()
-    prog = _programs.get(key)
-    if prog is None:
+    opts = _options()
+
+    def make():
         units = []
         for source in sources:
             try:
@@ -128,12 +143,12 @@ def link_program(sources: tuple[str, ...]):
                     warnings.simplefilter("ignore")  # own cache is off (PoCL's is used)
                     units.append(cl.Program(ctx, source).compile(options=list(opts)))
             except cl.RuntimeError as exc:
-                numbered = "\n".join(f"{i + 1:5d}  {line}"
-                                     for i, line in enumerate(source.split("\n")))
-                raise RuntimeError(f"OpenCL compile failed: {exc}\n--- source ---\n{numbered}"
-                                   ) from None
-        prog = _programs[key] = cl.link_program(ctx, units)
-    return prog
+                raise _failed("compile", exc, source) from None
+        try:
+            return cl.link_program(ctx, units)
+        except cl.RuntimeError as exc:      # an unresolved or clashing name: the kernel's unit
+            raise _failed("link", exc, sources[-1]) from None
+    return _cached(tuple(sources), opts, make)
 
 
 def set_args(kernel, *args) -> None:

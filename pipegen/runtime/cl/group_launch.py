@@ -127,13 +127,10 @@ class GroupLauncher:
             if not len(spans):
                 continue
             bb = geo.tris.bbox
+            # each light's box; reduceat runs on to the next light's start (to the end for the
+            # last), which can only add triangles between the lights: a superset still
             lo = np.minimum.reduceat(bb[:, :2], spans[:, 0])
             hi = np.maximum.reduceat(bb[:, 2:], spans[:, 0])
-            # reduceat runs to the next start: cut each light's range at its own end
-            for r, (a, b) in enumerate(spans):
-                if r + 1 < len(spans) and spans[r + 1, 0] != b:
-                    lo[r] = bb[a:b, :2].min(axis=0)
-                    hi[r] = bb[a:b, 2:].max(axis=0)
             x0, y0 = np.clip(lo // T, 0, None).T
             x1, y1 = np.minimum(hi // T, (tiles_x - 1, tiles_y - 1)).T
             for a, b, c, d in zip(x0, y0, x1, y1):
