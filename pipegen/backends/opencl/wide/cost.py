@@ -8,10 +8,22 @@ from pipegen.ir.walk import child_exprs
 from pipegen.backends import plan as planlib
 
 
+# What a builtin call counts beyond its node, where its expansion is long: the prelude's
+# exp2 and log2 are minimax polynomials of some 10 operations each (llvmpipe's), pow is the
+# two, and the wide form evaluates each for W lanes at once where the scalar path runs the
+# whole polynomial per pixel.  Counted as one node, multi-pass forward's specialised light
+# pass (Blinn-Phong's specular pow) came to 97 and stayed scalar, where its raster kernel
+# measured 530 ms scalar against 301 ms wide (``benchmarks/cl_wide_passes.py --size 640x360
+# --frames 5 forward_multipass``, many_lights); a light pass of cost 39 without them measured
+# the same either way, and one of 16 4 % slower wide
+BUILTIN_WORK = {"pow": 20, "exp": 10, "exp2": 10, "log": 10, "log2": 10}
+
+
 def cost(body, functions: dict) -> int:
     """A rough count of the operations a pixel runs (expression nodes, calls of user functions
-    counted with their bodies, bounded loops times their bound): the wide form pays its
-    batching only when the shading does enough work per pixel (``MIN_COST``)."""
+    counted with their bodies, builtins with long expansions with ``BUILTIN_WORK``, bounded
+    loops times their bound): the wide form pays its batching only when the shading does
+    enough work per pixel (``MIN_COST``)."""
     memo: dict = {}
 
     def fcost(name: str) -> int:
@@ -23,8 +35,8 @@ def cost(body, functions: dict) -> int:
 
     def expr(e) -> int:
         n = 1
-        if isinstance(e, ir.Call) and not e.builtin:
-            n += fcost(e.name)
+        if isinstance(e, ir.Call):
+            n += BUILTIN_WORK.get(e.name, 0) if e.builtin else fcost(e.name)
         for sub in child_exprs(e):
             n += expr(sub)
         return n
