@@ -174,6 +174,31 @@ def test_cross_triangle_batches_are_exact(monkeypatch, technique, wmin):
         _assert_same(one.last_blend_counts, cross.last_blend_counts)
 
 
+@pytest.mark.cl
+def test_light_runs_draw_each_row_once(monkeypatch):
+    """Multi-pass forward's light pass draws all its lights in one launch, and rasterises,
+    depth-tests and interpolates each row of a tile once for all of them (``pg_once`` in
+    cl_pass.cl.j2): bit for bit the scalar path's light-by-light draw, targets and blend
+    counts.  On small.toml; and with the box drawn twice in one place in two colours, where
+    pixels get two fragments per light, so those rows are drawn light by light (blending the
+    row's fragments once per row would sum them in another order: 15 of accum's values here
+    differ when it does)."""
+    import dataclasses
+    scalar, wide = _pipes(lambda: compile_file(ROOT / "pipelines/forward_multipass.pipe"),
+                          monkeypatch)
+    assert "per_light" in _wide_passes(wide)
+    scene = _scene("small")
+    box = scene.objects[1]
+    twin = dataclasses.replace(box, name="box_twin", id=max(o.id for o in scene.objects) + 1,
+                               material=dataclasses.replace(box.material, albedo=(0.2, 0.8, 0.3)))
+    twice = dataclasses.replace(scene, objects=list(scene.objects) + [twin])
+    for s, most in ((scene, len(scene.lights)), (twice, 2 * len(scene.lights))):
+        _assert_same(scalar.render(s), wide.render(s))
+        counts = wide.last_blend_counts
+        _assert_same(scalar.last_blend_counts, counts)
+        assert int(counts["accum"].max()) == most     # the twin's pixels: two per light
+
+
 def test_which_passes_batch_across_triangles():
     """Wide passes batch across triangles: light volumes, and scene passes with varyings
     (each lane its own triangle's, a batch's flat ones equal) unless shaded per sample; a
