@@ -49,6 +49,19 @@ two runs a minute apart: CL multi-pass forward / LIDR, wall time, with ``--unsha
 Within 2x of the paper (at most 13.6x, 10.4x and 6.2x): lidr_max_stencil at 1 and 2 lights
 per pixel (13.4x, 9.1x), nothing at 4.  Multi-pass forward still shades every visible pixel
 255 times: the set-up and the launches are no longer what it pays for (``WHY`` below).
+
+A row drawn once for a run of lights (cl_pass.cl.j2's pg_once, with the wide fragment code's
+``pow`` counted and the wide function inlined: docs/internals.md) since 4fb902f, ``--frames 3
+--skip-msaa``, load 1-2, CL multi-pass forward / LIDR by wall time:
+
+    lights/px  paper   --scale 0.25 (256x192)   --scale 0.5 (512x384)
+    1          6.8x    4.9-6.3x                 9.5-13.1x
+    2          5.2x    3.2-4.4x                 8.0-10.7x
+    4          3.1x    3.3-4.2x                 5.9-8.6x
+    forward_multipass CL 97 ms at 256x192 (GL 592 ms), 303 ms at 512x384 (GL 1158 ms)
+
+Within 2x of the paper: all nine at 256x192; at 512x384 the three at 1 light per pixel and
+max-stencil at 2 and 4.
 """
 
 from __future__ import annotations
@@ -191,16 +204,19 @@ Where and why the figures differ:
 - Absolute times: the papers ran 2007-2009 GPUs; here rasterisation, depth and stencil tests,
   blending and shading run in software on --threads CPUs (and the development machine is shared).
   Nothing but ratios within one backend can be compared.
-- LIDR vs multi-pass forward (Trebilco): the speed-up here is far larger than the paper's 3-7x.
-  Multi-pass forward draws the whole scene 255 times (depth equal, blended into an rgba16f
-  accumulator) and shades every visible pixel for every light, out of reach or not (the shader
-  computes attenuation 0).  On a GPU a pass of a 101-object scene costs little beyond its
-  pixels and blending is fixed-function; llvmpipe sets up and bins every triangle again per
-  pass, and both blend half floats in software.  The CL runtime sets the scene up and bins it
-  once for all 255 passes and draws them in one raster launch (runtime/cl/geometry.py,
-  programs.batches_lights), but still tests coverage and depth and shades every visible pixel
-  255 times: shading is most of its frame.  LIDR draws light volumes, which touch only the
-  pixels they cover, and shades each pixel once.
+- LIDR vs multi-pass forward (Trebilco): on llvmpipe the speed-up is far larger than the
+  paper's 3-7x.  Multi-pass forward draws the whole scene 255 times (depth equal, blended into
+  an rgba16f accumulator) and shades every visible pixel for every light, out of reach or not
+  (the shader computes attenuation 0).  On a GPU a pass of a 101-object scene costs little
+  beyond its pixels and blending is fixed-function; llvmpipe sets up, bins, rasterises and
+  depth-tests every triangle again per pass, and blends half floats in software.  The CL
+  runtime sets the scene up and bins it once for all 255 passes, draws them in one raster
+  launch (runtime/cl/geometry.py, programs.batches_lights), and rasterises, depth-tests and
+  interpolates each tile row once for all of them, shading and blending each batch of 8 pixels
+  light after light (cl_pass.cl.j2's pg_once): what it pays 255 times is what a GPU pays, the
+  shading and blending of every visible pixel, so its ratio comes near the paper's, nearer at
+  small sizes, where LIDR's fixed costs per frame weigh more.  LIDR draws light volumes, which
+  touch only the pixels they cover, and shades each pixel once.
 - LIDR cost against lights per pixel: the paper loses 2.2x from 1 to 4 lights per pixel;
   llvmpipe comes close (bit planes 1.7-1.9x in our runs): bigger light volumes mean more
   blended index writes and more lights shaded per pixel on both.  PoCL loses less (1.0-1.9x):
