@@ -62,7 +62,7 @@ def main() -> int:
     scalar = build()
     wide.ENABLED = True
     if args.force:
-        wide.MIN_COST, wide.GATHER_COST, wide.LANE_GATHER_COST = 0, 0, 0
+        wide.MIN_COST, wide.GATHER_COST, wide.LANE_GATHER_WORK = 0, 0, 0
     widep = build()
     names = [p.name for p in widep.plan.passes
              if p.code.fragment and wide.MARK in p.code.fragment]

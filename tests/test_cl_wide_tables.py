@@ -5,7 +5,7 @@ function, for a technique of this file's own (material rows grouped in a functio
 stage body, in a ``?:`` arm, at an index a loop changes; a light row per pixel, with lanes whose
 slot is empty) and for deferred_calver, whose light passes read ``materials[material_id()]``.
 Light-indexed shading (LIDR's shade passes) is kept scalar by the cost model
-(``LANE_GATHER_COST``), not because the wide form cannot lower it: forced wide, its images are
+(``LANE_GATHER_WORK``), not because the wide form cannot lower it: forced wide, its images are
 exact too (with --exhaustive).  Speed: benchmarks/cl_wide_passes.py."""
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ pass shade {
 
 @pytest.mark.cl
 def test_table_reads_at_a_varying_index_are_exact(monkeypatch):
-    monkeypatch.setattr(cl_wide, "LANE_GATHER_COST", 0)
+    monkeypatch.setattr(cl_wide, "LANE_GATHER_WORK", 0)
     # MIN_COST kept: the ids pass (too little work) is one program for both pipelines
     scalar, wide = _pipes(lambda: compile_source(TABLES), monkeypatch, wmin=1)
     assert _wide_passes(wide) == ["shade"]
@@ -110,15 +110,29 @@ def test_deferred_calver_materials_are_exact(monkeypatch):
 
 def test_light_indexed_shading_stays_scalar_by_cost(monkeypatch):
     """LIDR's shade pass (each pixel its own lights) lowers wide, but the cost model keeps it
-    scalar for its lane gathers (LANE_GATHER_COST; benchmarks/cl_wide_passes.py)."""
+    scalar for its lane gathers (LANE_GATHER_WORK; benchmarks/cl_wide_passes.py)."""
     def shade_is_wide() -> bool:
         plan = compile_file(ROOT / "pipelines/lidr_bitplanes.pipe").plan("cl")
         shade = next(p for p in plan.passes if p.name == "shade")
         return cl_wide.MARK in shade.code.fragment
     assert not shade_is_wide()
-    monkeypatch.setattr(cl_wide, "LANE_GATHER_COST", 0)
+    monkeypatch.setattr(cl_wide, "LANE_GATHER_WORK", 0)
     assert shade_is_wide()
 
+
+
+def test_material_lookups_go_wide_when_specialised():
+    """The rule is work per gathered row (``LANE_GATHER_WORK``), not work less a cost per row:
+    deferred_calver's light passes compiled for a scene (237-333 of work on two material rows,
+    their shadow and light-type branches cut) go wide as the general build's do, where the
+    subtraction had kept them scalar (point lights on many_lights at 1280x720: 86.7 ms scalar,
+    49.9 wide)."""
+    general = compile_file(ROOT / "pipelines/deferred_calver.pipe")
+    variant = general.specialise(load_scene(ROOT / "examples/scenes/calver_materials.toml"))
+    for compiled in (general, variant):
+        plan = compiled.plan("cl")
+        wide = {p.name for p in plan.passes if cl_wide.has_wide(p.code.fragment)}
+        assert {"directional_lights", "point_lights", "spot_lights"} <= wide
 
 @pytest.mark.cl
 @pytest.mark.exhaustive     # a wide program no build ships (15 s to build cold); in CI the
@@ -127,7 +141,7 @@ def test_light_indexed_shading_forced_wide_is_exact(monkeypatch):
     """lidr_bitplanes forced wide: every lane shades with its own lights' rows (empty slots
     loading a clamped row they drop), bit for bit the scalar images (point, spot and
     directional lights)."""
-    monkeypatch.setattr(cl_wide, "LANE_GATHER_COST", 0)
+    monkeypatch.setattr(cl_wide, "LANE_GATHER_WORK", 0)
     scalar, wide = _pipes(lambda: compile_file(ROOT / "pipelines/lidr_bitplanes.pipe"),
                           monkeypatch, wmin=1)
     assert "shade" in _wide_passes(wide)

@@ -44,10 +44,11 @@ Passes whose estimated work per pixel (``cost``) is below ``MIN_COST`` keep the 
 too (the batching does not pay there), and the raster kernel shades a triangle's row batch of
 fewer than ``WMIN`` pixels with the scalar function.  A ``load``/``sample`` counts
 ``GATHER_COST`` against the estimate (0 since the gathers are wide: see the constant), a table
-row gathered lane by lane ``LANE_GATHER_COST`` (counted by the emitter, loops times their
-bounds): deferred_calver's light passes (two material rows against some 1500 of work) pay wide,
-light-indexed shading (LIDR's shade passes: 32-96 light rows, 57-121 of work per row) does
-not reliably and stays scalar (the measurements at the constant).
+pass must do at least ``LANE_GATHER_WORK`` of work per table row it gathers lane by lane
+(counted by the emitter, loops times their bounds): deferred_calver's light passes (two
+material rows against 237-1078 of work, general or specialised) pay wide, light-indexed
+shading (LIDR's shade passes: 32-96 light rows, 54-98 of work per row) does not reliably and
+stays scalar (the measurements at the constant).
 
 Builtins the generated code calls with varying operands have ``W``-wide overloads in
 ``wide_helpers()`` (the prelude's definitions applied lane by lane, so the values are the
@@ -78,7 +79,7 @@ from pipegen.backends.opencl.wide.cost import cost, gathers
 from pipegen.backends.opencl.wide.emitter import WideEmitter
 from pipegen.backends.opencl.wide.values import MARK, W, TooManyGathers, Unsupported
 
-__all__ = ["W", "MARK", "MIN_COST", "GATHER_COST", "LANE_GATHER_COST", "WMIN", "ENABLED",
+__all__ = ["W", "MARK", "MIN_COST", "GATHER_COST", "LANE_GATHER_WORK", "WMIN", "ENABLED",
            "CROSS_TRIANGLE", "CROSS_TRIANGLE_VARYINGS", "wide_fragment", "has_wide", "wide_helpers", "cost", "gathers"]
 
 # Measured (one pass's raster kernel alone, its scalar and wide programs interleaved in one
@@ -101,25 +102,33 @@ MIN_COST = 100              # below this estimated work per pixel, the scalar fu
 # wide (lane by lane through the scalar functions, 25 kept point_lights scalar, and forcing it
 # wide measured 35 vs 30 ms; with the wide gathers its kernel is 17-34 % faster wide, above)
 GATHER_COST = 0
-# what a table row read at a varying index (gathered lane by lane: W row loads; counted per
-# pixel, loops times their bounds, by the emitter) costs the wide form: the work a pass must do
-# per gathered row to go wide.  Measured with benchmarks/cl_wide_passes.py (raster kernel,
-# scalar and wide builds' frames interleaved, medians of 21 frames, 2 PoCL threads, load
-# average 4-5 on the shared 2-core machine: spreads of single-frame ratios in brackets),
-# wide/scalar, pass (cost, gathered rows):
-#   deferred_calver, calver_materials 320x180: directional_lights (1441, 2) 0.28 [0.12-2.96],
-#     point_lights (1515, 2) 0.22 [0.09-1.23], spot_lights (1537, 2) 0.18 [0.08-2.35];
-#     many_lights 320x180: point_lights 0.73 [0.38-1.16]
-#   forced wide (--force), 640x360, many_lights / mixed_lights:
+# the work per pixel a pass must do for each table row it reads at a varying index (gathered
+# lane by lane: W row loads; counted per pixel, loops times their bounds, by the emitter) to go
+# wide.  A ratio, as a time model gives it: wide shading saves a share of the work, each
+# gathered row costs the wide form W scattered loads, so the wide form pays where work per row
+# exceeds a constant (the subtraction used before, work - 200 x rows >= MIN_COST, kept the
+# specialised deferred_calver's light passes scalar: 237-333 of work on 2 rows).  Measured with
+# benchmarks/cl_wide_passes.py (raster kernel, scalar and wide builds' frames interleaved,
+# 2 PoCL threads, medians), wide/scalar, pass (cost, gathered rows; costs before ``pow``
+# counted its polynomials unless marked new):
+#   deferred_calver general, calver_materials 320x180: directional_lights (1441, 2) 0.28,
+#     point_lights (1515, 2) 0.22, spot_lights (1537, 2) 0.18; many_lights: point_lights 0.73
+#   deferred_calver specialised (new costs; 5-11 frames): many_lights point_lights (311, 2)
+#     1280x720 86.7 -> 49.9 ms, 160x90 3.24 -> 2.45 ms; calver_materials 320x180
+#     directional_lights (237, 2) 4.98 -> 2.06, point_lights (311, 2) 3.35 -> 1.50,
+#     spot_lights (333, 2) 2.58 -> 1.07
+#   LIDR shade passes forced wide (--force), 640x360, many_lights / mixed_lights:
 #     lidr_bitplanes shade (1826, 32)       0.85 [0.21-1.14] / 0.63 [0.41-1.05]
 #     lidr_shadow_indexed shade (11594, 96) 1.36 [0.64-3.13] / 1.10 [0.76-1.76]
 #     lidr_transparent shade_opaque (3649, 64) 1.05 [0.64-1.43] / 0.77 [0.40-1.92]
 #   and at 320x180 (15-31 frames): lidr_max_stencil shade (1730, 32) 1.02-1.03, lidr_cpu_sort
-#     shade (1662, 32) 0.90, lidr_bitplanes shade 0.95-0.99 / 0.43-0.67
-# Light-indexed shading is a loss as often as a gain (its slowest, shadow_indexed, has the most
-# work per row: its shadow lookups diverge too), so every LIDR shade pass (57-121 of work per
-# gathered row) stays scalar and material lookups (some 700 per row) go wide; 200 lies between
-LANE_GATHER_COST = 200
+#     shade (1662, 32) 0.90, lidr_bitplanes shade 0.95-0.99 / 0.43-0.67; again after the row
+#     and inlining changes (new costs): 640x360 many_lights 0.91-0.97 (bitplanes 1890/32,
+#     shadow_prepass 2733/32, shadow_indexed 2026/32), 160x90 many_lights 1.17-1.21 (bitplanes,
+#     cpu_sort, shadow_indexed), 320x180 mixed_lights 0.7-1.05
+# Light-indexed shading is a loss as often as a gain, at 54-98 of work per gathered row (new
+# costs); material lookups, at 118-539 per row, pay 1.7-5x: 108 lies between
+LANE_GATHER_WORK = 108
 WMIN = 4                    # a row's batch of fewer pixels is shaded pixel by pixel
 # False (or PIPEGEN_CL_WIDE=0 in the environment): every pass keeps the scalar path (tests,
 # before/after benchmarks); the emitted text then is the scalar path's alone
@@ -146,7 +155,7 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
     if work < MIN_COST:
         return None
     def too_many(lane_gathers: int) -> bool:
-        return work - LANE_GATHER_COST * lane_gathers < MIN_COST
+        return work < LANE_GATHER_WORK * lane_gathers
 
     emitter = WideEmitter(tech, p, lang, too_many)
     try:
