@@ -6,8 +6,9 @@ stencil-marked light volumes (two passes per light, the first clearing the stenc
 the same targets, blend counts and clamps bit for bit fused and not: specialised to a
 point-only scene (two members), general on a scene with point and spot lights (four members,
 two clearing), general on the point-only scene (two members no light reaches: never called),
-with one point light, and a frame that does not fit (targets sharing storage) falling back to
-a launch per execution.  A group that reads what it writes is not fused.
+with one point light, a group of one pass (the shadow-volume LIDR's light volumes, where the
+scene has no shadow volumes), and a frame that does not fit (targets sharing storage) falling
+back to a launch per execution.  A group that reads what it writes is not fused.
 """
 
 from __future__ import annotations
@@ -79,6 +80,24 @@ def test_deferred_light_volumes_fused_render_what_launches_per_pass_render(
     assert fused[4] >= 2 * lights
     assert alone[4] == 0
     assert fused[3] < alone[3] - lights
+
+
+
+def test_a_group_of_one_light_volume_pass_is_fused(monkeypatch):
+    """The shadow-volume LIDR compiled for a scene without shadow volumes keeps one pass in
+    its group (its light volumes writing indices where the stencil is 0): fused, its 81
+    lights' executions are one launch, and the targets, blend counts and clamps are those of
+    a launch per light."""
+    compiled = _compiled("lidr_shadow_volumes", "many_lights")
+    s = _scene("many_lights")
+    fused = _render(compiled, s, True, monkeypatch)
+    alone = _render(compiled, s, False, monkeypatch)
+    assert fused[5] == [1] and alone[5] == []
+    _assert_same(fused[0], alone[0])
+    _assert_same(fused[1], alone[1])
+    assert fused[2] == alone[2]
+    lights = sum(1 for l in s.lights if l.type == "point")
+    assert fused[4] == lights and fused[3] == alone[3] - lights + 1
 
 
 def test_a_light_alone_of_its_type_is_fused_too(monkeypatch):
