@@ -101,14 +101,15 @@ def test_every_program_of_a_shipped_technique_builds_with_an_empty_log(name, pre
                            precisions, str(listing)], capture_output=True, text=True, env=env,
                           cwd=tmp_path, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    if name == "deferred":      # its light volumes' group: units compiled to be linked
-        assert '"unit": true' in listing.read_text()
+    if name == "deferred" and "f32" in precisions:  # its light volumes' group: units compiled
+        assert '"unit": true' in listing.read_text()   # to be linked (float32 only: f64 fuses none)
     env.update(POCL_CACHE_DIR=str(tmp_path / "pocl"), POCL_KERNEL_CACHE="0")
     proc = subprocess.run([sys.executable, "-c", BUILD, str(listing)], capture_output=True,
                           text=True, env=env, cwd=tmp_path, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     count, _, logs = proc.stdout.partition("\n")
-    # every pass's program and the runtime's own (set-up, binning): never nothing built
-    assert int(count.split()[0]) >= 4, proc.stdout
+    # never nothing built: two pass programs at least, the runtime's binning, and in float32
+    # its set-up too (the float64 evaluation sets triangles up on the host)
+    assert int(count.split()[0]) >= (4 if "f32" in precisions else 3), proc.stdout
     assert logs.strip() == "", f"build logs of {name}:\n{logs[:3000]}"
     assert "warning" not in proc.stderr.lower(), proc.stderr[-3000:]
