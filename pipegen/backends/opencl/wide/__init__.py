@@ -43,7 +43,7 @@ None when the code uses what this form does not support (the pass then keeps the
 Passes whose estimated work per pixel (``cost``) is below ``MIN_COST`` keep the scalar path
 too (the batching does not pay there), and the raster kernel shades a triangle's row batch of
 fewer than ``WMIN`` pixels with the scalar function.  A ``load``/``sample`` counts
-``GATHER_COST`` against the estimate (0 since the gathers are wide: see the constant), a table
+``GATHER_COST`` against the estimate (0 since the gathers are wide: see the constant), and a
 pass must do at least ``LANE_GATHER_WORK`` of work per table row it gathers lane by lane
 (counted by the emitter, loops times their bounds): deferred_calver's light passes (two
 material rows against 237-1078 of work, general or specialised) pay wide, light-indexed
