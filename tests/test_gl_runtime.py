@@ -560,3 +560,37 @@ def test_errors_left_by_other_moderngl_code_do_not_break_the_runtime():
     out = compiled.pipeline("gl", size=(4, 4)).render(default_scene())
     assert (out["color"] == 255).all()
     assert GL.glGetError() == GL.GL_NO_ERROR
+
+
+def test_ctrl_c_inside_a_pyopengl_argument_conversion_is_a_keyboard_interrupt(monkeypatch):
+    """A SIGINT whose handler runs in PyOpenGL's ``from_param`` (Python code ctypes calls while
+    converting a read-back's arguments) reaches Python as ``ctypes.ArgumentError``; ``render``
+    raises it as KeyboardInterrupt, so ``stress`` and ``check`` exit 130 (CI saw the traceback);
+    an ArgumentError of another cause stays what it is."""
+    import ctypes
+    from pipegen.runtime.gl import formats as GF
+
+    def converting(cause):
+        class Arg:                   # stands in for PyOpenGL's numpy array handler
+            @classmethod
+            def from_param(cls, obj):
+                raise cause
+        call = ctypes.CDLL(None).abs
+        call.argtypes = [Arg]
+        return lambda *a, **k: call(1)
+
+    p = plan([target("c", "r8")],
+             [pass_("f", VS_FULL, fs("layout(location = 0) out vec4 o_c;\n", "o_c = vec4(0.5);"),
+                    writes=["c"])])
+    pipe = GLPipeline(p)
+    try:
+        monkeypatch.setattr(GF, "read_texture", converting(KeyboardInterrupt()))
+        with pytest.raises(KeyboardInterrupt):
+            pipe.render(FakeScene(width=4, height=4))
+        monkeypatch.setattr(GF, "read_texture", converting(TypeError("not an array")))
+        with pytest.raises(ctypes.ArgumentError, match="TypeError: not an array"):
+            pipe.render(FakeScene(width=4, height=4))
+        monkeypatch.undo()
+        assert (pipe.render(FakeScene(width=4, height=4))["c"] == 128).all()
+    finally:
+        pipe.release()

@@ -33,7 +33,10 @@ in the environment (or ``GLPipeline(..., debug=True)``) checks after every pass.
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import os
+import re
 import threading
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
@@ -53,13 +56,35 @@ from OpenGL import GL  # noqa: E402,F401  (re-exported: the runtime's single GL 
 ERROR_CHECKING = bool(OpenGL.ERROR_CHECKING)
 
 
+_WRAPPED_CTRL_C = re.compile(r"argument \d+: KeyboardInterrupt\b")
+
+
+def ctrl_c_unwrapped(method):
+    """``method`` with a Ctrl-C that PyOpenGL's argument conversion swallowed raised again.
+
+    ctypes calls PyOpenGL's ``from_param`` (Python code) while it converts a call's arguments;
+    a SIGINT whose handler runs there raises KeyboardInterrupt inside the conversion, which
+    ctypes re-raises as ``ctypes.ArgumentError('argument 6: KeyboardInterrupt: ')``.  Without
+    this, Ctrl-C during a read-back ends ``stress`` or ``check`` with a traceback instead of
+    exit 130 and its resume command."""
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        try:
+            return method(*args, **kwargs)
+        except ctypes.ArgumentError as e:
+            if _WRAPPED_CTRL_C.match(str(e)):
+                raise KeyboardInterrupt from e
+            raise
+    return wrapper
+
+
 def debug_enabled() -> bool:
     """``PIPEGEN_GL_DEBUG`` set to anything but ``""``/``0``: check GL errors after every pass."""
     return os.environ.get("PIPEGEN_GL_DEBUG", "") not in ("", "0")
 
 
 __all__ = ["GL", "get_context", "gl_limits", "describe", "device", "check_error",
-           "clear_stale_errors", "debug_enabled", "ERROR_CHECKING"]
+           "clear_stale_errors", "debug_enabled", "ERROR_CHECKING", "ctrl_c_unwrapped"]
 
 _lock = threading.Lock()
 _ctx: moderngl.Context | None = None

@@ -64,7 +64,7 @@ from pipegen.runtime.gl import transitions as GT
 from pipegen.runtime.common import check_param_overrides, check_scene, scene_as_drawn
 from pipegen.runtime.light_table import light_rows, table_records
 from pipegen.runtime.gl.context import (
-    GL, check_error, clear_stale_errors, debug_enabled, get_context)
+    GL, check_error, clear_stale_errors, ctrl_c_unwrapped, debug_enabled, get_context)
 
 import moderngl
 
@@ -275,6 +275,7 @@ class _Pass:
 class GLPipeline:
     """A PLAN ready to render with OpenGL (see the module docstring)."""
 
+    @ctrl_c_unwrapped
     def __init__(self, plan: Plan | dict, size: Optional[tuple[int, int]] = None, *,
                  transitions: bool = True, debug: Optional[bool] = None, alias: bool = False):
         """``transitions=False`` sets all state before every pass (``gl_state.apply_state``)
@@ -523,6 +524,7 @@ class GLPipeline:
         return p.vaos[key]
 
     # -- rendering --------------------------------------------------------------------------
+    @ctrl_c_unwrapped
     def render(self, scene, params: Optional[dict] = None, capture_passes: bool = False):
         """Render ``scene``; ``{target: codes}`` (and the per-pass captures, see module doc)."""
         captures = self._draw(scene, params, capture_passes)
@@ -530,6 +532,7 @@ class GLPipeline:
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
         return (result, captures) if capture_passes else result
 
+    @ctrl_c_unwrapped
     def frame(self, scene, params: Optional[dict] = None) -> None:
         """Render ``scene`` and wait for the GPU (no read-back): what frame timings measure."""
         self._draw(scene, params, False)
