@@ -28,7 +28,9 @@ def emit_cl(tech: ir.Technique, precision: str = "f32") -> Plan:
     if precision == "f32":
         tech = lower_mix_constant.run(tech)     # llvmpipe's split of mix(x, y, constant)
     rendered: dict = {}
-    frags = [emit_fragment(tech, p, lang, rendered=rendered) for p in tech.passes]
+    wide_rendered: dict = {}
+    frags = [emit_fragment(tech, p, lang, rendered=rendered, wide_rendered=wide_rendered)
+             for p in tech.passes]
     codes = [CLPassCode("", f["fragment"], tuple(f["inputs"]), f["discard"], tuple(f["sampled"]))
              for f in frags]
     sampled = [tuple(r for r in p.reads if r in f["sampled"]) for p, f in zip(tech.passes, frags)]
@@ -67,10 +69,12 @@ def _functions(lang: OpenCLLanguage, functions, rendered: dict) -> list[str]:
 
 def emit_fragment(tech: ir.Technique, p: ir.Pass,
                   language: type[OpenCLLanguage] = OpenCLLanguage, wide: bool = True,
-                  rendered: Optional[dict] = None) -> dict:
+                  rendered: Optional[dict] = None,
+                  wide_rendered: Optional[dict] = None) -> dict:
     """The fragment function of a pass (OpenCL C) and what it reads (``language``: the
     dialect, ``OpenCLLanguage64`` for the float64 evaluation; ``rendered``: user functions
-    already rendered for other passes of ``tech``, see ``_functions``)."""
+    already rendered for other passes of ``tech``, see ``_functions``; ``wide_rendered``:
+    their wide specialisations, ``wide_fragment``'s ``shared``)."""
     lang = language(tech, p)
     functions = planlib.pass_functions(tech, p.body)
     inputs = planlib.stage_inputs(p.body, functions)
@@ -101,7 +105,7 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass,
     text = "\n\n".join(code + [main]) + "\n"
     if language is OpenCLLanguage and wide:
         # the same code for PG_W pixels at once (explicit SIMD over pixels), where it can
-        wtext = cl_wide.wide_fragment(tech, p, OpenCLLanguage(tech, p))
+        wtext = cl_wide.wide_fragment(tech, p, OpenCLLanguage(tech, p), wide_rendered)
         if wtext is not None:
             text += "\n" + wtext
     return {"fragment": text, "inputs": sorted(inputs), "discard": discard, "sampled": sampled}

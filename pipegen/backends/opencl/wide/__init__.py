@@ -141,9 +141,12 @@ CROSS_TRIANGLE = os.environ.get("PIPEGEN_CL_XBATCH", "1") != "0"
 CROSS_TRIANGLE_VARYINGS = os.environ.get("PIPEGEN_CL_XBATCH_VARYINGS", "1") != "0"
 
 
-def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
+def wide_fragment(tech: ir.Technique, p: ir.Pass, lang,
+                  shared: Optional[dict] = None) -> Optional[str]:
     """``pg_fragment_w`` of pass ``p`` (OpenCL C), or None when the wide form does not
-    support its code (see the module docstring)."""
+    support its code (see the module docstring).  ``shared``: one dict for all the passes of
+    ``tech``, where the specialised user functions rendered for one pass are kept for the
+    others (``WideEmitter.shared``)."""
     if not p.body or not ENABLED:
         return None
     functions = planlib.pass_functions(tech, p.body)
@@ -157,7 +160,7 @@ def wide_fragment(tech: ir.Technique, p: ir.Pass, lang) -> Optional[str]:
     def too_many(lane_gathers: int) -> bool:
         return work < LANE_GATHER_WORK * lane_gathers
 
-    emitter = WideEmitter(tech, p, lang, too_many)
+    emitter = WideEmitter(tech, p, lang, too_many, shared)
     try:
         text = emitter.fragment(functions)
     except (Unsupported, TooManyGathers):

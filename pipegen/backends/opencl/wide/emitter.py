@@ -3,6 +3,8 @@ call, from the IR (statements and functions: ``statements``; expressions: ``expr
 
 from __future__ import annotations
 
+from typing import Optional
+
 from pipegen.ir import nodes as ir
 from pipegen.backends.opencl.wide.expressions import WideExpressions
 from pipegen.backends.opencl.wide.statements import WideStatements
@@ -13,8 +15,13 @@ class WideEmitter(WideStatements, WideExpressions):
     """The lowering of one pass (``tech``, ``pass_``) through ``lang`` (``OpenCLLanguage``: the
     scalar dialect, whose spellings of literals, inputs and builtins it shares)."""
 
-    def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang, too_many=lambda gathers: False):
+    def __init__(self, tech: ir.Technique, pass_: ir.Pass, lang, too_many=lambda gathers: False,
+                 shared: Optional[dict] = None):
         self.tech, self.pass_, self.lang = tech, pass_, lang
+        # specialised functions rendered for the technique's other passes: (dialect, id of the
+        # function, flags) -> (the function, kept so its id stays its own; the (table name,
+        # key, text) entries its emission added; its return shape; its lane_gathers)
+        self.shared = {} if shared is None else shared
         # whether the pass body's count of rows gathered lane by lane rules the wide form out
         # (wide_fragment's test): rendering stops as soon as what it counted passes it
         self.too_many_gathers = too_many

@@ -445,6 +445,12 @@ class WideStatements:
         vals = [self.expr(a) for a in e.args]
         flags = tuple(v.varying for v in vals)
         spec = f"{self.lang.ident(f.name)}_w{''.join('v' if x else 'u' for x in flags) or '0'}"
+        shared_key = (type(self.lang), id(f), flags)
+        if spec not in self.emitted and shared_key in self.shared:
+            # rendered for another pass of the technique: the same text (a specialised
+            # function's rendering reads only the function, its flags and technique-wide facts)
+            _, entries, self.func_ret[spec], self.func_gathers[spec] = self.shared[shared_key]
+            self.emitted[spec] = [(getattr(self, table), k, t) for table, k, t in entries]
         if spec in self.emitted:
             for table, key, text in self.emitted[spec]:
                 table.setdefault(key, text)
@@ -453,6 +459,9 @@ class WideStatements:
             self._emit_function(f, flags, spec)
             self.emitted[spec] = [(table, k, t) for table, old in zip(
                 (self.structs, self.out_funcs), before) for k, t in table.items() if k not in old]
+            self.shared[shared_key] = (f, [("structs" if table is self.structs else "out_funcs",
+                                            k, t) for table, k, t in self.emitted[spec]],
+                                       self.func_ret[spec], self.func_gathers[spec])
         self.count_gathers(self.func_gathers[spec] * self.loop_weight)
         ret = self.func_ret[spec]
         args = ["in", "win"] + [c for v in vals for c in v.comps]
