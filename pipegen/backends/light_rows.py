@@ -28,9 +28,9 @@ statement holding the block and the block's name (``then``, ``other``, ``body``)
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Optional, Sequence
 
+from pipegen.core.records import record
 from pipegen.ir import nodes as ir
 from pipegen.ir.light_layout import LightLayout, Place
 from pipegen.ir.material_layout import MaterialLayout
@@ -42,7 +42,7 @@ Path = tuple
 _BLOCKS = {ir.If: ("then", "other"), ir.For: ("body",)}
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class RowLoad:
     """One row of one light, loaded into local ``name`` before the statement at ``path``."""
 

@@ -30,10 +30,10 @@ sharing could reach) and the bytes allocated; every count is ``memory.target_byt
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from enum import Enum
 from typing import Iterable, Mapping, Optional, Sequence
 
+from pipegen.core.records import record
 from pipegen.ir.memory import target_bytes
 
 START = -1     # a lifetime that begins before the first pass (a preset target)
@@ -45,7 +45,7 @@ class Sharing(Enum):
     DESCRIPTOR = "descriptor"   # slot reuse of same-format, same-size, same-samples textures
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Lifetime:
     first: int      # index of the first pass touching the target (START: before the frame)
     last: int       # index of the last one (len(passes): the end of the frame)
@@ -54,13 +54,13 @@ class Lifetime:
         return self.first <= other.last and other.first <= self.last
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Slot:
     targets: tuple[str, ...]    # in lifetime order: each starts after the one before ends
     bytes: int                  # the largest of its targets
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class MemoryPlan:
     lifetimes: Mapping[str, Lifetime]
     slots: tuple[Slot, ...]

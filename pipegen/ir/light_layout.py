@@ -17,15 +17,15 @@ stages), and both runtimes size their uploads from it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Sequence
 
+from pipegen.core.records import record
 from pipegen.ir.nodes import LightTable, parse_type
 
 ROW = 4   # floats per row: one rgba32f texel, one float4
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class Place:
     """Where one field sits: ``size`` components of row ``row`` from component ``offset``."""
 
@@ -39,7 +39,7 @@ class Place:
         return "xyzw"[self.offset:self.offset + self.size]
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class LightLayout:
     """The rows of one light's record and where each field sits in them."""
 

@@ -11,15 +11,15 @@ record has, it takes ``stride`` consecutive light records.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Sequence
 
+from pipegen.core.records import record
 from pipegen.ir.light_layout import LightLayout, Place, schema_layout
 
 MATERIAL_IDS = 256   # object ids 0..255 (scene/load.py caps ids at 255)
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class MaterialLayout:
     layout: LightLayout   # the rows of one material record
     base: int             # the light record where object 0's material starts: the capacity

@@ -26,14 +26,14 @@ formats' (at their own size; ``gbuffer_bytes_per_output_pixel`` scales by the ta
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Mapping, Optional, Sequence
 
+from pipegen.core.records import record
 from pipegen.ir import nodes as ir
 from pipegen.ir.memory import target_bytes
 
 
-@dataclass(frozen=True)
+@record(frozen=True)
 class PassTraffic:
     name: str
     read_bytes: int
