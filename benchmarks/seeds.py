@@ -216,7 +216,12 @@ Where and why the figures differ:
   light after light (cl_pass.cl.j2's pg_once): what it pays 255 times is what a GPU pays, the
   shading and blending of every visible pixel, so its ratio comes near the paper's, nearer at
   small sizes, where LIDR's fixed costs per frame weigh more.  LIDR draws light volumes, which
-  touch only the pixels they cover, and shades each pixel once.
+  touch only the pixels they cover, and shades each pixel once.  What multi-pass forward pays
+  per light and pixel is the shading itself: timing-only edits of its kernel (not the same
+  image) moved its light pass at 640x360 by under 6 % each (110.8/131.5 ms unedited, two
+  runs; the normal passed unnormalised 119.0, no clamp counting 125.5, the blend and the
+  half rounding replaced by an add 123.7): the light-dependent sqrt, divisions and pow's
+  polynomials are the cost, on a GPU as here.
 - LIDR cost against lights per pixel: the paper loses 2.2x from 1 to 4 lights per pixel;
   llvmpipe comes close (bit planes 1.7-1.9x in our runs): bigger light volumes mean more
   blended index writes and more lights shaded per pixel on both.  PoCL loses less (1.0-1.9x):
