@@ -496,6 +496,39 @@ class CStyleLanguage:
         body = self.stmts(f.body, 1, [n for n, _ in f.params])
         return "\n".join([self.signature(f) + " {", *body, "}"])
 
+    def functions_once(self, functions: Sequence[ir.Function], rendered: dict) -> list[str]:
+        """The user functions a pass calls, as text, each rendered once per technique and
+        ``function_key``: a function's text depends on the pass only through what that key
+        holds.  Each is rendered by a language of its own (``fresh``), which then holds exactly
+        the helpers (and the dialect's other needs) it uses, in the order it first uses them;
+        taken in (``absorb``) in function order, they are what this one language would have
+        collected rendering them itself.  ``rendered``: one dict for all the passes of a
+        technique, (dialect, id of the function, key) -> (the function, kept so that its
+        ``id`` stays its own; its text; the language that rendered it)."""
+        code = []
+        for f in functions:
+            key = (type(self), id(f), self.function_key())
+            if key not in rendered:
+                own = self.fresh()
+                rendered[key] = (f, own.function(f), own)
+            _, text, own = rendered[key]
+            self.absorb(own)
+            code.append(text)
+        return code
+
+    def function_key(self) -> tuple:
+        """What of the pass a user function's text depends on (``functions_once``)."""
+        return ()
+
+    def fresh(self) -> "CStyleLanguage":
+        """A language for the same pass with nothing collected yet."""
+        return type(self)()
+
+    def absorb(self, other: "CStyleLanguage") -> None:
+        """Take in what ``other`` collected rendering a function (its guard helpers)."""
+        for name, helper in other.helpers.items():
+            self.helpers.setdefault(name, helper)
+
     # ---- hooks: what differs between dialects ----------------------------------------------------
     def render_builtin(self, name: str, args: list[str], types: list[Type], ret: Type) -> str:
         t = self.builtin_map.get(name, name)

@@ -140,6 +140,18 @@ class GLSLLanguage(CStyleLanguage):
             size = _render_size(tech, pass_)
             self.unclamped = {r for r in pass_.reads if tech.target(r).size == size}
 
+    def function_key(self) -> tuple:
+        # a function's GLSL names the light being drawn and clamps loads by the pass's size
+        return (self.current_light, frozenset(self.unclamped))
+
+    def fresh(self) -> "GLSLLanguage":
+        return type(self)(self.tech, self.pass_)
+
+    def absorb(self, other: "GLSLLanguage") -> None:
+        super().absorb(other)
+        self.extensions += [e for e in other.extensions if e not in self.extensions]
+        self.version = max(self.version, other.version)
+
     def render_builtin(self, name: str, args: list[str], types: list[Type], ret: Type) -> str:
         if name in PACKING_BUILTINS and PACKING_EXTENSION not in self.extensions:
             self.extensions.append(PACKING_EXTENSION)
@@ -215,33 +227,9 @@ def emit_gl(tech: ir.Technique) -> Plan:
         [tuple(d["sampled"]) for d in parts])
 
 
-def _functions(lang: GLSLLanguage, functions, rendered: dict) -> list[str]:
-    """The user functions a pass calls, as text, each rendered once per technique and way a
-    pass can spell it: a function's GLSL depends on the pass only through the name of the
-    light being drawn (``current_light``) and which targets load without a clamp
-    (``unclamped``), the key with the function.  Each is rendered by a language of its own,
-    which then holds exactly the helpers and extensions it uses, in the order it first uses
-    them; merged in function order they are what one shared language would have collected
-    (as ``opencl.emit._functions`` does).  ``rendered``: key -> (the function, kept so that
-    its ``id`` stays its own, its text, helpers, extensions and ``#version``)."""
-    code = []
-    for f in functions:
-        key = (id(f), lang.current_light, frozenset(lang.unclamped))
-        if key not in rendered:
-            own = GLSLLanguage(lang.tech, lang.pass_)
-            rendered[key] = (f, own.function(f), own.helpers, own.extensions, own.version)
-        _, text, helpers, extensions, version = rendered[key]
-        for name, helper in helpers.items():
-            lang.helpers.setdefault(name, helper)
-        lang.extensions += [e for e in extensions if e not in lang.extensions]
-        lang.version = max(lang.version, version)
-        code.append(text)
-    return code
-
-
 def emit_pass(tech: ir.Technique, p: ir.Pass, rendered: Optional[dict] = None) -> dict:
     """A pass's shaders and what they read (``rendered``: user functions already rendered
-    for other passes of ``tech``, see ``_functions``)."""
+    for other passes of ``tech``, see ``CStyleLanguage.functions_once``)."""
     lang = GLSLLanguage(tech, p)
     functions = planlib.pass_functions(tech, p.body)
     inputs = planlib.stage_inputs(p.body, functions)
@@ -256,7 +244,7 @@ def emit_pass(tech: ir.Technique, p: ir.Pass, rendered: Optional[dict] = None) -
     sample_reads = planlib.sample_read_targets(p.body, functions)
     written = planlib.code_facts(p.body).outputs
     assert written <= set(p.writes), f"pass {p.name} writes {written - set(p.writes)} undeclared"
-    code = _functions(lang, functions, {} if rendered is None else rendered)
+    code = lang.functions_once(functions, {} if rendered is None else rendered)
     body = lang.stmts(p.body, 1)
     code = ([lang.helper_source()] if lang.helpers else []) + code
 

@@ -156,6 +156,14 @@ class OpenCLLanguage(CStyleLanguage):
         self.in_body = False
         self.raw_helpers: dict[str, str] = {}   # BIT_HELPERS used, dependencies first
 
+    def fresh(self) -> "OpenCLLanguage":
+        return type(self)(self.tech, self.pass_)
+
+    def absorb(self, other: "OpenCLLanguage") -> None:
+        super().absorb(other)
+        for name, helper in other.raw_helpers.items():
+            self.raw_helpers.setdefault(name, helper)
+
     def use_helper(self, name: str) -> str:
         """Name a function of ``BIT_HELPERS``, recording it (and what it calls) for the program."""
         for dep in _BIT_HELPER_DEPS.get(name, ()) + (name,):

@@ -43,37 +43,15 @@ def emit_cl(tech: ir.Technique, precision: str = "f32") -> Plan:
         for p in plan.passes))
 
 
-def _functions(lang: OpenCLLanguage, functions, rendered: dict) -> list[str]:
-    """The user functions a pass calls, as text, each rendered once per technique: a
-    function's OpenCL text does not depend on the pass (the dialect reads only technique-wide
-    facts; ``in_body`` is off), only the guard and bit helpers it uses must join the pass's
-    program.  Each is rendered by a language of its own, which then holds exactly the helpers
-    it uses, in the order it first uses them; merged in function order they are the helpers
-    one shared language would have collected.  ``rendered``: (language, function) -> (the
-    function, text, helpers, raw helpers), filled here (the function is kept so that its
-    ``id`` stays its own)."""
-    code = []
-    for f in functions:
-        key = (type(lang), id(f))
-        if key not in rendered:
-            own = type(lang)(lang.tech, lang.pass_)
-            rendered[key] = (f, own.function(f), own.helpers, own.raw_helpers)
-        _, text, helpers, raw = rendered[key]
-        for name, helper in helpers.items():
-            lang.helpers.setdefault(name, helper)
-        for name, helper in raw.items():
-            lang.raw_helpers.setdefault(name, helper)
-        code.append(text)
-    return code
-
-
 def emit_fragment(tech: ir.Technique, p: ir.Pass,
                   language: type[OpenCLLanguage] = OpenCLLanguage, wide: bool = True,
                   rendered: Optional[dict] = None,
                   wide_rendered: Optional[dict] = None) -> dict:
     """The fragment function of a pass (OpenCL C) and what it reads (``language``: the
     dialect, ``OpenCLLanguage64`` for the float64 evaluation; ``rendered``: user functions
-    already rendered for other passes of ``tech``, see ``_functions``; ``wide_rendered``:
+    already rendered for other passes of ``tech``, see ``CStyleLanguage.functions_once``
+    (a function's OpenCL text does not depend on the pass: the dialect reads only
+    technique-wide facts, ``in_body`` is off); ``wide_rendered``:
     their wide specialisations, ``wide_fragment``'s ``shared``)."""
     lang = language(tech, p)
     functions = planlib.pass_functions(tech, p.body)
@@ -92,7 +70,7 @@ def emit_fragment(tech: ir.Technique, p: ir.Pass,
     discard = planlib.may_discard(p.body, functions)
     if not p.body:
         return {"fragment": None, "inputs": sorted(inputs), "discard": False, "sampled": sampled}
-    code = _functions(lang, functions, {} if rendered is None else rendered)
+    code = lang.functions_once(functions, {} if rendered is None else rendered)
     lang.in_body = True
     body = lang.stmts(p.body, 1)
     lang.in_body = False
