@@ -59,13 +59,15 @@ A later round ran deferred's light volumes as one launch (a repeat group fused o
 ``benchmarks/cl_fused_groups.py``), which brought deferred to 0.92-1.01x at 160x90; the
 README's small-frame table gives all 15 techniques after it, two runs of each size.
 
-Where a small CL frame still goes (417d8d4, many_lights): clipping.  Two triangles cross a
-frustum plane in each scene pass (llvmpipe clips without a guard band, so CL clips too), and
-dropping them instead, a timing-only change, takes inferred's frame from 9.41 to 7.91 ms at
-160x90 and from 14.14 to 10.96 ms at 320x180, lidr_cpu_sort's from 13.94 to 12.74 ms at
-160x90 (frames alternated, medians of 31-41).  About 0.5 ms of it at 160x90 is copying every
-varying slot (42,834 vertices each) into the clipper's output buffer so that its new vertices
-can follow the inputs; the rest is the clip kernel's launch, read-backs and the host's waits.
+Where a small CL frame still goes (417d8d4, many_lights), a part of it: clipping.  Two
+triangles cross a frustum plane in each scene pass (llvmpipe clips without a guard band, so
+CL clips too).  In inferred's frame at 160x90 (11.1 ms) the clip step takes 0.6 ms of host time
+beyond its wait for the set-up, reading its results back 0.17 ms, and copying every varying
+slot (42,834 vertices each) into the clipper's output buffer, so that its new vertices can
+follow the inputs, about 0.5 ms (frames with and without the copies alternated, medians of
+41); lidr_cpu_sort's clip step 0.3 ms.  Dropping the two triangles altogether (timing only)
+saves more, 1.5 ms at 160x90 and 3.2 ms at 320x180, but that includes rasterising them: they
+cross the near plane and cover much of the screen.
 """
 
 from __future__ import annotations
