@@ -19,8 +19,8 @@ class WideEmitter(WideStatements, WideExpressions):
                  shared: Optional[dict] = None):
         self.tech, self.pass_, self.lang = tech, pass_, lang
         # specialised functions rendered for the technique's other passes: (dialect, id of the
-        # function, flags) -> (the function, kept so its id stays its own; the (table name,
-        # key, text) entries its emission added; its return shape; its lane_gathers)
+        # function, flags) -> (the function, kept so its id stays its own; its ``emitted``
+        # entries; its return shape; its lane_gathers)
         self.shared = {} if shared is None else shared
         # whether the pass body's count of rows gathered lane by lane rules the wide form out
         # (wide_fragment's test): rendering stops as soon as what it counted passes it
@@ -34,8 +34,9 @@ class WideEmitter(WideStatements, WideExpressions):
         self.out_funcs: dict[str, str] = {}      # specialised name -> source
         self.structs: dict[str, str] = {}
         self.func_ret: dict[str, Val] = {}       # specialised name -> return shape (all renders)
-        # specialised name -> the (dict, key, text) entries its emission added, itself last:
-        # a function a discarded render emitted is put back without rendering it again
+        # specialised name -> the (table: "structs" or "out_funcs", key, text) entries its
+        # emission added, itself last: a function a discarded render emitted is put back
+        # without rendering it again
         self.emitted: dict[str, list] = {}
         self.rows, self.path = None, ()     # the body's light-row loads (light_rows.py)
         self.func_gathers: dict[str, int] = {}   # specialised name -> its lane_gathers

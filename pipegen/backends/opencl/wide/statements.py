@@ -449,19 +449,18 @@ class WideStatements:
         if spec not in self.emitted and shared_key in self.shared:
             # rendered for another pass of the technique: the same text (a specialised
             # function's rendering reads only the function, its flags and technique-wide facts)
-            _, entries, self.func_ret[spec], self.func_gathers[spec] = self.shared[shared_key]
-            self.emitted[spec] = [(getattr(self, table), k, t) for table, k, t in entries]
+            _, self.emitted[spec], self.func_ret[spec], self.func_gathers[spec] = \
+                self.shared[shared_key]
         if spec in self.emitted:
             for table, key, text in self.emitted[spec]:
-                table.setdefault(key, text)
+                getattr(self, table).setdefault(key, text)
         else:
             before = (dict(self.structs), dict(self.out_funcs))
             self._emit_function(f, flags, spec)
-            self.emitted[spec] = [(table, k, t) for table, old in zip(
-                (self.structs, self.out_funcs), before) for k, t in table.items() if k not in old]
-            self.shared[shared_key] = (f, [("structs" if table is self.structs else "out_funcs",
-                                            k, t) for table, k, t in self.emitted[spec]],
-                                       self.func_ret[spec], self.func_gathers[spec])
+            self.emitted[spec] = [(name, k, t) for name, old in zip(("structs", "out_funcs"), before)
+                                  for k, t in getattr(self, name).items() if k not in old]
+            self.shared[shared_key] = (f, self.emitted[spec], self.func_ret[spec],
+                                       self.func_gathers[spec])
         self.count_gathers(self.func_gathers[spec] * self.loop_weight)
         ret = self.func_ret[spec]
         args = ["in", "win"] + [c for v in vals for c in v.comps]
