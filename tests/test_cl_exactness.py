@@ -148,6 +148,34 @@ def test_multisampled_varyings_bit_exact_with_llvmpipe(gl_available):
     _assert_agree(compiled, g, c, ["gpos", "gn", "ds", "gpos1", "ds1"])
 
 
+
+MSAA_DEPTH_PROBE = """
+technique msaaz "frag_coord.z with 4 samples: the plane at the pixel centre, unclamped"
+target gz : r32f samples 4 clear 1.0
+target beyond : r32f samples 4 clear 0
+target ds : d24s8 samples 4 clear depth 1.0 stencil 0
+output gz
+pass ms {
+  draw scene.opaque
+  writes gz, beyond
+  depth ds less write
+  cull back
+  fragment { gz = frag_coord.z; beyond = frag_coord.z > 1.0 ? 1.0 : 0.0; }
+}
+"""
+
+
+def test_multisampled_frag_coord_z_is_the_unclamped_centre_plane(gl_available):
+    """With multisampling frag_coord.z is the depth plane at the pixel centre, evaluated as
+    the per-sample depths are and not clamped: a triangle covering samples but not the
+    centre extrapolates it past 1 (one such pixel in many_lights at 320x180, where clamping
+    it put zcopy of lidr_msaa_texture 5629 ulp from llvmpipe's)."""
+    compiled = compile_source(MSAA_DEPTH_PROBE)
+    scene = load_scene(ROOT / "examples/scenes/many_lights.toml").with_size(320, 180)
+    g, c = _render_both(compiled, scene)
+    assert (g["beyond"] > 0).any() and (c["beyond"] > 0).any()   # the case is exercised
+    _assert_agree(compiled, g, c, ["gz", "beyond", "ds"])
+
 # ---- texture filtering and unorm stores ------------------------------------------------------
 
 FILTER_PROBE = """
