@@ -118,6 +118,14 @@ def _bitcast(name: str):
     return render
 
 
+
+def _saturates(at: Type, t: Type) -> bool:
+    """float (or double) to uint: converted saturating (``convert_uint*_sat``), so that a value
+    of 2^32 or more gives 0xffffffff as llvmpipe's GL does, on every path; the plain cast
+    (LLVM's fptoui) is poison there, and the scalar and vector conversions gave different
+    words (cstyle.py's table: the negative side is guarded by ``max(x, 0)``)."""
+    return at.scalar is Scalar.FLOAT and t.scalar is Scalar.UINT
+
 class OpenCLLanguage(CStyleLanguage):
     """OpenCL C 1.2 (PoCL).  User functions take the fragment context ``in`` as a hidden first
     parameter, since OpenCL has no program-scope uniforms."""
@@ -201,12 +209,16 @@ class OpenCLLanguage(CStyleLanguage):
                 return a
             if t.scalar is Scalar.BOOL:
                 return f"(({a}) != 0)"
+            if _saturates(at, t):
+                return f"convert_uint_sat({a})"
             return f"(({name})({a}))"
         # vectors
         if len(args) == 1:
             a, at = args[0], types[0]
             if at.is_scalar:
-                if at.scalar is not t.scalar:
+                if _saturates(at, t):
+                    a = f"convert_uint_sat({a})"
+                elif at.scalar is not t.scalar:
                     a = f"({self.type_name(Type(t.scalar)) if t.scalar is not Scalar.BOOL else 'int'})({a})"
                     if t.scalar is Scalar.BOOL:
                         a = f"-(int)(({args[0]}) != 0)"
@@ -221,7 +233,8 @@ class OpenCLLanguage(CStyleLanguage):
             if at.scalar is not t.scalar:
                 if at.is_scalar:
                     el = "int" if t.scalar is Scalar.BOOL else self.type_name(Type(t.scalar))
-                    a = f"-(int)(({a}) != 0)" if t.scalar is Scalar.BOOL else f"({el})({a})"
+                    a = f"-(int)(({a}) != 0)" if t.scalar is Scalar.BOOL else \
+                        f"convert_uint_sat({a})" if _saturates(at, t) else f"({el})({a})"
                 else:
                     a = self._convert_vec(a, at, Type(t.scalar, at.size))
             parts.append(a)
@@ -233,7 +246,7 @@ class OpenCLLanguage(CStyleLanguage):
             return f"(({a}) != 0)"
         if at.scalar is Scalar.BOOL:      # int mask -1/0 -> 1/0
             return f"convert_{name}(-({a}))"
-        return f"convert_{name}({a})"
+        return f"convert_{name}_sat({a})" if _saturates(at, t) else f"convert_{name}({a})"
 
     def _construct_matrix(self, t: Type, args: list[str], types: list[Type]) -> str:
         n = t.mat

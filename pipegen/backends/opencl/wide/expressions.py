@@ -180,7 +180,8 @@ class WideExpressions:
         if src is Scalar.BOOL:
             c = f"(-{c})"
             src = Scalar.INT
-        return f"convert_{C_TYPES_W[dst]}({c})"
+        sat = "_sat" if (src, dst) == (Scalar.FLOAT, Scalar.UINT) else ""   # dialect._saturates
+        return f"convert_{C_TYPES_W[dst]}{sat}({c})"
 
     def _swizzle(self, e: ir.Swizzle) -> Val:
         v = self.expr(e.base)
