@@ -74,3 +74,46 @@ def test_run_names_the_device_it_renders_on(tmp_path):
     assert r.returncode == 0, r.stderr
     device = [l for l in r.stderr.splitlines() if l.startswith("  device: ")]
     assert len(device) == 1 and "EGL device 0: " in device[0], r.stderr
+
+
+def test_renderer_names_shorten_as_tables_print_them():
+    from pipegen.runtime.gl.context import renderer_name
+    # as EGL reported them: Mesa here, the lent H200 (benchmarks/gpu_check.py, issue 26)
+    assert renderer_name("llvmpipe (LLVM 15.0.6, 256 bits)") == "llvmpipe"
+    assert renderer_name("NVIDIA H200/PCIe/SSE2") == "NVIDIA H200"
+    assert renderer_name("AMD Radeon RX 7900 XTX (radeonsi, navi31, LLVM 15.0.7)") == \
+        "AMD Radeon RX 7900 XTX"
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_check_credits_each_table_to_the_device_that_rendered_it(tmp_path):
+    """`check`'s verdict names the renderer the GL context is on, not a fixed "llvmpipe": on
+    the lent GPU its tables said "GL (llvmpipe)" over the H200's figures."""
+    r = subprocess.run([sys.executable, "-m", "pipegen", "check", FORWARD, "--size", "32x18",
+                        "-o", str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+    assert "Traceback" not in r.stderr, r.stderr
+    renderer = probe(None).stdout.splitlines()[1]
+    from pipegen.runtime.gl.context import renderer_name
+    assert f"32x18, 8 lights: GL ({renderer_name(renderer)}) vs CL (PoCL)" in r.stdout
+
+
+@pytest.mark.gl
+@pytest.mark.cl
+def test_check_says_when_gl_renders_off_the_devices_its_limits_were_measured_on(
+        tmp_path, monkeypatch, capsys):
+    """On a GPU `check`'s DISAGREE may be the device's arithmetic (on the lent H200 no row
+    agreed on depth): both verdicts say so under their tables.  The renderer's name is
+    stood in for here; llvmpipe gets no such note."""
+    from pipegen.cli.main import main
+    args = [FORWARD, "--size", "32x18", "-o", str(tmp_path / "out")]
+    main(["check", *args])
+    assert "is not the device these limits were measured on" not in capsys.readouterr().out
+    from pipegen.runtime.gl import context
+    monkeypatch.setattr(context, "short_name", lambda: "NVIDIA H200")
+    for extra in ([], ["--precision", "f64"]):
+        main(["check", *args, *extra])
+        out = capsys.readouterr().out
+        assert ("note: GL (NVIDIA H200) is not the device these limits were measured on "
+                "(llvmpipe)") in out, out
+        assert "CL (PoCL) is not" not in out

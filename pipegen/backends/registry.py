@@ -10,7 +10,7 @@ compiler core never imports moderngl or pyopencl (``pipegen compile`` works on a
 from __future__ import annotations
 
 import importlib
-from typing import Callable
+from typing import Callable, Optional
 
 from pipegen.core.records import record
 from pipegen.backends.plan import CLPassCode, GLPassCode, PassPlan, Plan, cl_preludes
@@ -46,9 +46,39 @@ class Backend:
     precisions: tuple[str, ...] = ("f32",)
     # "module:function" -> one line naming the device it renders on (renderer, how chosen)
     device: str = ""
+    # "module:function" -> the device's short name ("llvmpipe", "NVIDIA H200", "PoCL")
+    device_name: str = ""
+    # the device the tolerance model's limits hold for (a part of its short name)
+    calibrated: str = ""
 
     def describe_device(self) -> str:
         return _resolve(self.device)() if self.device else self.title
+
+    def off_model(self) -> Optional[str]:
+        """The device's short name where it is not the one the tolerance model's limits were
+        measured on (``calibrated``: llvmpipe for GL, PoCL for CL; docs/tolerances.md, "On a
+        GPU"), else None.  Opens the backend's context."""
+        name = self._device_name()
+        if name is None or not self.calibrated:
+            return None
+        return None if self.calibrated.lower() in name.lower() else name
+
+    def label(self) -> str:
+        """The title with the device this process renders on ("GL (NVIDIA H200)" where the
+        GL context is on a GPU): what tables and verdicts print, so that a figure measured
+        on one device is never credited to another.  Opens the backend's context."""
+        name = self._device_name()
+        return self.title if name is None else f"{self.title.partition(' (')[0]} ({name})"
+
+    def _device_name(self) -> Optional[str]:
+        """The device's short name, None where there is none or its context does not open (a
+        label is no place to fail: rendering reports a missing device)."""
+        if not self.device_name:
+            return None
+        try:
+            return _resolve(self.device_name)()
+        except Exception:
+            return None
 
     @property
     def module_name(self) -> str:
@@ -92,12 +122,14 @@ BACKENDS: dict[str, Backend] = {b.name: b for b in (
     Backend("gl", "GL (llvmpipe)", "moderngl on the system's OpenGL (Mesa llvmpipe without a GPU)",
             "pipegen.backends.glsl:emit_gl",
             "pipegen.runtime.gl.pipeline:GLPipeline", "pipeline_gl.py.j2", _gl_files,
-            device="pipegen.runtime.gl.context:describe"),
+            device="pipegen.runtime.gl.context:describe",
+            device_name="pipegen.runtime.gl.context:short_name", calibrated="llvmpipe"),
     Backend("cl", "CL (PoCL)", "the OpenCL software reference on PoCL's CPU device",
             "pipegen.backends.opencl.emit:emit_cl",
             "pipegen.runtime.cl.pipeline:CLPipeline", "pipeline_cl.py.j2", _cl_files,
             plan_files=cl_preludes, precisions=("f32", "f64"),
-            device="pipegen.runtime.cl.context:describe"),
+            device="pipegen.runtime.cl.context:describe",
+            device_name="pipegen.runtime.cl.context:short_name", calibrated="PoCL"),
 )}
 
 

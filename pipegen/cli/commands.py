@@ -144,7 +144,7 @@ def _verify(args, compiled, special, scene) -> int:
           sep="\n")
     for b in backends:
         names, bad = result.compared[b], result.differences[b]
-        title = registry.get(b).title
+        title = registry.get(b).label()
         if not bad:
             print(f"  {title}: {len(names)} targets identical ({', '.join(names)})")
         else:

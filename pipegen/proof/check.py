@@ -111,9 +111,9 @@ def check(compiled, scene, out_dir: Optional[Path] = None,
     technique's code are discontinuities (``discontinuity.py``): listed per target, not
     counted as disagreement; more than ``max_discontinuities`` of them in all fails."""
     gl_pipe, cl_pipe = (compiled.pipeline(b) for b in CHECKED)
-    progress(f"rendering on {registry.get(CHECKED[0]).title}")
+    progress(f"rendering on {registry.get(CHECKED[0]).label()}")
     gl = gl_pipe.render(scene)
-    progress(f"rendering on {registry.get(CHECKED[1]).title}")
+    progress(f"rendering on {registry.get(CHECKED[1]).label()}")
     cl = cl_pipe.render(scene)
     counts = getattr(cl_pipe, "last_blend_counts", None)
     rows = compare_targets(compiled, gl, cl, len(scene.lights), counts=counts)
@@ -215,6 +215,20 @@ def write_error_images(rows: list[TargetComparison], out_dir) -> None:
             save_png(tmp / safe_name(f"error_{r.name}", ".png"), error_image(r))
 
 
+def off_model_notes(backends) -> list[str]:
+    """A note per backend that rendered on a device the limits were not measured on (a GPU):
+    there a DISAGREE may be the device's arithmetic, not the technique."""
+    out = []
+    for b in backends:
+        name = registry.get(b).off_model()
+        if name:
+            out.append(f"note: {registry.get(b).label()} is not the device these limits were "
+                       f"measured on ({registry.get(b).calibrated}): its set-up and built-ins may "
+                       f"differ beyond them (on an NVIDIA H200, depth by up to 434 d24 codes where "
+                       f"a surface grazes the view; docs/tolerances.md, \"On a GPU\")")
+    return out
+
+
 def main_check(compiled, scene, out_dir: Path, mismatches: Optional[list] = None,
                max_discontinuities: int = 0) -> int:
     """``pipegen check``; ``mismatches``: what the technique will not render of the scene
@@ -225,7 +239,7 @@ def main_check(compiled, scene, out_dir: Path, mismatches: Optional[list] = None
 
     result = check(compiled, scene, out_dir, say, max_discontinuities)
     print(f"{compiled.name} on {scene.width}x{scene.height}, {len(scene.lights)} lights: "
-          + " vs ".join(registry.get(b).title for b in CHECKED))
+          + " vs ".join(registry.get(b).label() for b in CHECKED))
     print(result.table())
     for r in result.rows:
         for d in r.discontinuities:
@@ -235,6 +249,8 @@ def main_check(compiled, scene, out_dir: Path, mismatches: Optional[list] = None
               f"sides of a step in the technique's code (allowed: {max_discontinuities}; "
               f"--max-discontinuities N)")
     print(f"error images: {out_dir}/error_<target>.png")
+    for line in off_model_notes(CHECKED):
+        print(line)
     if mismatches:
         n = len(mismatches)
         print(f"note: {n} thing{'s' if n != 1 else ''} in this scene the technique does not "

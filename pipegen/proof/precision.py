@@ -129,7 +129,7 @@ def precision_check(compiled, scene, backends: tuple[str, ...] = F32_BACKENDS,
     renders = {}
     pipes = {}
     for b in dict.fromkeys(backends + ("cl",)):    # CL counts the blends into each pixel
-        progress(f"rendering on {registry.get(b).title}")
+        progress(f"rendering on {registry.get(b).label()}")
         pipes[b] = compiled.pipeline(b)
         renders[b] = pipes[b].render(scene)
     blends = getattr(pipes["cl"], "last_blend_counts", None) or {}
@@ -167,7 +167,7 @@ def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
           f"model (docs/tolerances.md; over = pixels beyond it away from primitive edges and "
           f"discontinuities)")
     for b, rows in result.rows.items():
-        print(f"\n{registry.get(b).title}")
+        print(f"\n{registry.get(b).label()}")
         print(result.table(b))
         for r in rows:
             for d in r.discontinuities:
@@ -175,6 +175,11 @@ def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
         for w in result.why:
             if f" ({b}) " in w:
                 print(f"  why: {w}")
+    from pipegen.proof.check import off_model_notes
+    notes = off_model_notes([b for b in result.rows if b in registry.BACKENDS])
+    if notes:
+        print()
+        print("\n".join(notes))
     if reference is not None:
         say(f"evaluating the reference ({reference.label})")
         print()
@@ -201,7 +206,7 @@ def reference_lines(result: PrecisionResult, reference, scene, output: str) -> l
     lines += [f"  note: {n}" for n in reference.notes(scene)]
     for b, codes in result.outputs.items():
         e = codes_vs_reference(codes, reference, scene, worst=1)
-        who = "float64 evaluation" if b == "f64" else registry.get(b).title
+        who = "float64 evaluation" if b == "f64" else registry.get(b).label()
         text = (f"  {who}: rmse {e['rmse']:.2f}, p99 {e['p99']:.0f}, max {e['max']:.0f} "
                 f"(away from edges: rmse {e['rmse_interior']:.2f}, max {e['max_interior']:.0f})")
         if e["worst"]:

@@ -188,6 +188,14 @@ def forget_invoker_sources() -> int:
     return len(stale)
 
 
+def short_name() -> str:
+    """"PoCL" on PoCL's platform (the reference this backend is built on), else the device's
+    name."""
+    ctx, _ = get_context()
+    dev = ctx.devices[0]
+    return "PoCL" if "portable computing language" in dev.platform.name.lower() else dev.name
+
+
 def describe() -> str:
     ctx, _ = get_context()
     dev = ctx.devices[0]

@@ -179,6 +179,17 @@ def gl_limits() -> dict[str, int]:
     }
 
 
+def renderer_name(renderer: str) -> str:
+    """A GL_RENDERER string without its details: "llvmpipe (LLVM 15.0.6, 256 bits)" ->
+    "llvmpipe", "NVIDIA H200/PCIe/SSE2" -> "NVIDIA H200"."""
+    return renderer.partition(" (")[0].partition("/")[0].strip() or renderer
+
+
+def short_name() -> str:
+    """The context's renderer, as ``renderer_name`` shortens it."""
+    return renderer_name(get_context().info["GL_RENDERER"])
+
+
 def describe() -> str:
     ctx = get_context()
     info = ctx.info
