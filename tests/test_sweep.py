@@ -190,6 +190,9 @@ def test_inferred_sweep_writes_its_files(inferred_sweep):
         assert r["reference"] == "scene" and r["pareto"] in ("true", "false")
         # GL never shows what its formats clamp; on CL nothing is clamped in this scene
         assert r["clamped"] == ("0" if r["backend"] == "cl" else "")
+        # the device each worker rendered on, as the plots name it (here: llvmpipe, PoCL)
+        from pipegen.runtime.gl.context import short_name
+        assert r["device"] == ("CL (PoCL)" if r["backend"] == "cl" else f"GL ({short_name()})")
     assert any("1 timed frame per variant" in n for n in meta["notes"])
     # the scene reference has no targets: the intermediate targets against the variant's own
     # float64 evaluation (precision alone), said so

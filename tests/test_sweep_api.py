@@ -62,6 +62,23 @@ def test_front_does_not_rank_times_within_the_noise():
     assert tie_groups([(1.0, 2.0), (math.nan, math.nan)]) == [[], []]
 
 
+
+def test_plots_name_the_devices_the_rows_were_rendered_on():
+    """A sweep's panels are titled by the device its workers rendered on (a lent GPU's GL is
+    not llvmpipe); rows of an older journal, without one, by the backend's title."""
+    from pipegen.tools.sweep.plot_svg import plot_svg
+    from pipegen.tools.sweep.result import device_names
+    rows = [dict(backend="gl", device="GL (NVIDIA H200)"), dict(backend="gl",
+            device="GL (NVIDIA H200)"), dict(backend="cl")]
+    assert device_names(rows, ["gl", "cl"]) == {"gl": "GL (NVIDIA H200)", "cl": "CL (PoCL)"}
+    rows.append(dict(backend="gl", device="GL (llvmpipe)"))
+    assert device_names(rows, ["gl"]) == {"gl": "GL (NVIDIA H200 | llvmpipe)"}
+    row = dict(backend="gl", device="GL (NVIDIA H200)", technique="t", params="", file="t.pipe",
+               rmse_scene=1.0, frame_ms=2.0, frame_ms_q1=2.0, frame_ms_q3=2.0, pareto=True,
+               ties=[], target_bytes=1, agree=True)
+    svg = plot_svg([row], ["gl"], "s.toml", (4, 4), "scene")
+    assert "GL (NVIDIA H200): s.toml 4x4" in svg and "llvmpipe" not in svg
+
 def test_rows_say_their_ties_and_the_table_shows_them():
     rows = [row(1, 0.5, 10.0, 9.0, 11.0), row(2, 0.5, 10.4, 9.8, 12.0),
             row(3, 3.0, 2.0, 1.9, 2.1), row(4, 4.0, 10.2, 9.5, 10.6),

@@ -124,7 +124,7 @@ def render_job(job: dict) -> dict:
     ``targets``: the intermediate targets' errors (``intermediate_errors``)},
     ``agree`` (None with fewer than both backends), ``disagree`` (targets over tolerance),
     ``maps`` {backend: PNG bytes of the error map}, ``images`` {backend: PNG bytes of the
-    output}, ``notes``, ``clamps`` (the CL frame's ``Clamp`` records as dicts, ``warned``
+    output}, ``devices`` {backend: ``Backend.label()`` here, "GL (llvmpipe)"}, ``notes``, ``clamps`` (the CL frame's ``Clamp`` records as dicts, ``warned``
     added: not the output's highlights), ``technique`` (the IR of the variant rendered, for
     its memory and bandwidth figures; None for the general build, which the parent has).
     """
@@ -160,6 +160,8 @@ def render_job(job: dict) -> dict:
                 getattr(f64, "release", lambda: None)()
             except Exception as e:      # the f64 evaluation is optional: NaN and say why
                 notes.append(f"no f64 evaluation: {type(e).__name__}: {e}")
+        from pipegen.backends import registry
+        devices = {b: registry.get(b).label() for b in renders}   # where this worker rendered
     finally:
         for p in pipes.values():
             getattr(p, "release", lambda: None)()
@@ -185,7 +187,7 @@ def render_job(job: dict) -> dict:
     from pipegen.proof.clamps import record
     output = compiled.technique.output
     return dict(metrics=metrics, agree=agree, disagree=disagree, maps=maps, images=images,
-                notes=notes, clamps=[record(c, output) for c in clamps],
+                notes=notes, clamps=[record(c, output) for c in clamps], devices=devices,
                 technique=compiled.technique if compiled is not general else None)
 
 

@@ -92,7 +92,8 @@ def pareto_png(result: SweepResult, path, title: str = "") -> None:
                              squeeze=False)
     files = sorted({r["file"] for r in result.rows}, key=[r["file"] for r in result.rows].index)
     colours = {f: plt.get_cmap("tab10")(i % 10) for i, f in enumerate(files)}
-    names = {"gl": "GL (llvmpipe)", "cl": "CL (PoCL)"}
+    from pipegen.tools.sweep.result import device_names
+    names = device_names(result.rows, backends)
     labels = point_labels(result.rows, several_files=len(files) > 1)
     for ax, b in zip(axes[0], backends):
         rows = [r for r in result.rows if r["backend"] == b]

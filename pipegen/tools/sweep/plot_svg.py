@@ -18,7 +18,6 @@ W, H = 470, 330                       # one panel
 LEFT, RIGHT, TOP, BOTTOM = 58, 14, 30, 42
 PALETTE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf")
-NAMES = {"gl": "GL (llvmpipe)", "cl": "CL (PoCL)"}
 
 
 def _e(text) -> str:
@@ -142,11 +141,13 @@ def panel(rows: list[tuple[int, dict]], backend: str, title: str, xlabel: str,
 def plot_svg(rows: list[dict], backends, scene: str, size: tuple[int, int],
              reference: str) -> str:
     """Every backend's panel side by side (``reference``: the label errors are against)."""
+    from pipegen.tools.sweep.result import device_names
     colour = colours(rows)
+    names = device_names(rows, backends)
     panels = []
     for b in backends:
         mine = [(n, r) for n, r in enumerate(rows, 1) if r["backend"] == b]
-        title = (f"{NAMES.get(b, b)}: {Path(scene).name} {size[0]}x{size[1]}, "
+        title = (f"{names[b]}: {Path(scene).name} {size[0]}x{size[1]}, "
                  f"error vs {reference}")
         panels.append(panel(mine, b, title, f"RMSE vs {reference} reference (rgba8 codes)",
                             colour))

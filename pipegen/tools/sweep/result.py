@@ -21,10 +21,11 @@ COLUMNS = ["technique", "params", "backend", "frame_ms", "target_bytes", "rmse_s
 # counted as often as the scene's lights run it); reference: what the *_scene errors are
 # measured against; clamped: values
 # the formats clamped in a CL frame, the output's highlights aside (empty on GL rows: GL never
-# shows them); target_errors: each intermediate attribute's p99 in its own units)
+# shows them); target_errors: each intermediate attribute's p99 in its own units; device: the
+# backend and the device its worker rendered on, "GL (NVIDIA H200)", as plots name it)
 EXTRA_COLUMNS = ["cpu_ms", "rmse_interior", "max_interior", "file", "width", "height", "notes",
                  "frame_ms_q1", "frame_ms_q3", "ties", "pareto", "reference", "clamped",
-                 "target_errors", "peak_bytes", "allocated_bytes", "bandwidth_bytes"]
+                 "target_errors", "peak_bytes", "allocated_bytes", "bandwidth_bytes", "device"]
 # results.json only, per row: where its error map and image are, its worst pixels
 # ([x, y, [got r, g, b], [reference r, g, b]], y from the top, rgba8 codes), the command that
 # reproduces it, its intermediate targets' errors (``jobs.intermediate_errors``) and, on CL
@@ -179,3 +180,25 @@ def format_targets(rows: list[dict]) -> str:
     out += [f"  {c}: {', '.join(sorted(v['how']))}" for c, v in columns.items()
             if v["how"] != {c}]
     return "\n".join(out)
+
+
+def backend_title(backend: str) -> str:
+    """A row's ``device`` where its worker did not say (a journal of an older sweep): the
+    backend's title."""
+    from pipegen.backends import registry
+    return registry.get(backend).title
+
+
+def device_names(rows: list[dict], backends) -> dict[str, str]:
+    """{backend: what plots call it}: the device its rows were rendered on ("GL (NVIDIA
+    H200)"), all of them where workers differed ("GL (llvmpipe | NVIDIA H200)")."""
+    out = {}
+    for b in backends:
+        seen = list(dict.fromkeys(r.get("device") or backend_title(b)
+                                  for r in rows if r["backend"] == b)) or [backend_title(b)]
+        if len(seen) == 1:
+            out[b] = seen[0]
+        else:
+            head = seen[0].partition(" (")[0]
+            out[b] = f"{head} ({' | '.join(s.partition(' (')[2].rstrip(')') for s in seen)})"
+    return out

@@ -22,7 +22,7 @@ from pipegen.tools.sweep.pareto import mark_front_and_ties
 from pipegen.tools.sweep.pools import DaskPool, LocalPool, available_cpus
 from pipegen.tools.sweep.progress import progress_bar
 from pipegen.tools.sweep.outputs import csv_text, json_text
-from pipegen.tools.sweep.result import SweepResult
+from pipegen.tools.sweep.result import SweepResult, backend_title
 from pipegen.tools.sweep.variants import plan_variants
 
 BACKEND_ORDER = ("gl", "cl")
@@ -181,6 +181,7 @@ def variant_rows(v, res: dict, s, backends, refs: dict, compiled: dict) -> tuple
                    bandwidth_bytes=bandwidth, agree=res["agree"], file=v.file,
                    width=s.width, height=s.height, notes="; ".join(res["notes"]),
                    reference=refs[v.technique].label, error_map=f"errors/{name}",
+                   device=res.get("devices", {}).get(b, backend_title(b)),
                    image=f"images/{name}", worst=[])
         row.update({k: m[k] for k in m})
         row["target_errors"] = target_errors_text(m.get("targets", []))
