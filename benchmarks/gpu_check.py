@@ -31,7 +31,8 @@ lidr_msaa_texture 32.2 / 83.5 (2.60), lidr_nearest_edge 26.6 / 45.3 (1.70),
 lidr_shadow_volumes 17.6 / 24.2 (1.38), lidr_shadow_prepass 21.0 / 29.7 (1.41),
 lidr_shadow_indexed 14.3 / 21.4 (1.49), light_prepass 20.0 / 23.7 (1.18), inferred 18.8 /
 18.7 (0.99), deferred_calver 30.7 / 43.0 (1.40).  Why the GPU falls outside ``check``'s
-limits, and what the float64 comparison said there: docs/tolerances.md, "On a GPU".
+limits, and what the float64 comparison said there: docs/tolerances.md, "On a GPU"; how it
+was run there (wheels and loaders carried to a machine without network): benchmarks/gpu/.
 """
 
 from __future__ import annotations
