@@ -52,7 +52,7 @@ def code_facts(stmts) -> CodeFacts:
     calls: list[str] = []
     inputs, sampled, reads, per_sample, resolved = set(), set(), set(), set(), set()
     loads = 0
-    for e in irwalk.walk_exprs(stmts):
+    for e in irwalk.exprs_of(stmts):
         t = type(e)
         if t is ir.Call:
             if not e.builtin:

@@ -107,6 +107,28 @@ def walk_exprs(stmts: Iterable[ir.Stmt]) -> Iterator[ir.Expr]:
                         yield from walk_exprs((v,))
 
 
+# ``exprs_of``'s tuples by the identity of the statement tuple (held, so that the id stays its
+# own).  Unchanged bodies keep their identity through the passes (``passes/bodies.py``), so the
+# passes that first ask whether a body holds anything to rewrite, and ``facts.code_facts``
+# after them, share one walk of it.  Bounded as ``facts._FACTS`` is, for long-lived processes.
+_FLAT: dict[int, tuple] = {}
+_FLAT_MAX = 1024
+
+
+def exprs_of(stmts) -> tuple[ir.Expr, ...]:
+    """``walk_exprs(stmts)`` as a tuple, walked once per statement tuple (a list is walked each
+    time: it may change)."""
+    hit = _FLAT.get(id(stmts))
+    if hit is not None and hit[0] is stmts:
+        return hit[1]
+    flat = tuple(walk_exprs(stmts))
+    if isinstance(stmts, tuple):
+        if len(_FLAT) >= _FLAT_MAX:
+            _FLAT.clear()
+        _FLAT[id(stmts)] = (stmts, flat)
+    return flat
+
+
 def _walk_expr(e: ir.Expr) -> Iterator[ir.Expr]:
     yield e
     for c in child_exprs(e):

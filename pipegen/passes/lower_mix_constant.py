@@ -27,7 +27,7 @@ def run(tech: ir.Technique) -> ir.Technique:
     def lower(body: tuple) -> tuple:
         # lowering a call never makes another one lowerable: a body without one is kept
         if not any(type(e) is ir.Call and lower_call(e) is not None
-                   for e in irwalk.walk_exprs(body)):
+                   for e in irwalk.exprs_of(body)):
             return body
         return irwalk.rewrite_stmts(body, _lower_expr)
 

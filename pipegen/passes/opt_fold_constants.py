@@ -29,7 +29,7 @@ def run(tech: ir.Technique) -> ir.Technique:
 def _fold_body(body: tuple) -> tuple:
     """``body`` folded; itself (bodies.map_bodies) when none of its expressions and statements
     folds: folding rewrites bottom-up, so a body where nothing folds as it is stays as it is."""
-    if not (any(fold_expr(e) is not e for e in irwalk.walk_exprs(body))
+    if not (any(fold_expr(e) is not e for e in irwalk.exprs_of(body))
             or any(_fold_stmt(s) is not None for s in irwalk.walk_stmts(body))):
         return body
     return irwalk.rewrite_stmts(body, fold_expr, _fold_stmt)

@@ -22,7 +22,7 @@ def run(tech: ir.Technique) -> ir.Technique:
 
     def specialise(body: tuple) -> tuple:
         # a body that reads no parameter is kept as it is (bodies.map_bodies)
-        if not any(type(e) is ir.Var and e.kind == "param" for e in irwalk.walk_exprs(body)):
+        if not any(type(e) is ir.Var and e.kind == "param" for e in irwalk.exprs_of(body)):
             return body
         return irwalk.rewrite_stmts(body, replace)
 
