@@ -33,7 +33,7 @@ sqrt(x)           ``sqrt(max(x, 0.0))``: negative -> 0 (rounding noise in 1 - do
 log(x), log2(x)   x > 0: log(x); otherwise -inf.
 a << b, a >> b    shift amount masked to 0..31 (``b & 31``, OpenCL's rule) unless constant.
 uint(float x)     ``uint(max(x, 0.0))``: negative -> 0; >= 2^32 -> 0xffffffff (OpenCL converts
-                  saturating, ``opencl/dialect._saturates``, as llvmpipe does).
+                  saturating, ``opencl/dialect.saturates``, as llvmpipe does).
 declarations      locals without an initialiser are zero-initialised.
 ================  ============================================================================
 

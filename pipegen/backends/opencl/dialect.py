@@ -118,13 +118,18 @@ def _bitcast(name: str):
     return render
 
 
+def saturates(src: Scalar, dst: Scalar) -> bool:
+    """float (or double) to uint: converted saturating (``convert_uint*_sat``), so that a value
+    of 2^32 or more gives 0xffffffff as llvmpipe's GL does, on every path (the one-pixel and
+    the wide one); the plain cast (LLVM's fptoui) is poison there, and the scalar and vector
+    conversions gave different words (cstyle.py's table: the negative side is guarded by
+    ``max(x, 0)``)."""
+    return src is Scalar.FLOAT and dst is Scalar.UINT
+
 
 def _saturates(at: Type, t: Type) -> bool:
-    """float (or double) to uint: converted saturating (``convert_uint*_sat``), so that a value
-    of 2^32 or more gives 0xffffffff as llvmpipe's GL does, on every path; the plain cast
-    (LLVM's fptoui) is poison there, and the scalar and vector conversions gave different
-    words (cstyle.py's table: the negative side is guarded by ``max(x, 0)``)."""
-    return at.scalar is Scalar.FLOAT and t.scalar is Scalar.UINT
+    return saturates(at.scalar, t.scalar)
+
 
 class OpenCLLanguage(CStyleLanguage):
     """OpenCL C 1.2 (PoCL).  User functions take the fragment context ``in`` as a hidden first

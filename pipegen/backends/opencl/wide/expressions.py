@@ -10,6 +10,7 @@ from pipegen.ir import expand, nodes as ir
 from pipegen.ir.builtins import BIT_CAST_BUILTINS
 from pipegen.ir.nodes import Scalar, Type
 from pipegen.backends.cstyle import guard_call_args, guard_construct_args, guard_shift_count
+from pipegen.backends.opencl.dialect import saturates
 from pipegen.backends.opencl.expansions import c_text
 from pipegen.backends.opencl.wide.values import (
     C_TYPES_W, W, Unsupported, Val, varying_inputs, widen)
@@ -180,7 +181,7 @@ class WideExpressions:
         if src is Scalar.BOOL:
             c = f"(-{c})"
             src = Scalar.INT
-        sat = "_sat" if (src, dst) == (Scalar.FLOAT, Scalar.UINT) else ""   # dialect._saturates
+        sat = "_sat" if saturates(src, dst) else ""
         return f"convert_{C_TYPES_W[dst]}{sat}({c})"
 
     def _swizzle(self, e: ir.Swizzle) -> Val:
