@@ -205,6 +205,14 @@ CASES = [
     Case("non_constant_loop_bound", fixture(
         body="    for (int i = 0; i < int(num_lights); i++) { }\n    color = vec4(1.0);"),
          "int(num_lights)", ("not a constant",)),
+    # a run-time bound of another type: said first that it is run-time (retyping the counter
+    # to uint, as a type error would suggest, only meets that error next)
+    Case("non_constant_loop_bound_of_another_type", fixture(
+        body="    for (int i = 0; i < num_lights; i++) { }\n    color = vec4(1.0);"),
+         "num_lights", ("not a constant",)),
+    Case("loop_bound_of_another_type", fixture(
+        body="    for (int i = 0; i < 4u; i++) { }\n    color = vec4(1.0);"),
+         "4u", ("loop counter 'i' is an int, but its bound is a uint",)),
     Case("loop_condition_form", fixture(
         body="    for (int i = 0; i <= 4; i++) { }\n    color = vec4(1.0);"),
          "i <= 4", ("i < BOUND",)),

@@ -114,14 +114,16 @@ class BodyChecker(ExprChecker):
             raise error(c.span, f"a loop condition has the form `{s.var.name} < BOUND`",
                         "loops are bounded: for (int i = A; i < B; i++)")
         bound = self.expr(c.right)
-        if bound.type != t:
-            raise error(c.right.span,
-                        f"loop counter '{s.var.name}' is {a_or_an(t)}, but its bound is "
-                        f"{a_or_an(bound.type)}", conversion_hint(bound.type, t))
+        # the bound's kind first: a counter retyped to match a run-time bound would only meet
+        # this error next (`i < num_lights`: an int counter, a uint and run-time bound)
         if not is_static(bound):
             raise error(c.right.span, "the loop bound is not a constant or a parameter",
                         "loop to a constant bound and break early, e.g. "
                         "`if (uint(i) >= num_lights) break;`")
+        if bound.type != t:
+            raise error(c.right.span,
+                        f"loop counter '{s.var.name}' is {a_or_an(t)}, but its bound is "
+                        f"{a_or_an(bound.type)}", conversion_hint(bound.type, t))
         return bound
 
     def _stmt_Break(self, s: ast.Break) -> ir.Stmt:
