@@ -2,7 +2,7 @@
 through `pipegen check`'s tolerances, on three scenes; with frame times.  Issue 26 item 8.
 
     python benchmarks/gpu_check.py [--size 640x360] [--frames 5] [--scenes A.toml,B.toml,C.toml]
-                                   [--json FILE]
+                                   [--json FILE] [--localise]
     PIPEGEN_GL_DEVICE=1 python benchmarks/gpu_check.py        # another EGL device
 
 Prints the GL device (``runtime.gl.context.describe``: renderer, EGL device and why it was
@@ -54,6 +54,10 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--json", help="also write every row (with each target's figures) here")
+    ap.add_argument("--localise", action="store_true",
+                    help="name the first divergent pass of a row that disagrees (replays "
+                         "both backends pass by pass: on a GPU, where every row disagrees, "
+                         "most of the run)")
     args = ap.parse_args(argv)
     from pipegen.compiler.driver import compile_file, for_scene
     from pipegen.proof.check import check
@@ -75,7 +79,7 @@ def main(argv=None) -> int:
                              args.size)
             variant = for_scene(compiled, scene, False, pipe_file)   # what run and check render
             spec = variant.specialisation
-            result = check(variant, scene)
+            result = check(variant, scene, localise=args.localise)
             bad = [_figures(r) for r in result.rows if not r.passed]
             failed += not result.passed
             ms = {}

@@ -78,6 +78,39 @@ def test_first_divergent_pass_is_named():
     assert first_divergent_pass(compiled, gl, bad, scene) == "light_indices: lightidx"
 
 
+
+class FlippedBit(Perturbed):
+    """``Perturbed`` whose final ``lightidx`` differs too (what ``check`` compares)."""
+
+    def __init__(self, inner):
+        super().__init__(inner, "light_indices", "lightidx")
+
+    def render(self, scene, capture_passes=False):
+        result, caps = super().render(scene, capture_passes=True)
+        result = dict(result, lightidx=result["lightidx"].copy())
+        result["lightidx"][5, 5] ^= 0b01000000
+        return (result, caps) if capture_passes else result
+
+
+def test_check_localises_only_when_asked(monkeypatch):
+    """``check(localise=False)`` (benchmarks/gpu_check.py's default: on a GPU every row
+    disagrees) gives the verdict and the figures without replaying the passes."""
+    import pipegen.compiler.driver as driver
+    compiled = compile_file(ROOT / "pipelines/lidr_bitplanes.pipe")
+    scene = load_scene(ROOT / "examples/scenes/small.toml")
+    real = driver.Compiled.pipeline
+
+    def pipeline(self, backend="gl", *args, **kwargs):     # CL: GL with one bit flipped
+        if backend == "cl" and kwargs.get("precision", "f32") == "f32":
+            return FlippedBit(real(self, "gl", *args, **kwargs))
+        return real(self, backend, *args, **kwargs)
+
+    monkeypatch.setattr(driver.Compiled, "pipeline", pipeline)
+    quick = check(compiled, scene, localise=False)
+    assert not quick.passed and quick.first_divergence is None
+    assert [r.name for r in quick.rows if not r.passed] == ["lightidx"]
+    assert check(compiled, scene).first_divergence == "light_indices: lightidx"
+
 def test_check_command_exit_codes_and_table(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "pipegen.cli", "check",
                            str(ROOT / "pipelines/lidr_bitplanes.pipe"), "--scene",

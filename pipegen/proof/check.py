@@ -105,11 +105,13 @@ CHECKED = ("gl", "cl")
 
 def check(compiled, scene, out_dir: Optional[Path] = None,
           progress: Callable[[str], None] = lambda msg: None,
-          max_discontinuities: int = 0) -> CheckResult:
+          max_discontinuities: int = 0, localise: bool = True) -> CheckResult:
     """GL against CL, every target within the tolerance model's limits (docs/tolerances.md).
     Pixels over a limit where one backend fell on the other side of a step of the
     technique's code are discontinuities (``discontinuity.py``): listed per target, not
-    counted as disagreement; more than ``max_discontinuities`` of them in all fails."""
+    counted as disagreement; more than ``max_discontinuities`` of them in all fails.
+    ``localise``: on disagreement, replay both pass by pass to name the first pass that
+    diverges (``first_divergence``; several renders more)."""
     gl_pipe, cl_pipe = (compiled.pipeline(b) for b in CHECKED)
     progress(f"rendering on {registry.get(CHECKED[0]).label()}")
     gl = gl_pipe.render(scene)
@@ -124,7 +126,7 @@ def check(compiled, scene, out_dir: Optional[Path] = None,
                          renders={"gl": gl, "cl": cl})
     if out_dir is not None:
         write_error_images(result.rows, out_dir)
-    if not result.rows_passed:
+    if not result.rows_passed and localise:
         progress("localising the first divergent pass")
         result.first_divergence = first_divergent_pass(compiled, gl_pipe, cl_pipe, scene)
     return result
