@@ -46,6 +46,23 @@ def test_rewrite_replaces_own_files_removes_stale_ones_and_keeps_the_users(tmp_p
     assert sorted(read_manifest(out)) == ["a.txt"]
 
 
+
+def test_rewrite_leaves_unchanged_outputs_as_they_are(tmp_path):
+    """A file whose new content is what pipegen wrote there before is not replaced: the same
+    inode and mtime (a build tool watching the folder sees only what changed); a changed one
+    is replaced, and the manifest lists both."""
+    out = tmp_path / "out"
+    write(OutputDir(out, "test"), {"same.txt": "1", "edited.txt": "old"})
+    before = {n: os.stat(out / n) for n in ("same.txt", "edited.txt")}
+    os.utime(out / "same.txt", ns=(1, 1))            # an mtime no rewrite could give it
+    write(OutputDir(out, "test"), {"same.txt": "1", "edited.txt": "new"})
+    after = os.stat(out / "same.txt")
+    assert (after.st_ino, after.st_mtime_ns) == (before["same.txt"].st_ino, 1)
+    assert (out / "edited.txt").read_text() == "new"
+    assert os.stat(out / "edited.txt").st_ino != before["edited.txt"].st_ino
+    assert sorted(read_manifest(out)) == ["edited.txt", "same.txt"]
+    assert not [p for p in tmp_path.rglob("*") if "pipegen-stage" in p.name], "no staging left"
+
 def test_stale_folder_of_own_files_is_removed_when_empty(tmp_path):
     out = tmp_path / "out"
     write(OutputDir(out, "test"), {"cl/k.cl": "k", "r.txt": "r"})

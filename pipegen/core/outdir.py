@@ -220,7 +220,7 @@ class OutputDir:
     def _move_into(self, stage: Path, new: dict[str, str]) -> None:
         out = self.path
         old = read_manifest(out) or {}
-        blocked, foreign = [], []
+        blocked, foreign, unchanged = [], [], set()
         for rel in new:
             dest = out / rel
             parent = dest.parent
@@ -231,8 +231,11 @@ class OutputDir:
             if dest.is_dir() and not dest.is_symlink():
                 blocked.append(rel)
             elif dest.exists() or dest.is_symlink():
-                if old.get(rel) != _sha256(dest):
+                digest = _sha256(dest)
+                if old.get(rel) != digest:
                     foreign.append(rel)
+                elif digest == new[rel] and not dest.is_symlink():
+                    unchanged.add(rel)      # pipegen's, and already what it would write
         if blocked:
             raise _error(f"cannot write into '{out}': a folder or file is in the way of "
                          f"{', '.join(sorted(set(blocked))[:_FOREIGN_SHOWN])}",
@@ -245,6 +248,8 @@ class OutputDir:
         # is listed, so the next run may replace or remove it.
         _write_manifest(out, self.command, {**old, **new})
         for rel in new:
+            if rel in unchanged:      # left as it is: its content, and its mtime for make & co.
+                continue
             dest = out / rel
             dest.parent.mkdir(parents=True, exist_ok=True)
             os.replace(stage / rel, dest)
