@@ -89,7 +89,8 @@ def main(argv=None) -> int:
             print(f"{name:19} {Path(path).stem:13} {'yes' if result.passed else 'NO':5} "
                   f"{ms['gl']:8.1f} {ms['cl']:8.1f}  {'; '.join(bad) or '-'}", flush=True)
             record["rows"].append(dict(
-                technique=name, scene=Path(path).stem, variant=spec.facts.describe() if spec else "general", agree=result.passed,
+                technique=name, scene=Path(path).stem,
+                variant=spec.facts.describe() if spec else "general", agree=result.passed,
                 first_divergence=result.first_divergence, gl_ms=ms["gl"], cl_ms=ms["cl"],
                 targets=[dict(name=r.name, format=r.format.name, units=r.tolerance.units,
                               max_error=r.max_error, limit=r.tolerance.limit, over=r.over,

@@ -72,7 +72,7 @@ def test_plots_name_the_devices_the_rows_were_rendered_on():
             device="GL (NVIDIA H200)"), dict(backend="cl")]
     assert device_names(rows, ["gl", "cl"]) == {"gl": "GL (NVIDIA H200)", "cl": "CL (PoCL)"}
     rows.append(dict(backend="gl", device="GL (llvmpipe)"))
-    assert device_names(rows, ["gl"]) == {"gl": "GL (NVIDIA H200 | llvmpipe)"}
+    assert device_names(rows, ["gl"]) == {"gl": "GL (NVIDIA H200) | GL (llvmpipe)"}
     row = dict(backend="gl", device="GL (NVIDIA H200)", technique="t", params="", file="t.pipe",
                rmse_scene=1.0, frame_ms=2.0, frame_ms_q1=2.0, frame_ms_q3=2.0, pareto=True,
                ties=[], target_bytes=1, agree=True)

@@ -124,8 +124,9 @@ def render_job(job: dict) -> dict:
     ``targets``: the intermediate targets' errors (``intermediate_errors``)},
     ``agree`` (None with fewer than both backends), ``disagree`` (targets over tolerance),
     ``maps`` {backend: PNG bytes of the error map}, ``images`` {backend: PNG bytes of the
-    output}, ``devices`` {backend: ``Backend.label()`` here, "GL (llvmpipe)"}, ``notes``, ``clamps`` (the CL frame's ``Clamp`` records as dicts, ``warned``
-    added: not the output's highlights), ``technique`` (the IR of the variant rendered, for
+    output}, ``devices`` {backend: ``Backend.label()`` here, "GL (llvmpipe)"}, ``notes``,
+    ``clamps`` (the CL frame's ``Clamp`` records as dicts, ``warned`` added: not the
+    output's highlights), ``technique`` (the IR of the variant rendered, for
     its memory and bandwidth figures; None for the general build, which the parent has).
     """
     from pipegen.proof import accuracy

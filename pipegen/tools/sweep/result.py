@@ -191,14 +191,7 @@ def backend_title(backend: str) -> str:
 
 def device_names(rows: list[dict], backends) -> dict[str, str]:
     """{backend: what plots call it}: the device its rows were rendered on ("GL (NVIDIA
-    H200)"), all of them where workers differed ("GL (llvmpipe | NVIDIA H200)")."""
-    out = {}
-    for b in backends:
-        seen = list(dict.fromkeys(r.get("device") or backend_title(b)
-                                  for r in rows if r["backend"] == b)) or [backend_title(b)]
-        if len(seen) == 1:
-            out[b] = seen[0]
-        else:
-            head = seen[0].partition(" (")[0]
-            out[b] = f"{head} ({' | '.join(s.partition(' (')[2].rstrip(')') for s in seen)})"
-    return out
+    H200)"), all of them where workers differed ("GL (llvmpipe) | GL (NVIDIA H200)")."""
+    return {b: " | ".join(dict.fromkeys(r.get("device") or backend_title(b)
+                                        for r in rows if r["backend"] == b))
+            or backend_title(b) for b in backends}
