@@ -68,6 +68,20 @@ follow the inputs, about 0.5 ms (frames with and without the copies alternated, 
 41); lidr_cpu_sort's clip step 0.3 ms.  Dropping the two triangles altogether (timing only)
 saves more, 1.5 ms at 160x90 and 3.2 ms at 320x180, but that includes rasterising them: they
 cross the near plane and cover much of the screen.
+
+Each pass's host work in turn (2026-12-04).  A CL frame used to prepare every pass's host work
+(set-up read-backs, queuing the binning) before it queued the first raster kernel, and the
+device sat idle meanwhile: light_prepass at 320x180, 3 ms of a 12.6 ms frame between its
+last set-up kernel and its first raster kernel (every command's OpenCL profiling times).  It
+now prepares pass k + 1 while the device rasterises pass k (``$PIPEGEN_CL_HOST_FIRST=1``:
+the old order).  The gain is small, since the host's work then shares the 2 cores with
+PoCL's threads and the next kernel still waits for it: ``python benchmarks/cl_host_ab.py
+BEFORE AFTER --size WxH --blocks 6 --frames 5`` (a worker process per tree, CL only, blocks
+alternated; load 0.8-1.9), wall after/before: at 320x180 0.89-1.05x (light_prepass 0.92,
+lidr_cpu_sort 0.89, lidr_shadow_indexed 0.90, inferred 0.94, deferred_calver 0.95,
+lidr_msaa_texture 1.05), at 160x90 0.93-1.10x (lidr_cpu_sort 0.93, deferred_calver 1.10,
+most within 0.04 of 1).  Both pipelines in one process, frames alternated ABBA, 40 each:
+320x180 0.95-1.00x (deferred_calver 0.946, inferred 0.960), 160x90 0.97-1.02x.
 """
 
 from __future__ import annotations

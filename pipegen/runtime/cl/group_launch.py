@@ -1,10 +1,11 @@
 """A repeat group's pass executions as one raster launch (``backends/opencl/group.py``).
 
 ``GroupLauncher(pipe)`` builds, when the pipeline is made, the fused program of each repeat
-group ``group.fusable`` accepts.  ``prepare(runs, prepare_pass)`` does a frame's host work
-(``CLPipeline._draw``): each run of a fusable group's executions becomes one callable that
-queues the group's first clear and a single ``pg_group`` launch; every other execution is
-``prepare_pass(k, light)`` as before.
+group ``group.fusable`` accepts.  ``prepared(runs, prepare_pass)`` yields a frame's host work
+one execution at a time (``CLPipeline._draw`` queues each one's device work before it asks
+for the next; ``prepare`` makes them all first): each run of a fusable group's executions
+becomes one callable that queues the group's first clear and a single ``pg_group`` launch;
+every other execution is ``prepare_pass(k, light)`` as before.
 
 A fused group needs no bins per light: each member pass draws the triangles of all its lights
 (one set-up, as for every light of a group, ``DrawGeometry``) binned once (on the device, as
@@ -27,7 +28,7 @@ compare the two, bit for bit."""
 from __future__ import annotations
 
 import os
-from typing import Callable, Optional
+from typing import Callable, Iterator, Optional
 
 import numpy as np
 
@@ -56,25 +57,32 @@ class GroupLauncher:
                 self.groups[g] = (gp, cl.Kernel(prog, "pg_group"))
 
     def prepare(self, runs: list, prepare_pass: Callable) -> list:
+        """``prepared``'s callables, all made first."""
+        return list(self.prepared(runs, prepare_pass))
+
+    def prepared(self, runs: list, prepare_pass: Callable) -> Iterator:
         """The host work of a frame's executions ``runs`` (``(k, light)``, in schedule order),
-        each fusable group's run as one callable (or its executions one by one where the
-        frame does not fit), the rest ``prepare_pass(k, light)``."""
-        out, i = [], 0
+        each made when it is asked for: each fusable group's run as one callable (or its
+        executions one by one where the frame does not fit), the rest
+        ``prepare_pass(k, light)``."""
+        i = 0
         passes = self.pipe.plan.passes
         while i < len(runs):
             g = passes[runs[i][0]].repeat_group
             if g not in self.groups:
-                out.append(prepare_pass(*runs[i]))
+                yield prepare_pass(*runs[i])
                 i += 1
                 continue
             j = i
             while j < len(runs) and passes[runs[j][0]].repeat_group == g:
                 j += 1
             fused = self._prepare(g, runs[i:j])
-            out.extend([fused] if fused is not None
-                       else [prepare_pass(k, light) for k, light in runs[i:j]])
+            if fused is not None:
+                yield fused
+            else:
+                for k, light in runs[i:j]:
+                    yield prepare_pass(k, light)
             i = j
-        return out
 
     def _prepare(self, g: int, steps: list):
         """The fused launch of a group's executions ``steps``, its geometry and bins made, or

@@ -65,11 +65,12 @@ per pass, built on the device from the triangles the pass draws (its lights' ran
 faces its cull mode keeps); an unfused ``repeat per light`` group's bins are found for all
 its lights in one numpy sort and uploaded in three buffers, each light's bins views into them
 (``group_bins.py``).
-A frame does the host work of all its passes (set-up read-backs, queuing the binning)
-before it queues their clears, resolves and raster kernels in pass order, without waiting
-(on 2 cores, host work done while a raster kernel runs gets a third of them, and the next
-kernel waits for it); target and blend-count buffers are reused from frame to frame
-(cleared as before).
+A frame queues every vertex and set-up kernel first, then each pass execution in turn: its
+host work (set-up read-backs, queuing the binning), then its clears, resolves and raster
+kernel, without waiting for them, so that the device rasterises a pass while the host
+prepares the next (``$PIPEGEN_CL_HOST_FIRST=1``: every pass's host work first, as before
+device binning, for comparison); target and blend-count buffers are reused from frame to
+frame (cleared as before).
 
 The float64 evaluation (a plan emitted with ``precision="f64"``, ``Compiled.pipeline("cl",
 precision="f64")``): the same schedule, coverage and primitive order, the technique's
@@ -96,6 +97,7 @@ starts later renders with a target holding given codes (tests).
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, replace
 from typing import Optional
@@ -233,6 +235,7 @@ class CLPipeline:
                          for p in plan.passes]
         # repeat groups whose passes run as one launch (``group_launch``), built here too
         self.groups = GroupLauncher(self)
+        self._host_first = os.environ.get("PIPEGEN_CL_HOST_FIRST", "0") == "1"   # ``_draw``
         self.clamp_counters = cl_clamps.ClampCounters(self.ctx, self.queue, plan)
         self._clamps: Optional[list] = []
         self._presets: dict = {}
@@ -400,14 +403,16 @@ class CLPipeline:
             self._prefetch(k, light)
         self.geometry.clip_pending()
         if self.profile is None and not capture_passes:
-            # every pass's host work (set-up read-backs, bins) first, then the frame's
-            # device work queued in one go: host work done while a raster kernel runs gets a
-            # third of the 2 cores PoCL's 2 threads share with it, and the next kernel waits
-            # for it (inferred, 640x360: its material pass binned in 4-6 ms instead of 1.1;
-            # frames interleaved in one process, medians of 15: light_prepass 37.9 -> 35.0
-            # ms, inferred 30.8 -> 27.3, deferred_calver and deferred within 2 %)
-            # a fusable repeat group's pass executions as one launch (``group_launch``)
-            for run in self.groups.prepare(self._batched(runs), self._prepare_pass):
+            # each pass execution's host work (set-up read-backs, bins) made when its turn
+            # comes, right after the device work of the one before is queued: the device
+            # rasterises pass k while the host prepares k + 1.  (Every pass's host work
+            # came first from d4cd3c8, when binning was numpy work that a raster kernel's
+            # threads slowed 4-5x; with the bins made on the device since, preparing first
+            # leaves the device idle meanwhile: light_prepass at 320x180, ~3 of 12.6 ms.  ``$PIPEGEN_CL_HOST_FIRST=1`` restores that order, for comparison:
+            # benchmarks/backends.py's docstring has the figures.)  A fusable repeat group's
+            # pass executions are one launch (``group_launch``).
+            prep = self.groups.prepare if self._host_first else self.groups.prepared
+            for run in prep(self._batched(runs), self._prepare_pass):
                 if isinstance(run, PassRun):
                     self._run_pass(run.k, run.scheduled, run)
                 else:
