@@ -2,7 +2,7 @@
 through `pipegen check`'s tolerances, on three scenes; with frame times.  Issue 26 item 8.
 
     python benchmarks/gpu_check.py [--size 640x360] [--frames 5] [--scenes A.toml,B.toml,C.toml]
-                                   [--json FILE] [--localise]
+                                   [--json FILE] [--localise] [technique ...]
     PIPEGEN_GL_DEVICE=1 python benchmarks/gpu_check.py        # another EGL device
 
 Prints the GL device (``runtime.gl.context.describe``: renderer, EGL device and why it was
@@ -58,6 +58,8 @@ def main(argv=None) -> int:
                     help="name the first divergent pass of a row that disagrees (replays "
                          "both backends pass by pass: on a GPU, where every row disagrees, "
                          "most of the run)")
+    ap.add_argument("techniques", nargs="*", default=TECHNIQUES,
+                    help="shipped techniques to run (default: all of them)")
     args = ap.parse_args(argv)
     from pipegen.compiler.driver import compile_file, for_scene
     from pipegen.proof.check import check
@@ -71,7 +73,7 @@ def main(argv=None) -> int:
                              frames=args.frames, rows=[])
     print(f"{'technique':19} {'scene':13} {'agree':5} {'GL ms':>8} {'CL ms':>8}  "
           f"disagreeing: target max/limit, over, edges/bound, discontinuities")
-    for name in TECHNIQUES:
+    for name in args.techniques:
         pipe_file = str(ROOT / "pipelines" / f"{name}.pipe")
         compiled = compile_file(pipe_file)
         for path in args.scenes.split(","):
