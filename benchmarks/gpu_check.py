@@ -16,8 +16,9 @@ disagrees.  Where EGL lists only Mesa's llvmpipe this measures the software
 rasteriser, and says so on its first line.
 
 Measured on a lent NVIDIA H200 (2026-12-04; driver 580.159.04; CL on its 16 CPU cores, PoCL
-5.0 as the machine had it), ``--size 640x360 --frames 5``, stopped after 40 of the 45 rows:
-no row agrees.  ``ds`` fails on all 40 (434, 173 and 60 d24 codes at worst on many_lights,
+5.0 as the machine had it), ``--size 640x360 --frames 5``, stopped after 40 of the 45 rows
+(the other five in a second run, ``benchmarks/gpu/run_rest.sh``: inferred and deferred_calver,
+none agrees either; docs/tolerances.md has all 45): no row agrees.  ``ds`` fails on all 40 (434, 173 and 60 d24 codes at worst on many_lights,
 mixed_lights and street_lamps, 2,741 to 83,738 pixels over the limit of 2), the window-depth
 copies with it (``zcopy``/``gdepth``, 27 rows), G-buffer varyings on deferred, light_prepass
 and inferred (``gpos`` ~1e-4 relative at the 99th percentile), ``color`` on 7 (3-25 codes,
