@@ -22,6 +22,11 @@ CAUSES = {
     "local": "the bound there is the rounding of the stored result; an error {ratio} came "
              "from pass {writers}'s float32 arithmetic magnifying rounding (a cancellation, "
              "or a large intermediate such as |p|^2 far from the origin)",
+    # a depth attachment's values come from the rasteriser's depth plane, not from code
+    "local_depth": "the bound there is the rounding the float32 depth plane is allowed; an "
+                   "error {ratio} came from the plane itself, set up in float32 from the "
+                   "triangle's vertices (a long, thin or steep triangle's plane coefficients "
+                   "cancel: docs/tolerances.md, \"Where the float64 bound is too tight\")",
     "position": "the bound there is mostly the image's sensitivity to a one-ulp move of the "
                 "geometry (a grazing or distant surface magnifies it); the error exceeds even "
                 "that",
@@ -88,7 +93,9 @@ def why_over(t: TargetResult, part_maps: dict, info: dict, case: str = "") -> Op
         factor, read = magnification(t.key, row, col, part_maps, info)
         if factor is not None:
             magnified = f", {read}'s bound magnified {factor:.3g}x"
-    cause = CAUSES[largest].format(
+    depth_plane = largest == "local" and tinfo is not None and tinfo.is_depth \
+        and not t.key.endswith(".stencil")
+    cause = CAUSES["local_depth" if depth_plane else largest].format(
         ratio=f"{t.worst_ratio:.3g}x larger", writers=", ".join(tinfo.writers) if tinfo else "?",
         reads=", ".join(tinfo.reads) if tinfo else "-", magnified=magnified)
     line = (f"{head}; bound terms there: local {t.units(values['local'])}, position "
