@@ -1,6 +1,7 @@
 """The bound of the tolerance model for a target of a float32 render against the float64
-evaluation, per pixel: the local terms of ``tolerance.py`` (store, blends, arithmetic) plus the
-two measured ones, positions and reads (docs/tolerances.md).
+evaluation, per pixel: the local terms of ``tolerance.py`` (store, blends, arithmetic), for a
+depth attachment the error of its triangles' float32 planes (``depth_planes.py``), plus the two
+measured ones, positions and reads (docs/tolerances.md).
 
 ``F64Bound(compiled)`` holds the float64 pipeline (built once); ``.bounds(scene, f64, blends)``
 measures the terms by rendering the float64 evaluation perturbed: the lights and the camera
@@ -125,6 +126,7 @@ class F64Bound:
     def bounds(self, scene, f64: dict, blends: dict) -> tuple[dict, dict]:
         """Per target key: the bound (value units, the f64 array's shape), and its parts."""
         local, parts = {}, {}
+        planes = self._depth_planes(scene, f64)
         for key, v in f64.items():
             base, _, aspect = key.partition(".")
             t = self.info[base]
@@ -132,6 +134,8 @@ class F64Bound:
                 local[key] = np.zeros(np.shape(v))
                 continue
             local[key] = B.local_bound(t, v, blends.get(base))
+            if key in planes:       # a depth attachment: its triangles' float32 planes
+                local[key] = local[key] + planes[key]
         # positions: lights and camera moved by POSITION_ULPS ulps of the largest coordinate
         # along x, y and z in turn (= the surface moved the other way); the first-order change
         # over the box |error_i| <= delta is the sum of the three changes
@@ -197,6 +201,21 @@ class F64Bound:
                         "position": float(np.max(pos[k])) if np.size(pos[k]) else 0.0,
                         "reads": float(np.max(reads[k])) if np.size(reads[k]) else 0.0}
         return total, parts
+
+    def _depth_planes(self, scene, f64: dict) -> dict:
+        """Per depth target: the float32 plane error of the triangle that drew each pixel (``depth_planes.plane_error``), from the float64 evaluation's set-up of
+        ``scene`` (rendered again when its last frame was of another scene)."""
+        from pipegen.proof.depth_planes import plane_error
+        pipe = self.f64
+        if getattr(pipe, "_given", None) is not scene:
+            pipe.render(scene)
+        out = {}
+        for name in {target for target, _, _ in pipe.depth_draws}:
+            v = f64.get(name)
+            if v is None or np.ndim(v) != 2:
+                continue
+            out[name] = plane_error([(t, c) for n, t, c in pipe.depth_draws if n == name], v)
+        return out
 
     def _view_distance(self, scene, f64: dict) -> Optional[np.ndarray]:
         """View distance of the visible surface per output pixel (from the first depth

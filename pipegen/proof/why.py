@@ -23,10 +23,10 @@ CAUSES = {
              "from pass {writers}'s float32 arithmetic magnifying rounding (a cancellation, "
              "or a large intermediate such as |p|^2 far from the origin)",
     # a depth attachment's values come from the rasteriser's depth plane, not from code
-    "local_depth": "the bound there is the rounding the float32 depth plane is allowed; an "
-                   "error {ratio} came from the plane itself, set up in float32 from the "
-                   "triangle's vertices (a long, thin or steep triangle's plane coefficients "
-                   "cancel: docs/tolerances.md, \"Where the float64 bound is too tight\")",
+    "local_depth": "the bound there is the error of the float32 depth plane of the triangle "
+                   "that drew the pixel (its set-up from the triangle's vertices) and its "
+                   "rounding; an error {ratio} means the depth is not that plane's: another "
+                   "triangle's, or a plane set up otherwise (docs/tolerances.md, \"The bound\")",
     "position": "the bound there is mostly the image's sensitivity to a one-ulp move of the "
                 "geometry (a grazing or distant surface magnifies it); the error exceeds even "
                 "that",

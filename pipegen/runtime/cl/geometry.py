@@ -828,7 +828,7 @@ class DrawGeometry:
                                    flat=v.flat, vary=v.vary, scissor=v.scissor,
                                    smooth=[i for i, f in enumerate(v.flats) if not f],
                                    pixel_center=center, w_plane=v.w_plane, viewport=viewport,
-                                   with_zp=False, with_zq=center == 0.0)
+                                   with_zp=self.f64, with_zq=self.f64 or center == 0.0)
         if self.f64:
             tris.h = homogeneous_planes(v.clip64, tris.parent, width, height, _offset(p), dfmt,
                                         viewport)

@@ -243,6 +243,10 @@ class CLPipeline:
         self._given = None              # the scene it was given
         self._selection: Optional[draws.LightSelection] = None
         self._events: list = []
+        # the float64 evaluation: the last frame's (depth target, set-up triangles, the pixel
+        # centre their planes hold) of every pass execution writing depth
+        # (``proof/depth_planes.py`` bounds their float32 planes)
+        self.depth_draws: list = []
         self._int2s: dict = {}
         self._shadows: dict = {}        # per frame: (pass, light) -> ShadowView
         self._prefetched: set = set()   # per frame: the light passes whose set-up is queued
@@ -387,6 +391,7 @@ class CLPipeline:
         self.prepare(scene)
         self.clamp_counters.start_frame()
         self._timings, self._timings_pending = [], False
+        self.depth_draws = []
         self._events = []
         self._frame_np, self._frame64_np, view, proj = self._frame(scene)
         self._frame_buf = self.device.buffer(self._frame_np)
@@ -560,6 +565,10 @@ class CLPipeline:
             volume = light if p.draw.shadow_volumes else None    # that light's volumes
             drawn = self.geometry.pass_triangles(k, p, width, height, timing, lights, shadow,
                                                  volume)
+            if self.f64 and drawn is not None and p.depth_target and p.state.depth.write:
+                # the planes hold the pixel centre unless the pass is multisampled
+                centre = 0.0 if self.plan.pass_samples(p) > 1 else 0.5
+                self.depth_draws.append((p.depth_target, drawn[0].tris, centre))
 
         return PassRun(self, k, p, light, batch, timing, width, height, drawn, frame_buf,
                        frame64_buf)
