@@ -2,7 +2,8 @@
 # Issue 26 item 8 on the lent GPU machine: GL on the GPU (EGL, headless) against CL (PoCL on
 # the machine's CPUs) for every shipped technique on three scenes, then frame times.
 # Carried: .gl (this script, glvnd debs), .whl (wheels for python 3.12, pocl as a tar.xz).
-# Local dry run: DRY=1 OUT=/tmp/o PY=/tmp/img312/bin/python SIZE=160x90 FRAMES=1 bash benchmarks/gpu/run.sh
+# Local dry run (no install: this checkout's pipegen):
+#   DRY=1 OUT=/tmp/o SIZE=160x90 FRAMES=1 bash benchmarks/gpu/run.sh
 set -u
 OUT=${OUT:-/tmp/gpu_out}; mkdir -p "$OUT"
 PY=${PY:-python3}; SIZE=${SIZE:-640x360}; FRAMES=${FRAMES:-5}; BIG=${BIG:-1280x720}
@@ -12,18 +13,7 @@ exec > >(tee "$OUT/log.txt") 2>&1
 t0=$(date +%s); stamp() { echo "== $(( $(date +%s) - t0 )) s: $*"; }
 
 stamp setup
-if [ -z "${DRY:-}" ]; then
-    for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-    j=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-    if [ -f "$j" ] && ! ls /usr/share/glvnd/egl_vendor.d/*nvidia* >/dev/null 2>&1; then
-        export __EGL_VENDOR_LIBRARY_FILENAMES=$j
-    fi
-fi
-rm -rf "$SITE"
-$PY -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-    --target "$SITE" .whl/*.whl || exit 1
-tar -xJf .whl/pocl.tar.xz -C "$SITE" || exit 1
-export PYTHONPATH=$SITE PYTHONUNBUFFERED=1 PYTHONDONTWRITEBYTECODE=1
+. benchmarks/gpu/install.sh
 unset LP_NUM_THREADS POCL_MAX_PTHREAD_COUNT
 stamp "machine"
 nvidia-smi -L 2>&1; nproc; grep -m1 "model name" /proc/cpuinfo

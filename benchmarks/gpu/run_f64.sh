@@ -6,15 +6,7 @@ OUT=${OUT:-/tmp/gpu_out2}; mkdir -p "$OUT"; PY=${PY:-python3}; SITE=${SITE:-/tmp
 REPO=$(pwd)
 exec > >(tee "$OUT/log2.txt") 2>&1
 t0=$(date +%s); stamp() { echo "== $(( $(date +%s) - t0 )) s: $*"; }
-if [ -z "${DRY:-}" ]; then
-    for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-fi
-if [ ! -d "$SITE/pipegen" ]; then
-    $PY -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-        --target "$SITE" .whl/*.whl || exit 1
-    tar -xJf .whl/pocl.tar.xz -C "$SITE" || exit 1
-fi
-export PYTHONPATH=$SITE PYTHONUNBUFFERED=1 PYTHONDONTWRITEBYTECODE=1
+KEEP_SITE=1 . benchmarks/gpu/install.sh
 stamp dump
 timeout ${DUMP_LIMIT:-90} $PY benchmarks/gpu/dump.py
 end=$(( $(date +%s) + ${F64_LIMIT:-170} ))

@@ -16,19 +16,7 @@ exec > >(tee "$OUT/log3.txt") 2>&1
 t0=$(date +%s); stamp() { echo "== $(( $(date +%s) - t0 )) s: $*"; }
 
 stamp setup
-if [ -z "${DRY:-}" ]; then
-    for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-    j=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-    if [ -f "$j" ] && ! ls /usr/share/glvnd/egl_vendor.d/*nvidia* >/dev/null 2>&1; then
-        export __EGL_VENDOR_LIBRARY_FILENAMES=$j
-    fi
-    rm -rf "$SITE"
-    $PY -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-        --target "$SITE" .whl/*.whl || exit 1
-    tar -xJf .whl/pocl.tar.xz -C "$SITE" || exit 1
-    export PYTHONPATH=$SITE
-fi
-export PYTHONUNBUFFERED=1 PYTHONDONTWRITEBYTECODE=1
+. benchmarks/gpu/install.sh
 unset LP_NUM_THREADS POCL_MAX_PTHREAD_COUNT
 (cd /tmp && $PY -c "
 import pipegen, sys
