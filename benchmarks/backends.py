@@ -82,6 +82,13 @@ lidr_cpu_sort 0.89, lidr_shadow_indexed 0.90, inferred 0.94, deferred_calver 0.9
 lidr_msaa_texture 1.05), at 160x90 0.93-1.10x (lidr_cpu_sort 0.93, deferred_calver 1.10,
 most within 0.04 of 1).  Both pipelines in one process, frames alternated ABBA, 40 each:
 320x180 0.95-1.00x (deferred_calver 0.946, inferred 0.960), 160x90 0.97-1.02x.
+
+The clipper's vertices appended in place (same day): the copy of every varying slot above is
+gone from the second frame on (a draw that clipped last frame leaves room after each slot's
+vertices, ``setup_device.clip_room``; tests/test_cl_clip_room.py).  ``cl_host_ab.py BEFORE
+AFTER --size 160x90 --blocks 6 --frames 5`` (load 1.3-1.5), process CPU after/before: 0.92x
+lidr_cpu_sort, 0.94x deferred_calver, 0.95x light_prepass, 0.96-0.98x inferred, deferred and
+lidr_shadow_prepass; wall 0.93-1.03x.
 """
 
 from __future__ import annotations

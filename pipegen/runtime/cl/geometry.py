@@ -221,6 +221,7 @@ class DrawGeometry:
         # the per-frame geometry's buffers, reused by the next frames (not the static draws')
         self.pool = cl_context.FramePool(device.ctx)
         self.device_setup = cl_setup_device.DeviceSetup(device.ctx, device.queue, self.pool)
+        self.clip_seen: dict = {}      # per draw (cache key): triangles its last set-up clipped
         self.binner = cl_bin.DeviceBinner(device.ctx, device.queue)
         # share set-ups and bins between pass executions (the module docstring)
         self.share = os.environ.get("PIPEGEN_CL_SHARE_SETUP", "1") != "0"
@@ -735,6 +736,12 @@ class DrawGeometry:
         # set up on the device (``cl_setup_device``): the clip positions and varyings stay
         # there, nothing is read back; else the host copies the numpy set-up takes
         on_device = cl_setup_device.supports(_offset(p), self.f64)
+        # on the device, each varying slot leaves room for the clipper's vertices after the
+        # draw's own, as many as this draw's last frame made (the clipper appends them in
+        # place instead of copying every slot: inferred's scene pass, 42,834 vertices a
+        # slot, ~1 ms of device time at 160x90); a frame that needs more copies as before
+        v.vstride = nverts + (cl_setup_device.clip_room(self.clip_seen.get(key, 0))
+                              if on_device and v.names else 0)
         v.clip = v.clip64 = v.vary = None
         if not on_device:
             v.clip = np.empty((nverts, 4), np.float32)
@@ -747,7 +754,7 @@ class DrawGeometry:
             S = len(have)
             clip_buf = self.pool.buffer(nverts * 16)
             clip_bufs.append(clip_buf)
-            vbuf = self.pool.buffer(S * nverts * 16)
+            vbuf = self.pool.buffer(S * v.vstride * 16)
             kern = dev.kernel(kp, "pg_vertex")
             extra = []
             if self.f64:      # the float64 evaluation: clip positions in double too
@@ -755,7 +762,8 @@ class DrawGeometry:
                 extra = [frame64_buf, clip64_buf]
             # one kernel object per pass is shared by every draw it provides for: it is
             # enqueued (which takes the arguments) before the next draw sets them
-            cl_context.set_args(kern, np.int32(nverts), np.int32(mesh_verts), *attrs, inst_buf,
+            cl_context.set_args(kern, np.int32(nverts), np.int32(mesh_verts),
+                                np.int32(v.vstride), *attrs, inst_buf,
                                 frame_buf, frame_state.lights_buf, clip_buf, vbuf, *extra)
             gsize = ((nverts + 63) // 64) * 64
             v.kernels.append(cl.enqueue_nd_range_kernel(dev.queue, kern, (gsize,), (64,)))
@@ -776,15 +784,16 @@ class DrawGeometry:
         if v.vary_buf is None and v.names:
             # several passes' vertex kernels made the varyings: gather them into one buffer on
             # the device (slot-major, as the set-up and raster kernels read them)
-            v.vary_buf = self.pool.buffer(len(v.names) * nverts * 16)
+            stride = v.vstride
+            v.vary_buf = self.pool.buffer(len(v.names) * stride * 16)
             done = set()
             for (have, _), vbuf in zip(v.outs, v.vbufs):
                 for i, n in enumerate(have):
                     if n in v.names and n not in done:
                         done.add(n)
                         cl.enqueue_copy(dev.queue, v.vary_buf, vbuf, byte_count=nverts * 16,
-                                        src_offset=i * nverts * 16,
-                                        dst_offset=v.names.index(n) * nverts * 16)
+                                        src_offset=i * stride * 16,
+                                        dst_offset=v.names.index(n) * stride * 16)
         v.job = None
         if on_device:     # queued behind the vertex kernels
             center = 0.0 if self.plan.pass_samples(p) > 1 else 0.5
@@ -793,7 +802,7 @@ class DrawGeometry:
                 depth_clamp=p.state.depth.clamp, flat=v.flat, scissor=v.scissor,
                 smooth=tuple(i for i, f in enumerate(v.flats) if not f), pixel_center=center,
                 w_plane=v.w_plane, viewport=None if shadow is None else shadow.rect,
-                with_zq=center == 0.0, slots=len(v.names))
+                with_zq=center == 0.0, slots=len(v.names), stride=v.vstride)
         return v
 
     def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,
@@ -822,6 +831,7 @@ class DrawGeometry:
         dev = None
         if v.job is not None:
             tris, dev, index = self.device_setup.finish(v.job)
+            self.clip_seen[key] = len(v.job.clipping["hard"])
         else:
             tris = setup_triangles(v.clip, width, height, cull=v.cull, polygon_offset=_offset(p),
                                    depth_clamp=p.state.depth.clamp, depth_format=dfmt,
@@ -843,8 +853,8 @@ class DrawGeometry:
             vary_buf = self.device.zeros4
         elif vary_buf is None:
             vary_buf = self.device.buffer(tris.vary)
-        elif tris.vary.shape[1] != v.nverts:     # the clipper's new vertices appended
-            vary_buf = self._grown_varyings(vary_buf, tris.vary, v.nverts)
+        elif tris.vary.shape[1] != v.vstride:     # the clipper's new vertices appended
+            vary_buf = self._grown_varyings(vary_buf, tris.vary, v.nverts, v.vstride)
         if dev is None:
             geo = self._upload(tris, vary_buf)
         else:       # the device set-up's buffers, rows through ``index``
@@ -860,10 +870,11 @@ class DrawGeometry:
             geo.ranges = {int(l): (int(a), int(b)) for l, a, b in zip(v.inst, lo, hi)}
         return geo
 
-    def _grown_varyings(self, buf, vary: np.ndarray, nverts: int):
-        """The device varyings ``buf`` (slot-major, ``nverts`` vertices a slot) with the
-        vertices ``vary`` has after them (the clipper's): each slot copied on the device, the
-        new vertices written from the host, instead of uploading all of ``vary``."""
+    def _grown_varyings(self, buf, vary: np.ndarray, nverts: int, stride: int):
+        """The device varyings ``buf`` (slot-major, ``nverts`` vertices a slot, ``stride``
+        apart) with the vertices ``vary`` has after them (the clipper's): each slot copied on
+        the device, the new vertices written from the host, instead of uploading all of
+        ``vary``."""
         import pyopencl as cl
         queue = self.device.queue
         S, total = vary.shape[:2]
@@ -871,7 +882,7 @@ class DrawGeometry:
         new = np.ascontiguousarray(vary[:, nverts:])
         for k in range(S):
             cl.enqueue_copy(queue, grown, buf, byte_count=nverts * 16,
-                            src_offset=k * nverts * 16, dst_offset=k * total * 16)
+                            src_offset=k * stride * 16, dst_offset=k * total * 16)
             write(queue, grown, new[k], dst_offset=(k * total + nverts) * 16)
         return grown
 

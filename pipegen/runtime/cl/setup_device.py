@@ -72,16 +72,33 @@ class _Job:
     layout: dict         # every field's (dtype, trailing shape) in its buffer
     params: dict         # ``setup_triangles``'s keywords (the numpy fallback)
     clip_kernel: object  # pg_clip_setup of the same program
-    head: list           # the kernels' scalar arguments: nverts, W, H, viewport, centre
+    head: list           # the kernels' scalar arguments: the varyings' slot stride, W, H,
+                         #   viewport, centre
     clip_buf: object     # the inputs: clip positions, varyings (``slots`` slot-major)
     vary_buf: object
     inputs: list         # flat values and scissor rectangles (or placeholders)
     slots: int
     clipping: Optional[dict] = None    # ``DeviceSetup.clip``'s queued work
+    count: int = 0       # the input vertices
 
     @property
     def nverts(self) -> int:
+        return self.count
+
+    @property
+    def stride(self) -> int:
+        """Vertices a slot of ``vary_buf`` has room for: ``nverts``, and room for the
+        clipper's vertices when the caller left some (``enqueue``'s ``stride``)."""
         return int(self.head[0])
+
+
+def clip_room(clipped: int) -> int:
+    """Vertices of room a varying slot keeps for the clipper's, for a draw whose last set-up
+    clipped ``clipped`` triangles (``_MAXV`` each; counts rounded up to a power of two, at
+    least 8, so that a few more next frame still fit; none for a draw that did not clip)."""
+    if clipped <= 0:
+        return 0
+    return _MAXV * max(8, 1 << (int(clipped) - 1).bit_length())
 
 
 @dataclasses.dataclass
@@ -96,6 +113,7 @@ class DeviceSetup:
         """``pool``: where the jobs' buffers come from (``DrawGeometry``'s frame pool; by
         default a pool that never recycles)."""
         self.ctx, self.queue = ctx, queue
+        self.appended_in_place = 0     # clipper runs that needed no copy of the varyings
         self.pool = pool if pool is not None else cl_context.FramePool(ctx)
         self._kernels: dict = {}
 
@@ -114,10 +132,12 @@ class DeviceSetup:
                 cull: str = "none", depth_clamp: bool = False, flat: Optional[np.ndarray] = None,
                 scissor: Optional[np.ndarray] = None, samples: Optional[int] = None,
                 smooth: tuple = (), pixel_center: float = 0.5, w_plane: bool = True,
-                viewport=None, with_zq: bool = False, slots: int = 0) -> _Job:
+                viewport=None, with_zq: bool = False, slots: int = 0,
+                stride: Optional[int] = None) -> _Job:
         """Queue the set-up of ``ntris`` triangles whose clip positions (``3 * ntris``
-        float4) are in ``clip_buf`` and ``slots`` varyings (slot-major, ``nverts`` per slot)
-        in ``vary_buf``; the keywords as ``setup_triangles`` takes them."""
+        float4) are in ``clip_buf`` and ``slots`` varyings (slot-major, ``nverts`` per slot,
+        ``stride`` >= ``nverts`` apart: room the clipper can append its vertices in) in
+        ``vary_buf``; the keywords as ``setup_triangles`` takes them."""
         import pyopencl as cl
         f32 = np.float32
         mf = cl.mem_flags
@@ -154,7 +174,8 @@ class DeviceSetup:
         dummy = buf(16)
         inputs = [upload(np.asarray(flat, np.uint32)) if flat is not None else dummy,
                   upload(np.asarray(scissor, np.int32)) if scissor is not None else dummy]
-        head = [np.int32(nverts), np.int32(W), np.int32(H), f32(vw * 0.5), f32(vh * 0.5),
+        stride = int(nverts) if stride is None else int(stride)
+        head = [np.int32(stride), np.int32(W), np.int32(H), f32(vw * 0.5), f32(vh * 0.5),
                 f32(vx + vw * 0.5), f32(vy + vh * 0.5), f32(pixel_center)]
         cl_context.set_args(kern, np.int32(ntris), *head, clip_buf,
                             vary_buf if vary_buf is not None else dummy, *inputs,
@@ -182,7 +203,8 @@ class DeviceSetup:
         if with_zq:
             fields["zq"] = zq_buf
         return _Job(events, [block.buf, status_buf, dummy], fields, n, status, out, layout,
-                    params, clip_kern, head, clip_buf, vary_buf, inputs, int(slots))
+                    params, clip_kern, head, clip_buf, vary_buf, inputs, int(slots),
+                    count=int(nverts))
 
     def _host_block(self, rows: int, layout: dict):
         """One pool buffer for ``rows`` rows of each of ``HOST_FIELDS`` (16-byte rows), then
@@ -218,7 +240,7 @@ class DeviceSetup:
         parent = kept.astype(np.int64)
         index = kept.astype(np.int32)
         bufs = job.bufs             # the rows of clipped triangles' fans are added to these
-        T, nverts = len(status), job.nverts
+        T, nverts = len(status), job.stride       # the raster reads slots this far apart
         vary_v = DeviceVaryings(self.queue, job.vary_buf, job.slots, nverts) if job.slots \
             else None
         if len(hard):
@@ -295,22 +317,28 @@ class DeviceSetup:
         mf = cl.mem_flags
         S, T, nverts, inputs, vary_buf = job.slots, len(job.status), job.nverts, job.inputs, \
             job.vary_buf
+        stride = job.stride
         nh = len(hard)
-        nv_out = nverts + _MAXV * nh
         bufs = job.bufs
         self._grow(job, bufs, T + _FANS * nh)
-        vary_out = self.pool.buffer(S * nv_out * 16)
-        for k in range(S):     # the input vertices; pg_clip_setup appends the clipper's
-            cl.enqueue_copy(self.queue, vary_out, vary_buf, byte_count=nverts * 16,
-                            src_offset=k * nverts * 16, dst_offset=k * nv_out * 16)
+        if S and nverts + _MAXV * nh <= stride:
+            # the vertex kernels left room after each slot's vertices: appended in place
+            vary_out, nv_out = vary_buf, stride
+            self.appended_in_place += 1
+        else:
+            nv_out = nverts + _MAXV * nh
+            vary_out = self.pool.buffer(S * nv_out * 16)
+            for k in range(S):     # the input vertices; pg_clip_setup appends the clipper's
+                cl.enqueue_copy(self.queue, vary_out, vary_buf, byte_count=nverts * 16,
+                                src_offset=k * stride * 16, dst_offset=k * nv_out * 16)
         fan_buf = self.pool.buffer(_FANS * nh)
         hard_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=hard.astype(np.int32))
         dummy = inputs[0] if S == 0 else vary_buf
         cl_context.set_args(
             job.clip_kernel, np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out),
-            *job.head[1:], hard_buf, job.clip_buf, dummy, *inputs, fan_buf, vary_out,
-            bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"], bufs["flat"],
+            np.int32(stride), *job.head[1:], hard_buf, job.clip_buf, dummy, *inputs, fan_buf,
+            vary_out, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"], bufs["flat"],
             bufs["vtx"], bufs["scissor"], bufs["bbox"], bufs.get("zq", inputs[0]))
         cl.enqueue_nd_range_kernel(self.queue, job.clip_kernel, (((nh + 63) // 64) * 64,),
                                    (64,))
@@ -334,8 +362,9 @@ class DeviceSetup:
         cl.enqueue_copy(self.queue, clip, job.clip_buf)
         vary = None
         if job.slots:
-            vary = np.empty((job.slots, job.nverts, 4), np.float32)
+            vary = np.empty((job.slots, job.stride, 4), np.float32)
             cl.enqueue_copy(self.queue, vary, job.vary_buf)
+            vary = np.ascontiguousarray(vary[:, :job.nverts])
         return clip, vary
 
     def _clipped(self, job: _Job):
