@@ -203,11 +203,12 @@ class F64Bound:
         return total, parts
 
     def _depth_planes(self, scene, f64: dict) -> dict:
-        """Per depth target: the float32 plane error of the triangle that drew each pixel (``depth_planes.plane_error``), from the float64 evaluation's set-up of
-        ``scene`` (rendered again when its last frame was of another scene)."""
+        """Per depth target: the float32 plane error of the triangle that drew each pixel
+        (``depth_planes.plane_error``), from the float64 evaluation's set-up of ``scene``
+        (rendered again when its last frame was of another scene)."""
         from pipegen.proof.depth_planes import plane_error
         pipe = self.f64
-        if getattr(pipe, "_given", None) is not scene:
+        if pipe.last_scene is not scene:
             pipe.render(scene)
         out = {}
         for name in {target for target, _, _ in pipe.depth_draws}:

@@ -459,6 +459,11 @@ class CLPipeline:
                              "blend_counts": self.store.read_blend_counts()})
 
     @property
+    def last_scene(self):
+        """The scene the last frame rendered (as given to ``render``), or None."""
+        return self._given
+
+    @property
     def last_timings(self) -> list[dict]:
         """The last frame's per-pass times (the module docstring), the raster kernels'
         read from their events on first use."""
