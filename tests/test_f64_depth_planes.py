@@ -68,7 +68,7 @@ def _two_triangles():
     return setup_triangles(clip, 64, 32, with_zp=True, with_zq=True)
 
 
-def test_a_pixel_takes_the_plane_error_of_the_triangle_that_drew_it():
+def test_a_pixel_takes_the_plane_error_of_the_triangle_that_drew_it(monkeypatch):
     from pipegen.proof.depth_planes import _covered, plane_error, triangle_errors
     tris = _two_triangles()
     assert tris.count == 2
@@ -86,6 +86,10 @@ def test_a_pixel_takes_the_plane_error_of_the_triangle_that_drew_it():
     np.testing.assert_array_equal(term[only_thin], exact[0][1][only_thin])
     np.testing.assert_array_equal(term[both], exact[1][1][both])   # not the hidden one's
     assert not term[~(cover[0] | cover[1])].any()
+    # walked a few pixels at a time (as a large scene's boxes are), the same term
+    import pipegen.proof.depth_planes as planes
+    monkeypatch.setattr(planes, "CHUNK", 7)
+    np.testing.assert_array_equal(planes.plane_error([(tris, 0.5)], depth), term)
     # the thin triangle's float32 plane is off its exact plane by more than the 2 codes the
     # store term allows somewhere, the small one's nowhere near that
     d24 = 2 ** 24 - 1

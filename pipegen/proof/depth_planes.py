@@ -98,7 +98,7 @@ def plane_error(draws: list, values: np.ndarray) -> np.ndarray:
             idx = np.arange(first, last)
             n = area[idx]
             tri = np.repeat(idx, n)
-            off = np.arange(int(n.sum())) - np.repeat(ends[idx] - n - base, n) - base
+            off = np.arange(int(n.sum())) - np.repeat(ends[idx] - n - base, n)
             xs = x0[tri] + off % np.maximum(bw[tri], 1)
             ys = y0[tri] + off // np.maximum(bw[tri], 1)
             keep = _covered(tris, tri, xs, ys)
