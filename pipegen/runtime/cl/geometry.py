@@ -739,7 +739,8 @@ class DrawGeometry:
         # on the device, each varying slot leaves room for the clipper's vertices after the
         # draw's own, as many as this draw's last frame made (the clipper appends them in
         # place instead of copying every slot: inferred's scene pass, 42,834 vertices a
-        # slot, ~1 ms of device time at 160x90); a frame that needs more copies as before
+        # slot, 1.3 ms of device time in a profiled frame at 160x90); a frame that needs more
+        # copies as before
         v.vstride = nverts + (cl_setup_device.clip_room(self.clip_seen.get(key, 0))
                               if on_device and v.names else 0)
         v.clip = v.clip64 = v.vary = None
@@ -831,6 +832,8 @@ class DrawGeometry:
         dev = None
         if v.job is not None:
             tris, dev, index = self.device_setup.finish(v.job)
+            if len(self.clip_seen) > 4096:      # draws of scenes long gone (sweeps)
+                self.clip_seen.clear()
             self.clip_seen[key] = len(v.job.clipping["hard"])
         else:
             tris = setup_triangles(v.clip, width, height, cull=v.cull, polygon_offset=_offset(p),
