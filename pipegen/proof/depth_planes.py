@@ -22,16 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from pipegen.backends.opencl.abi import SUBPIXEL
+from pipegen.runtime.cl.setup import fma32     # correctly rounded, as the kernels' fma
 
 F32 = np.float32
-
-
-def _fma32(a, b, c) -> np.ndarray:
-    """float32 ``fma(a, b, c)``: the product of two float32 values is exact in float64; the
-    sum is rounded once there and once to float32 (a double rounding, within the 2 codes the
-    store term allows)."""
-    return (np.float64(1.0) * np.asarray(a, F32) * np.asarray(b, F32)
-            + np.asarray(c, F32)).astype(F32)
 
 
 def triangle_errors(tris, index, xs: np.ndarray, ys: np.ndarray, centre: float = 0.5) -> tuple:
@@ -43,7 +36,7 @@ def triangle_errors(tris, index, xs: np.ndarray, ys: np.ndarray, centre: float =
     pixel)."""
     z = np.asarray(tris.z, F32)[index]
     a0, dadx, dady, offset = (z[..., c] for c in range(4))
-    z32 = _fma32(dady, ys.astype(F32), _fma32(dadx, xs.astype(F32), a0))
+    z32 = fma32(dady, ys.astype(F32), fma32(dadx, xs.astype(F32), a0))
     z32 = np.where(offset != 0, (z32 + offset).astype(F32), z32)
     zp, zq = np.asarray(tris.zp)[index], np.asarray(tris.zq)[index]
     exact = zp[..., 2] + zp[..., 3] * (xs + centre - zp[..., 0]) \
