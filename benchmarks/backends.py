@@ -1,7 +1,7 @@
 """GL (llvmpipe) vs CL (PoCL) frame time per technique, measured in one run.
 
     python benchmarks/backends.py [--scene examples/scenes/many_lights.toml] [--size 640x360]
-        [--frames 3] [--threads 2] [--general] [--profile] [--png FILE]
+        [--frames 3] [--block 1] [--threads 2] [--general] [--profile] [--png FILE]
         [technique[:param=value,...] ...]
 
 By default each technique is compiled for the scene (the variant `pipegen run` renders);
@@ -14,7 +14,14 @@ ratio compares like with like.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`
 ``--threads`` before either runtime loads.  The frames are interleaved, GL CL CL GL GL CL ...
 (``common.interleaved``: drift in a shared machine's load hits both alike, and neither always
 runs first), after one warm-up render of each (which compiles shaders and kernels); each
-figure is the median of ``--frames`` renders.
+figure is the median of ``--frames`` renders.  ``--block N`` times each backend in turns of N renders back to back
+instead (ABBA, each turn after one untimed render: ``common.in_blocks``), the steady state
+of one backend rendering frame after frame.  The two differ at small sizes: a CL frame right
+after a GL frame is slower than one after a CL frame (light_prepass at 160x90 10.5 against
+8.6 ms, the host thread's CPU time 4.9 against 3.8 ms and PoCL's threads' 11.0 against
+10.3, llvmpipe's threads idle meanwhile, so no contention; a CL frame after 20 ms of sleep
+is slower still: cold caches, most likely), while a GL frame after a CL one loses 0.1-0.6 ms;
+frame by frame, half the CL frames pay it.
 
 ``--profile`` adds, per technique and backend, where the frame goes, pass by pass (summed
 over the lights of a repeat group, medians over ``--frames`` frames), largest first:
@@ -98,8 +105,8 @@ import statistics
 import sys
 from pathlib import Path
 
-from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, interleaved, median_time,
-                    pass_profile, scene_at, set_threads)
+from common import (DEFAULT_SCENE, TECHNIQUES, compile_spec, in_blocks, interleaved,
+                    median_time, pass_profile, scene_at, set_threads)
 
 
 def drained_profile(pipe, frame, frames: int = 3) -> dict:
@@ -199,6 +206,9 @@ def main() -> int:
     ap.add_argument("--general", action="store_true",
                     help="time the general build (default: the variant compiled for the scene, "
                          "what pipegen run renders)")
+    ap.add_argument("--block", type=int, default=1,
+                    help="time each backend in turns of this many frames back to back (after "
+                         "an untimed one), not frame by frame")
     ap.add_argument("techniques", nargs="*", default=TECHNIQUES)
     args = ap.parse_args()
     set_threads(args.threads)
@@ -216,8 +226,9 @@ def main() -> int:
         name = spec
         gl, cl = compiled.pipeline("gl"), compiled.pipeline("cl")
         print(f"[{i}/{len(args.techniques)}] {name}", file=sys.stderr)
-        times = interleaved({"gl": lambda: gl.render(scene), "cl": lambda: cl.render(scene)},
-                            args.frames)
+        fns = {"gl": lambda: gl.render(scene), "cl": lambda: cl.render(scene)}
+        times = interleaved(fns, args.frames) if args.block <= 1 else \
+            in_blocks(fns, args.frames, args.block)
         gl_s, cl_s = statistics.median(times["gl"]), statistics.median(times["cl"])
         if args.profile:
             from cl_profile import format_profile, profile
@@ -231,7 +242,8 @@ def main() -> int:
         rows.append((name, gl_s, cl_s))
     width = max(20, *(len(r[0]) for r in rows))
     print(f"{'general build' if args.general else 'variant compiled for the scene'}, "
-          f"{w}x{h}, median of {args.frames} frames")
+          f"{w}x{h}, median of {args.frames} frames"
+          + (f" (in turns of {args.block})" if args.block > 1 else " (interleaved)"))
     print(f"{'technique':<{width}} {'GL ms':>8} {'CL ms':>8} {'CL/GL':>7}")
     for name, g, c in rows:
         print(f"{name:<{width}} {g * 1e3:>8.1f} {c * 1e3:>8.1f} {c / g:>6.2f}x")

@@ -41,3 +41,17 @@ def test_pass_profile_sums_runs_and_takes_medians():
     assert len(before) == 3 and prof["wall"] >= 0.0
     assert prof["passes"] == [{"pass": "p", "runs": 2, "n": 10, "t": 6.0},
                               {"pass": "q", "runs": 1, "n": 0, "t": 3.0}]
+
+
+def test_in_blocks_order_settle_calls_and_counts():
+    calls = []
+    fns = {"a": lambda: calls.append("a"), "b": lambda: calls.append("b")}
+    out = _common().in_blocks(fns, 5, 2)
+    # warm-up; then turns (ABBA) each opening with an untimed call, two timed calls a turn,
+    # the last turn cut to what is left
+    assert calls == ["a", "b",
+                     "a", "a", "a", "b", "b", "b",
+                     "b", "b", "b", "a", "a", "a",
+                     "a", "a", "b", "b"]
+    assert [len(out["a"]), len(out["b"])] == [5, 5]
+    assert all(t >= 0.0 for v in out.values() for t in v)
