@@ -62,6 +62,20 @@ A row drawn once for a run of lights (cl_pass.cl.j2's pg_once, with the wide fra
 
 Within 2x of the paper: all nine at 256x192; at 512x384 the three at 1 light per pixel and
 max-stencil at 2 and 4.
+
+Two runs at 266af7f (PoCL's workers under SCHED_BATCH since 9a0f69f, ``--frames 3
+--skip-msaa``, load 1.0-1.5), CL multi-pass forward / LIDR:
+
+    lights/px  paper   --scale 0.25 (256x192)   --scale 0.5 (512x384)
+    1          6.8x    4.5-5.2x                 8.8-13.2x
+    2          5.2x    4.1-5.5x                 7.4-10.8x
+    4          3.1x    2.4-3.3x                 5.5-7.7x
+    forward_multipass CL 83 ms at 256x192, 277-293 ms at 512x384
+
+Within 2x of the paper at 512x384: six of the nine in both runs (all three at 1 light per
+pixel, LIDR sort and max-stencil at 2, max-stencil at 4), bit planes at 2 in one (10.2x
+against the 10.4x allowed, 10.8x in the other); LIDR sort and bit planes at 4 are 7.0-7.7x
+against 6.2x.  At 256x192 all nine.
 """
 
 from __future__ import annotations
