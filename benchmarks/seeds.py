@@ -63,8 +63,8 @@ A row drawn once for a run of lights (cl_pass.cl.j2's pg_once, with the wide fra
 Within 2x of the paper: all nine at 256x192; at 512x384 the three at 1 light per pixel and
 max-stencil at 2 and 4.
 
-Two runs at 512x384 and one at 256x192 at 266af7f (PoCL's workers under SCHED_BATCH since 9a0f69f, ``--frames 3
---skip-msaa``, load 1.0-1.5), CL multi-pass forward / LIDR:
+Two runs at 512x384 and one at 256x192 at 266af7f (PoCL's workers under SCHED_BATCH since
+9a0f69f, ``--frames 3 --skip-msaa``, load 1.0-1.5), CL multi-pass forward / LIDR:
 
     lights/px  paper   --scale 0.25 (256x192)   --scale 0.5 (512x384)
     1          6.8x    4.5-5.2x                 8.8-13.2x
