@@ -113,8 +113,9 @@ def batch_schedule(threads: set[int]) -> list[int]:
     when its kernel had finished).  A ``SCHED_BATCH`` thread keeps its fair share of the CPU
     (same weight as ``SCHED_OTHER``, also against other processes) but does not preempt the
     running thread when woken, so the host thread keeps its core until it blocks.
-    ``benchmarks/cl_workers_ab.py``: CL frames 11-13 % shorter at 160x90, 8-14 % at 320x180,
-    2-5 % at 640x360.  Any user may switch its own threads to this policy.
+    ``benchmarks/cl_workers_ab.py``, CL frames back to back: 0.86-0.92x at 160x90 (forward,
+    whose frame is mostly one raster kernel, 1.00x), 0.86-0.92x at 320x180, 0.96-0.98x at
+    640x360.  Any user may switch its own threads to this policy.
     ``$PIPEGEN_CL_BATCH_WORKERS=0`` leaves them as they are."""
     if os.environ.get("PIPEGEN_CL_BATCH_WORKERS", "1") == "0" or \
             not hasattr(os, "SCHED_BATCH"):
