@@ -74,11 +74,15 @@ class LightSelection:
 
     def _cached(self, draw: ir.Draw) -> tuple[tuple[int, ...], frozenset]:
         # once per draw and scene (the list and its set): a repeat group asks for every
-        # light (it was O(lights^2))
-        cached = self._of.get(draw)
-        if cached is None:
-            idx = tuple(self._select(draw))
-            cached = self._of[draw] = (idx, frozenset(idx))
+        # light (it was O(lights^2)).  Keyed by the draw's identity, the draw kept beside
+        # its entry: hashing the draw record (its fields, enums hashed in Python) at each of
+        # deferred's 164 light executions a frame cost more than the lookup saved
+        hit = self._of.get(id(draw))
+        if hit is not None and hit[0] is draw:
+            return hit[1]
+        idx = tuple(self._select(draw))
+        cached = (idx, frozenset(idx))
+        self._of[id(draw)] = (draw, cached)
         return cached
 
     def _select(self, draw: ir.Draw) -> list[int]:
