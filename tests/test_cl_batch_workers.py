@@ -48,7 +48,9 @@ def test_the_device_workers_and_only_they_are_batch_scheduled():
     out = _open()
     if not out["cpu"]:
         pytest.skip("not a CPU OpenCL device")
-    # PoCL's pthread device starts one worker per allowed core when it is opened
+    if not out["new"]:
+        pytest.skip("this CPU device started no thread while it was opened: nothing to move")
+    # PoCL 3.0's pthread device starts one worker per allowed core when it is opened
     assert len(out["moved"]) >= 1
     assert set(out["moved"]) <= set(out["new"])
     assert all(out["policy"][t] == os.SCHED_BATCH for t in out["moved"])
