@@ -116,8 +116,8 @@ def batch_schedule(threads: set[int]) -> list[int]:
     ``benchmarks/cl_workers_ab.py``, CL frames back to back: 0.86-0.92x at 160x90 (forward,
     whose frame is mostly one raster kernel, 1.00x), 0.86-0.92x at 320x180, 0.96-0.98x at
     640x360.  Any user may switch its own threads to this policy.
-    ``$PIPEGEN_CL_BATCH_WORKERS=0`` leaves them as they are; so is a device that starts its
-    workers only later (none appear while it is opened; PoCL 3.0 starts them then)."""
+    ``$PIPEGEN_CL_BATCH_WORKERS=0`` leaves them as they are.  A device that starts its workers
+    only later (none appear while it is opened; PoCL 3.0 starts them then) is left as it is."""
     if os.environ.get("PIPEGEN_CL_BATCH_WORKERS", "1") == "0" or \
             not hasattr(os, "SCHED_BATCH"):
         return []
