@@ -14,14 +14,14 @@ ratio compares like with like.  ``LP_NUM_THREADS`` and ``POCL_MAX_PTHREAD_COUNT`
 ``--threads`` before either runtime loads.  The frames are interleaved, GL CL CL GL GL CL ...
 (``common.interleaved``: drift in a shared machine's load hits both alike, and neither always
 runs first), after one warm-up render of each (which compiles shaders and kernels); each
-figure is the median of ``--frames`` renders.  ``--block N`` times each backend in turns of N renders back to back
-instead (ABBA, each turn after one untimed render: ``common.in_blocks``), the steady state
-of one backend rendering frame after frame.  The two differ at small sizes: a CL frame right
-after a GL frame is slower than one after a CL frame (light_prepass at 160x90 10.5 against
-8.6 ms, the host thread's CPU time 4.9 against 3.8 ms and PoCL's threads' 11.0 against
-10.3, llvmpipe's threads idle meanwhile, so no contention; a CL frame after 20 ms of sleep
-is slower still: cold caches, most likely), while a GL frame after a CL one loses 0.1-0.6 ms;
-frame by frame, half the CL frames pay it.
+figure is the median of ``--frames`` renders.  ``--block N`` times each backend in turns of N
+renders back to back instead (ABBA, each turn after one untimed render: ``common.in_blocks``),
+the steady state of one backend rendering frame after frame.  The two differ at small sizes: a
+CL frame right after a GL frame is slower than one after a CL frame (light_prepass at 160x90
+10.5 against 8.6 ms, the host thread's CPU time 4.9 against 3.8 ms and PoCL's threads' 11.0
+against 10.3, llvmpipe's threads idle meanwhile, so no contention; a CL frame after 20 ms of
+sleep is slower still: cold caches, most likely), while a GL frame after a CL one loses 0.1-0.6
+ms; frame by frame, half the CL frames pay it.
 
 ``--profile`` adds, per technique and backend, where the frame goes, pass by pass (summed
 over the lights of a repeat group, medians over ``--frames`` frames), largest first:

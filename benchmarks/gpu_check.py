@@ -18,22 +18,22 @@ rasteriser, and says so on its first line.
 Measured on a lent NVIDIA H200 (2026-12-04; driver 580.159.04; CL on its 16 CPU cores, PoCL
 5.0 as the machine had it), ``--size 640x360 --frames 5``, stopped after 40 of the 45 rows
 (the other five in a second run, ``benchmarks/gpu/run_rest.sh``: inferred and deferred_calver,
-none agrees either; docs/tolerances.md has all 45): no row agrees.  ``ds`` fails on all 40 (434, 173 and 60 d24 codes at worst on many_lights,
-mixed_lights and street_lamps, 2,741 to 83,738 pixels over the limit of 2), the window-depth
-copies with it (``zcopy``/``gdepth``, 27 rows), G-buffer varyings on deferred, light_prepass
-and inferred (``gpos`` ~1e-4 relative at the 99th percentile), ``color`` on 7 (3-25 codes,
-5-12 pixels on thin silhouettes); the output is within 1 code on the other 33.  GL ms / CL ms
-at 640x360 from 2.4 / 4.5 (forward, mixed_lights) to 31.1 / 42.0 (forward_multipass,
-many_lights).  ``python benchmarks/backends.py --size 1280x720 --frames 5 --threads 16`` there,
-GL ms / CL ms (CL/GL): forward 17.1 / 87.1 (5.10), forward_multipass 88.0 / 155.2 (1.76),
-deferred 51.5 / 48.4 (0.94), lidr_cpu_sort 16.4 / 24.4 (1.48), lidr_max_stencil 13.7 / 25.1
-(1.83), lidr_bitplanes 14.4 / 21.9 (1.53), lidr_transparent 29.5 / 48.3 (1.64),
-lidr_msaa_texture 32.2 / 83.5 (2.60), lidr_nearest_edge 26.6 / 45.3 (1.70),
+none agrees either; docs/tolerances.md has all 45): no row agrees.  ``ds`` fails on all 40 (434,
+173 and 60 d24 codes at worst on many_lights, mixed_lights and street_lamps, 2,741 to 83,738
+pixels over the limit of 2), the window-depth copies with it (``zcopy``/``gdepth``, 27 rows),
+G-buffer varyings on deferred, light_prepass and inferred (``gpos`` ~1e-4 relative at the 99th
+percentile), ``color`` on 7 (3-25 codes, 5-12 pixels on thin silhouettes); the output is within
+1 code on the other 33.  GL ms / CL ms at 640x360 from 2.4 / 4.5 (forward, mixed_lights) to 31.1
+/ 42.0 (forward_multipass, many_lights).  ``python benchmarks/backends.py --size 1280x720
+--frames 5 --threads 16`` there, GL ms / CL ms (CL/GL): forward 17.1 / 87.1 (5.10),
+forward_multipass 88.0 / 155.2 (1.76), deferred 51.5 / 48.4 (0.94), lidr_cpu_sort 16.4 / 24.4
+(1.48), lidr_max_stencil 13.7 / 25.1 (1.83), lidr_bitplanes 14.4 / 21.9 (1.53), lidr_transparent
+29.5 / 48.3 (1.64), lidr_msaa_texture 32.2 / 83.5 (2.60), lidr_nearest_edge 26.6 / 45.3 (1.70),
 lidr_shadow_volumes 17.6 / 24.2 (1.38), lidr_shadow_prepass 21.0 / 29.7 (1.41),
-lidr_shadow_indexed 14.3 / 21.4 (1.49), light_prepass 20.0 / 23.7 (1.18), inferred 18.8 /
-18.7 (0.99), deferred_calver 30.7 / 43.0 (1.40).  Why the GPU falls outside ``check``'s
-limits, and what the float64 comparison said there: docs/tolerances.md, "On a GPU"; how it
-was run there (wheels and loaders carried to a machine without network): benchmarks/gpu/.
+lidr_shadow_indexed 14.3 / 21.4 (1.49), light_prepass 20.0 / 23.7 (1.18), inferred 18.8 / 18.7
+(0.99), deferred_calver 30.7 / 43.0 (1.40).  Why the GPU falls outside ``check``'s limits, and
+what the float64 comparison said there: docs/tolerances.md, "On a GPU"; how it was run there
+(wheels and loaders carried to a machine without network): benchmarks/gpu/.
 """
 
 from __future__ import annotations

@@ -408,14 +408,14 @@ class CLPipeline:
             self._prefetch(k, light)
         self.geometry.clip_pending()
         if self.profile is None and not capture_passes:
-            # each pass execution's host work (set-up read-backs, bins) made when its turn
-            # comes, right after the device work of the one before is queued: the device
-            # rasterises pass k while the host prepares k + 1.  (Every pass's host work
-            # came first from d4cd3c8, when binning was numpy work that a raster kernel's
-            # threads slowed 4-5x; with the bins made on the device since, preparing first
-            # leaves the device idle meanwhile: light_prepass at 320x180, ~3 of 12.6 ms.  ``$PIPEGEN_CL_HOST_FIRST=1`` restores that order, for comparison:
-            # benchmarks/backends.py's docstring has the figures.)  A fusable repeat group's
-            # pass executions are one launch (``group_launch``).
+            # each pass execution's host work (set-up read-backs, bins) made when its turn comes,
+            # right after the device work of the one before is queued: the device rasterises pass
+            # k while the host prepares k + 1.  (Every pass's host work came first from d4cd3c8,
+            # when binning was numpy work that a raster kernel's threads slowed 4-5x; with the
+            # bins made on the device since, preparing first leaves the device idle meanwhile:
+            # light_prepass at 320x180, ~3 of 12.6 ms.  ``$PIPEGEN_CL_HOST_FIRST=1`` restores that
+            # order, for comparison: benchmarks/backends.py's docstring has the figures.)  A
+            # fusable repeat group's pass executions are one launch (``group_launch``).
             prep = self.groups.prepare if self._host_first else self.groups.prepared
             for run in prep(self._batched(runs), self._prepare_pass):
                 if isinstance(run, PassRun):

@@ -338,8 +338,8 @@ class DeviceSetup:
         cl_context.set_args(
             job.clip_kernel, np.int32(nh), np.int32(T), np.int32(nverts), np.int32(nv_out),
             np.int32(stride), *job.head[1:], hard_buf, job.clip_buf, dummy, *inputs, fan_buf,
-            vary_out, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"], bufs["flat"],
-            bufs["vtx"], bufs["scissor"], bufs["bbox"], bufs.get("zq", inputs[0]))
+            vary_out, bufs["a"], bufs["b"], bufs["c"], bufs["z"], bufs["w"], bufs["coef"],
+            bufs["flat"], bufs["vtx"], bufs["scissor"], bufs["bbox"], bufs.get("zq", inputs[0]))
         cl.enqueue_nd_range_kernel(self.queue, job.clip_kernel, (((nh + 63) // 64) * 64,),
                                    (64,))
         fan = np.empty(_FANS * nh, np.uint8)
