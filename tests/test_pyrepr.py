@@ -1,6 +1,7 @@
-"""templating.pyrepr builds the one-line form piece by piece and gives it up as soon as it is
-too long (compile-time, issue 8); the text it writes is the same as when it repr'd every
-container whole, kept below as the reference, on random plain data and on real plans."""
+"""templating.pyrepr builds each container's one-line form once, piece by piece, and gives it up
+as soon as it is too long (compile time, issues 8 and 26); the text it writes is the same as
+when it repr'd every container whole, kept below as the reference, on random plain data and on
+real plans."""
 
 from __future__ import annotations
 

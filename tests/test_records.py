@@ -7,6 +7,7 @@ from typing import Optional
 
 import pytest
 
+from pipegen.core import records
 from pipegen.core.records import record
 
 
@@ -67,6 +68,23 @@ def test_repr_is_dataclass_repr():
 def test_dataclass_tools_still_work():
     assert replace(Frozen(1, (2,)), a=5) == Frozen(5, (2,))
     assert Frozen.__doc__ == "Frozen(a, b, span)"
+
+
+def test_records_replace_is_dataclasses_replace():
+    old = Frozen(1, (2,), "here")
+    object.__setattr__(old, "_memo", "worked out for old")     # not a field: not copied
+    new = records.replace(old, span="there")
+    assert type(new) is Frozen and new is not old
+    assert (new.a, new.b, new.span) == (1, (2,), "there") and not hasattr(new, "_memo")
+    assert vars(new) == vars(replace(Frozen(1, (2,), "here"), span="there"))
+    assert records.replace(old) == old and records.replace(Mutable(2), x=3) == Mutable(3)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'c'"):
+        records.replace(old, c=1)
+    with pytest.raises(Exception):                            # still frozen
+        new.a = 2
+    # __post_init__ runs as for dataclasses.replace, and plain dataclasses go through it
+    assert records.replace(WithFactory([5]), label="z").items == [5, 1, 2]
+    assert records.replace(FrozenDC(1), a=2) == FrozenDC(2)
 
 
 @record

@@ -76,56 +76,85 @@ def _multiline_ok(s: str) -> bool:
 def pyrepr(obj, indent: int = 0, width: int = 100) -> str:
     """A readable Python literal for plain data (dicts, lists, tuples, str, numbers, bool, None):
     short containers on one line, long ones one item per line, multi-line strings (shader
-    source) as triple-quoted blocks.  ``ast.literal_eval(pyrepr(x)) == x``."""
-    pad, inner = " " * indent, " " * (indent + 4)
+    source) as triple-quoted blocks.  ``ast.literal_eval(pyrepr(x)) == x``.
+
+    A container goes on one line when its ``repr`` fits in what is left of ``width`` after
+    its indent and holds no string written as a block.  Each container's one-line text is
+    worked out once (``_OneLine``), however deep it sits: the plan a pipeline module holds
+    has some 1,500 of them."""
+    return _layout(obj, indent, width, _OneLine(width))
+
+
+def _layout(obj, indent: int, width: int, one_line: "_OneLine") -> str:
     if isinstance(obj, str):
         return '"""\\\n' + obj + '"""' if _multiline_ok(obj) else repr(obj)
     if isinstance(obj, (dict, list, tuple)):
-        flat = _flat(obj, width - indent)
-        if flat is not None:
+        flat = one_line(obj)
+        if flat is not None and len(flat) <= width - indent:
             return flat
+        pad, inner = " " * indent, " " * (indent + 4)
         if isinstance(obj, dict):
-            items = [f"{inner}{k!r}: {pyrepr(v, indent + 4, width)}," for k, v in obj.items()]
+            items = [f"{inner}{k!r}: {_layout(v, indent + 4, width, one_line)},"
+                     for k, v in obj.items()]
             return "{\n" + "\n".join(items) + f"\n{pad}}}"
         open_, close = ("[", "]") if isinstance(obj, list) else ("(", ")")
-        items = [f"{inner}{pyrepr(v, indent + 4, width)}," for v in obj]
+        items = [f"{inner}{_layout(v, indent + 4, width, one_line)}," for v in obj]
         return open_ + "\n" + "\n".join(items) + f"\n{pad}{close}"
     return repr(obj)
 
 
-def _flat(obj, room: int):
-    """``repr(obj)`` when it fits in ``room`` characters and holds no string that ``pyrepr``
-    writes as a block, else None.  Built piece by piece for plain dicts, lists and tuples, so
-    that a long container (the plan's shader sources) is given up as soon as it is too long
-    instead of being repr'd whole at every level of ``pyrepr``'s descent."""
-    kind = type(obj)
-    if kind is dict or kind is list or kind is tuple:
-        left = room - 1                       # the opening bracket
+class _OneLine:
+    """``repr(obj)`` as one line, or None where that is longer than ``width`` (no indent
+    leaves it room) or holds a string ``pyrepr`` writes as a block; kept per container (by
+    ``id``: the containers live as long as the ``pyrepr`` call).  Built piece by piece for
+    plain dicts, lists and tuples and given up as soon as it is too long, so that a long
+    container (the plan's shader sources) costs no more than its first ``width`` characters."""
+
+    def __init__(self, width: int):
+        self.width = width
+        self.known: dict[int, Optional[str]] = {}
+
+    def __call__(self, obj) -> Optional[str]:
+        kind = type(obj)
+        if kind is dict or kind is list or kind is tuple:
+            key = id(obj)
+            if key in self.known:
+                return self.known[key]
+            text = self.known[key] = self._container(obj, kind)
+            return text
+        if isinstance(obj, (dict, list, tuple)):        # a subclass: its own repr
+            if any(isinstance(v, str) and _multiline_ok(v) for v in _leaves(obj)):
+                return None
+            text = repr(obj)
+        elif isinstance(obj, str) and (len(obj) > self.width or _multiline_ok(obj)):
+            return None          # too long however written: no need to scan it (shader source)
+        else:
+            text = repr(obj)
+        return text if len(text) <= self.width else None
+
+    def _container(self, obj, kind) -> Optional[str]:
+        left = self.width - 2                 # the brackets
         parts = []
         for item in (obj.items() if kind is dict else obj):
-            prefix = repr(item[0]) + ": " if kind is dict else ""
-            left -= len(prefix) + (2 if parts else 0)        # the key, ", "
-            value = _flat(item[1] if kind is dict else item, left) if left >= 0 else None
-            if value is None:
+            if kind is dict:
+                value = self(item[1])
+                part = None if value is None else repr(item[0]) + ": " + value
+            else:
+                part = self(item)
+            if part is None:
                 return None
-            left -= len(value)
-            parts.append(prefix + value)
+            left -= len(part) + (2 if parts else 0)      # the item, ", "
+            if left < 0:
+                return None
+            parts.append(part)
         text = ", ".join(parts)
         if kind is dict:
-            text = "{" + text + "}"
-        elif kind is list:
-            text = "[" + text + "]"
-        else:
-            text = "(" + text + (",)" if len(parts) == 1 else ")")
-    elif isinstance(obj, (dict, list, tuple)):        # a subclass: its own repr
-        if any(isinstance(v, str) and _multiline_ok(v) for v in _leaves(obj)):
-            return None
-        text = repr(obj)
-    elif isinstance(obj, str) and (len(obj) > room or _multiline_ok(obj)):
-        return None          # too long however written: no need to scan it (shader source)
-    else:
-        text = repr(obj)
-    return text if len(text) <= room else None
+            return "{" + text + "}"
+        if kind is list:
+            return "[" + text + "]"
+        if len(parts) == 1:
+            return "(" + text + ",)" if left >= 1 else None
+        return "(" + text + ")"
 
 
 def _leaves(obj):

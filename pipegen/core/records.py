@@ -26,6 +26,7 @@ requires it.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import MISSING, FrozenInstanceError, dataclass, fields
 from operator import attrgetter
 
@@ -40,6 +41,7 @@ def record(cls=None, /, *, frozen: bool = False):
         c.__doc__ = doc or "-"
         c = dataclass(c, init=False, eq=False, repr=False)
         names = [f.name for f in fields(c)]
+        c._record_fields = tuple(names)
         _check_order(c)
         if not doc:
             c.__doc__ = f"{c.__name__}({', '.join(names)})"
@@ -67,6 +69,28 @@ def record(cls=None, /, *, frozen: bool = False):
 
 
 _METHODS = ("__init__", "__eq__", "__hash__", "__repr__")
+
+
+def replace(obj, /, **changes):
+    """``dataclasses.replace(obj, **changes)`` for records, a few times cheaper: the copy is
+    made without ``__init__`` (a record's only sets its fields, each to the value given) and
+    holds the fields alone, as ``replace`` would leave it.  A class with ``__post_init__``,
+    and anything not a record, goes through ``dataclasses.replace``.  (The lowerer gives some
+    550 expressions of a compile their span this way.)"""
+    cls = obj.__class__
+    names = cls.__dict__.get("_record_fields")
+    if names is None or hasattr(cls, "__post_init__"):
+        return dataclasses.replace(obj, **changes)
+    unknown = [k for k in changes if k not in names]
+    if unknown:
+        raise TypeError(f"{cls.__qualname__}.__init__() got an unexpected keyword argument "
+                        f"{unknown[0]!r}")
+    new = object.__new__(cls)
+    fresh, old = new.__dict__, obj.__dict__
+    for name in names:
+        fresh[name] = old[name]
+    fresh.update(changes)
+    return new
 
 
 def _eq(self, other):

@@ -13,6 +13,7 @@ import dataclasses
 import functools
 from typing import Callable, Iterable, Iterator, Optional
 
+from pipegen.core.records import replace
 from pipegen.ir import nodes as ir
 
 ExprFn = Callable[[ir.Expr], ir.Expr]
@@ -54,7 +55,7 @@ def rewrite_expr(e: Optional[ir.Expr], fn: ExprFn) -> Optional[ir.Expr]:
             if any(a is not b for a, b in zip(new_t, value)):
                 changes = changes or {}
                 changes[name] = new_t
-    return fn(dataclasses.replace(e, **changes) if changes else e)
+    return fn(replace(e, **changes) if changes else e)
 
 
 def rewrite_stmts(stmts: Iterable[ir.Stmt], expr_fn: ExprFn,
@@ -82,7 +83,7 @@ def _rewrite_stmt(s: ir.Stmt, expr_fn: ExprFn, stmt_fn: Optional[StmtFn]) -> ir.
                 and not all(isinstance(v, _EXPR_TYPES) for v in value) \
                 and all(isinstance(v, _STMT_TYPES) for v in value):
             changes[name] = rewrite_stmts(value, expr_fn, stmt_fn)
-    return dataclasses.replace(s, **changes) if changes else s
+    return replace(s, **changes) if changes else s
 
 
 _STMT_TYPES = (ir.Declare, ir.Assign, ir.Output, ir.If, ir.For, ir.Break, ir.Continue, ir.Return,

@@ -4,7 +4,6 @@ constructors) into IR expressions.  ``statements._BodyChecker`` adds the stateme
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Optional
 
 from pipegen.frontend import ast
@@ -13,6 +12,7 @@ from pipegen.ir.builtins import (
     BUILTINS, LIGHT_FIELDS, LIGHT_INDEX, STAGE_INPUTS, TARGET_FUNCTIONS, TYPE_NAMES, Where,
     binary_type, describe_overloads, resolve_builtin, target_read_type, unary_type)
 from pipegen.core.diagnostics import Span
+from pipegen.core.records import replace
 from pipegen.core.formats import FORMATS
 from pipegen.packing.base import SCHEMES
 from pipegen.frontend.lower.names import (
@@ -64,7 +64,7 @@ class ExprChecker:
             raise error(e.span, "this call returns no value", "use it as a statement")
         if type(result) in SPANNED and result.span is None:
             # where the user wrote it: a discontinuity (proof/discontinuity.py) is reported there
-            result = dataclasses.replace(result, span=e.span)
+            result = replace(result, span=e.span)
         return result
 
     def _condition(self, e: ast.Expr, what: str) -> ir.Expr:
