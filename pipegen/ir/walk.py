@@ -136,18 +136,29 @@ def _walk_expr(e: ir.Expr) -> Iterator[ir.Expr]:
         yield from _walk_expr(c)
 
 
-def child_exprs(node) -> Iterator[ir.Expr]:
+def child_exprs(node) -> tuple[ir.Expr, ...]:
     """The expressions ``node``'s own fields hold: an expression's operands, a statement's
     expressions (not those of its nested statements).  Read from the fields, so a walker
-    built on it sees a field added to the IR."""
+    built on it sees a field added to the IR.
+
+    Worked out once per node and kept in its ``__dict__`` (IR nodes are frozen records, so
+    what their fields hold never changes; ``records.replace`` copies fields only): the
+    verifier, the code facts, the hoisting pass, the light-row plans and the wide emitter's
+    cost model walk the same nodes, some 15,000 calls a compile."""
+    kept = node.__dict__.get("_child_exprs")
+    if kept is not None:
+        return kept
+    found = []
     for name in _field_names(type(node)):
         value = getattr(node, name)
         if isinstance(value, _EXPR_TYPES):
-            yield value
+            found.append(value)
         elif isinstance(value, tuple):
             for v in value:
                 if isinstance(v, _EXPR_TYPES):
-                    yield v
+                    found.append(v)
+    kept = node.__dict__["_child_exprs"] = tuple(found)
+    return kept
 
 
 def walk_stmts(stmts: Iterable[ir.Stmt]) -> Iterator[ir.Stmt]:
