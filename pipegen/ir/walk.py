@@ -136,10 +136,19 @@ def _walk_expr(e: ir.Expr) -> Iterator[ir.Expr]:
         yield from _walk_expr(c)
 
 
+@functools.cache
+def _expr_fields(cls: type) -> tuple[tuple[str, bool], ...]:
+    """``(name, is a tuple)`` of the fields of ``cls`` declared to hold expressions (their
+    annotation names ``Expr``: ``Expr``, ``Optional[Expr]``, ``tuple[Expr, ...]``), in order."""
+    return tuple((f.name, str(f.type).startswith("tuple")) for f in dataclasses.fields(cls)
+                 if "Expr" in str(f.type))
+
+
 def child_exprs(node) -> tuple[ir.Expr, ...]:
     """The expressions ``node``'s own fields hold: an expression's operands, a statement's
-    expressions (not those of its nested statements).  Read from the fields, so a walker
-    built on it sees a field added to the IR.
+    expressions (not those of its nested statements).  Read from the fields declared to hold
+    expressions, so a walker built on it sees a field added to the IR
+    (tests/test_walk_children.py checks them against every field's values).
 
     Worked out once per node and kept in its ``__dict__`` (IR nodes are frozen records, so
     what their fields hold never changes; ``records.replace`` copies fields only): the
@@ -149,14 +158,12 @@ def child_exprs(node) -> tuple[ir.Expr, ...]:
     if kept is not None:
         return kept
     found = []
-    for name in _field_names(type(node)):
+    for name, many in _expr_fields(type(node)):
         value = getattr(node, name)
-        if isinstance(value, _EXPR_TYPES):
+        if many:
+            found.extend(value)
+        elif value is not None:
             found.append(value)
-        elif isinstance(value, tuple):
-            for v in value:
-                if isinstance(v, _EXPR_TYPES):
-                    found.append(v)
     kept = node.__dict__["_child_exprs"] = tuple(found)
     return kept
 
