@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import re
 from typing import Callable, Iterable, Iterator, Optional
 
 from pipegen.core.records import replace
@@ -141,7 +142,10 @@ def _expr_fields(cls: type) -> tuple[tuple[str, bool], ...]:
     """``(name, is a tuple)`` of the fields of ``cls`` declared to hold expressions (their
     annotation names ``Expr``: ``Expr``, ``Optional[Expr]``, ``tuple[Expr, ...]``), in order."""
     return tuple((f.name, str(f.type).startswith("tuple")) for f in dataclasses.fields(cls)
-                 if "Expr" in str(f.type))
+                 if _NAMES_EXPR.search(str(f.type)))
+
+
+_NAMES_EXPR = re.compile(r"\bExpr\b")       # Expr itself, not ExprStmt
 
 
 def child_exprs(node) -> tuple[ir.Expr, ...]:
