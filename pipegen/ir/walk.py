@@ -39,23 +39,26 @@ def _children(node) -> Iterator[tuple[str, object]]:
 
 
 def rewrite_expr(e: Optional[ir.Expr], fn: ExprFn) -> Optional[ir.Expr]:
-    # the compiler's hottest loop (every pass rewrites every expression): fields read
-    # directly, no generator
+    # the compiler's hottest loop (every pass rewrites every expression): the fields declared
+    # to hold expressions (``_expr_fields``, as ``child_exprs`` reads them) read directly, no
+    # generator
     if e is None:
         return None
     changes = None
-    for name in _field_names(type(e)):
+    for name, many in _expr_fields(type(e)):
         value = getattr(e, name)
-        if isinstance(value, _EXPR_TYPES):
-            new = rewrite_expr(value, fn)
-            if new is not value:
-                changes = changes or {}
-                changes[name] = new
-        elif isinstance(value, tuple) and value and all(isinstance(v, _EXPR_TYPES) for v in value):
+        if value is None:
+            continue
+        if many:
             new_t = tuple([rewrite_expr(v, fn) for v in value])
             if any(a is not b for a, b in zip(new_t, value)):
                 changes = changes or {}
                 changes[name] = new_t
+        else:
+            new = rewrite_expr(value, fn)
+            if new is not value:
+                changes = changes or {}
+                changes[name] = new
     return fn(replace(e, **changes) if changes else e)
 
 
