@@ -152,7 +152,10 @@ the wall times more than the change did.  Tried and not kept, for no fewer instr
 collector's young generation at 20,000 allocations in the command's own process (62 of a
 compile's collections gone, no wall time saved in fresh processes), each frozen record's
 hash kept on it, each statement's parts and nested bodies kept on it for ``walk_exprs`` and
-``walk_stmts``, a stack instead of nested generators in ``_walk_expr``.
+``walk_stmts``, a stack instead of nested generators in ``_walk_expr``.  Then e7aa776:
+``rewrite_expr`` reads the declared expression fields too (``--against`` bbaaa86,
+``--instructions --repeat 3``): deferred_calver 1131.5 -> 1117.8 M, lidr_shadow_prepass
+1098.2 -> 1081.9 M, forward 781.4 -> 765.0 M.
 """
 
 from __future__ import annotations
