@@ -59,24 +59,13 @@ def interleaved(fns: dict, frames: int, alternate: bool = True, cpu=None,
 
 
 def in_blocks(fns: dict, frames: int, block: int) -> dict[str, list[float]]:
-    """Each of ``fns`` (name -> callable) called in turns of ``block`` timed calls, the turns
+    """Each of ``fns`` (name -> callable) called in turns of ``block`` (> 1) timed calls, the turns
     in the dict's order then reversed (ABBA), each turn after one untimed call (the first
     call after another callable's: its caches, its threads woken), until each has ``frames``
     timed calls; after one untimed call of each.  The steady state of back-to-back frames,
     where ``interleaved`` times every frame right after the other's.  Returns, per name, the
-    wall time (s) of each timed call."""
-    for fn in fns.values():
-        fn()
-    out: dict[str, list[float]] = {name: [] for name in fns}
-    order = list(fns.items())
-    turn = 0
-    while any(len(v) < frames for v in out.values()):
-        for name, fn in (order[::-1] if turn % 2 else order):
-            fn()
-            for _ in range(min(block, frames - len(out[name]))):
-                out[name].append(timed(fn))
-        turn += 1
-    return out
+    wall time (s) of each timed call (``pipegen.tools.timing.interleave`` with ``block``)."""
+    return {name: s.wall for name, s in interleave(fns, frames, block=block).items()}
 
 
 def pass_profile(frame, passes, frames: int, fields, counts=(), before=None) -> dict:

@@ -25,10 +25,17 @@ class Samples:
 
 def interleave(fns: Mapping[K, Callable[[], object]], frames: int, *, alternate: bool = True,
                cpu: Optional[Callable[[], float]] = None, warmup: bool = True,
-               after_call: Optional[Callable[[K], None]] = None) -> dict[K, Samples]:
+               after_call: Optional[Callable[[K], None]] = None,
+               block: int = 1) -> dict[K, Samples]:
     """Call each of ``fns`` (key -> callable) once a frame for ``frames`` frames: in the
     mapping's order, reversed on odd frames if ``alternate``; first one untimed call of each
     if ``warmup`` (shader and kernel compilation, buffer creation are not frame time).
+
+    ``block`` > 1: each callable's frames come in turns of ``block`` back to back (the turns
+    ordered as the frames above), each turn opening with one untimed call (the first call
+    after another callable's pays for its caches and its threads woken), the last turn cut to
+    what is left: the steady state of back-to-back frames, where ``block`` 1 times every
+    frame right after the others'.
 
     ``cpu``: a clock in seconds (``time.process_time``: all the process's threads) read around
     each call too, steadier than wall time where other work shares the CPUs.  ``after_call``:
@@ -39,15 +46,21 @@ def interleave(fns: Mapping[K, Callable[[], object]], frames: int, *, alternate:
             fn()
     out = {key: Samples() for key in fns}
     order = list(fns.items())
-    for frame in range(frames):
-        for key, fn in (order[::-1] if alternate and frame % 2 else order):
-            c0 = cpu() if cpu is not None else 0.0
-            t0 = time.perf_counter()
-            fn()
-            wall = time.perf_counter() - t0
-            if cpu is not None:
-                out[key].cpu.append(cpu() - c0)
-            out[key].wall.append(wall)
-            if after_call is not None:
-                after_call(key)
+    turn = 0
+    while any(len(s.wall) < frames for s in out.values()):
+        for key, fn in (order[::-1] if alternate and turn % 2 else order):
+            left = frames - len(out[key].wall)
+            if block > 1 and left > 0:
+                fn()                # the turn's untimed first call
+            for _ in range(min(block, left)):
+                c0 = cpu() if cpu is not None else 0.0
+                t0 = time.perf_counter()
+                fn()
+                wall = time.perf_counter() - t0
+                if cpu is not None:
+                    out[key].cpu.append(cpu() - c0)
+                out[key].wall.append(wall)
+                if after_call is not None:
+                    after_call(key)
+        turn += 1
     return out
