@@ -42,7 +42,9 @@ None when the code uses what this form does not support (the pass then keeps the
 
 Passes whose estimated work per pixel (``cost``) is below ``MIN_COST`` keep the scalar path
 too (the batching does not pay there), and the raster kernel shades a triangle's row batch of
-fewer than ``WMIN`` pixels with the scalar function.  A ``load``/``sample`` counts
+fewer than ``WMIN`` pixels with the scalar function (not in a run of lights drawn once for
+all of them, ``pg_once``: there every batch is wide, the lanes interpolated once for all the
+lights).  A ``load``/``sample`` counts
 ``GATHER_COST`` against the estimate (0 since the gathers are wide: see the constant), and a
 pass must do at least ``LANE_GATHER_WORK`` of work per table row it gathers lane by lane
 (counted by the emitter, loops times their bounds): deferred_calver's light passes (two
