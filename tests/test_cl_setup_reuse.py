@@ -229,3 +229,46 @@ def test_only_a_lone_repeat_pass_that_writes_no_depth_draws_lights_in_one_launch
     assert writes_depth != source
     plan = compile_source(writes_depth, str(ROOT / "pipelines" / "x.pipe")).plan("cl")
     assert not any(batches_lights(plan, p) for p in plan.passes)
+
+
+# blend states and formats multi-pass forward's own light pass does not use: the run of lights
+# blends each batch of pixels in registers, PG_W lanes at a time (cl_pass.cl.j2's
+# once_wide_lights), where a launch per light blends pixel by pixel (the scalar blend)
+BLEND_VARIANTS = {
+    "src_alpha over half, clamped": (
+        "blend accum rgb add(src_alpha, one_minus_src_alpha) alpha add(one, one_minus_src_alpha)",
+        "accum = vec4(c * 4.0e5, 0.4);", "rgba16f"),
+    "revsub with a constant, float, rgb only": (
+        "blend accum rgb revsub(dst_color, one_minus_constant_color) alpha max\n"
+        "  blend constant (0.25, 0.5, 0.75, 0.2)\n  mask accum rgb",
+        "accum = vec4(c - vec3(0.05), 0.3);", "rgba32f"),
+    "min and saturate": (
+        "blend accum rgb min alpha add(src_alpha_saturate, one_minus_dst_alpha)",
+        "accum = vec4(c, 0.7) * 3.0e5;", "rgba16f"),
+}
+
+
+@pytest.mark.parametrize("variant", BLEND_VARIANTS)
+def test_a_run_of_lights_blends_every_state_as_a_launch_per_light(variant):
+    from pipegen.compiler.driver import compile_source
+    blend, store, fmt = BLEND_VARIANTS[variant]
+    source = (ROOT / "pipelines" / "forward_multipass.pipe").read_text()
+    edited = (source.replace("blend accum rgb add(one, one) alpha add(zero, one)", blend)
+              .replace("accum = vec4(c, 0.0);", store)
+              .replace("target accum : rgba16f", f"target accum : {fmt}"))
+    assert edited.count(blend) == 1 and store in edited
+    compiled = compile_source(edited, str(ROOT / "pipelines" / "blend_variant.pipe"))
+    pipe = compiled.pipeline("cl", SIZE)
+    assert "once_wide" not in pipe.source(1) and "acc0[4]" in pipe.source(1)
+    scene = _scene("many_lights")
+    one = pipe.render(scene)
+    one_counts, one_clamps = pipe.last_blend_counts, pipe.last_clamps
+    assert len([t for t in pipe.last_timings if t["pass"] == "per_light"]) == 1
+    pipe.profile = []
+    each = pipe.render(scene)
+    assert len([t for t in pipe.last_timings if t["pass"] == "per_light"]) == len(scene.lights)
+    _assert_same(one, each)
+    _assert_same(one_counts, pipe.last_blend_counts)
+    assert one_clamps == pipe.last_clamps
+    # the clamp counts were compared where there were some (half beyond 65504)
+    assert any(c.pass_name == "per_light" for c in one_clamps) == (fmt == "rgba16f")

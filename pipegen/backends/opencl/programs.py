@@ -160,6 +160,10 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
     batch = batches_lights(plan, pass_, dynamic)
+    # a run of lights drawn once per row (pg_once) blends each batch of pixels in registers
+    # across the lights, PG_W lanes at a time: float targets, one sample, no discard
+    once_wide = batch and xbatch and samples == 1 and not code.discard and all(
+        w["cls"] in ("half", "float") for w in writes)
     # the discontinuity search's run-time nudges (proof/discontinuity.py): a buffer argument
     nudges = f64 and reads_nudges(inputs)
     return templating.render(
@@ -177,7 +181,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         scissor=draw.scissor, samples=samples, sample_x=sx, sample_y=sy,
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
-        wide_w=cl_wide.W, batch=batch, per_sample="sample_id" in inputs,
+        wide_w=cl_wide.W, batch=batch, once_wide=once_wide, per_sample="sample_id" in inputs,
         mask_input="sample_mask" in inputs, nudges=nudges, row_fn=row_fn)
 
 
