@@ -89,6 +89,20 @@ in one process, the same image), one run at ``--scale 0.5`` (load 1.1), CL:
 
 Within 2x of the paper: seven of the nine; LIDR sort and bit planes at 4 lights per pixel
 are not (6.8x and 7.8x against 6.2x).
+
+At d3b7532 (a run of lights drawn once keeps each batch's pixels of the accumulator in
+registers for all its lights and blends them 8 lanes at a time, ``once_wide_lights``, where
+each light blended pixel by pixel through the row's registers on the stack: 235-247 -> 145-150
+ms at 512x384 in alternated processes, bit for bit a launch per light), one run at ``--scale
+0.5`` (load 1.8), CL:
+
+    lights/px  paper   LIDR sort   max-stencil   bit planes   (multi-pass forward 150 ms)
+    1          6.8x    6.4x        4.8x          7.1x
+    2          5.2x    5.3x        4.3x          6.1x
+    4          3.1x    3.8x        3.1x          4.6x
+
+All nine within 2x of the paper (and none below half of it).  GL multi-pass forward in the
+same run: 974 ms, CL/GL 0.15x.
 """
 
 from __future__ import annotations
@@ -240,15 +254,15 @@ Where and why the figures differ:
   runtime sets the scene up and bins it once for all 255 passes, draws them in one raster
   launch (runtime/cl/geometry.py, programs.batches_lights), and rasterises, depth-tests and
   interpolates each tile row once for all of them, shading and blending each batch of 8 pixels
-  light after light (cl_pass.cl.j2's pg_once): what it pays 255 times is what a GPU pays, the
-  shading and blending of every visible pixel, so its ratio comes near the paper's, nearer at
-  small sizes, where LIDR's fixed costs per frame weigh more.  LIDR draws light volumes, which
-  touch only the pixels they cover, and shades each pixel once.  What multi-pass forward pays
-  per light and pixel is the shading itself: timing-only edits of its kernel (not the same
-  image) moved its light pass at 640x360 by under 6 % each (110.8/131.5 ms unedited, two
-  runs; the normal passed unnormalised 119.0, no clamp counting 125.5, the blend and the
-  half rounding replaced by an add 123.7): the light-dependent sqrt, divisions and pow's
-  polynomials are the cost, on a GPU as here.
+  light after light (cl_pass.cl.j2's pg_once), each batch's pixels of the accumulator held
+  in registers for the whole run of lights and blended 8 lanes at a time: what it pays 255
+  times is what a GPU pays, the shading and blending of every visible pixel, so its ratio
+  comes near the paper's, nearer at small sizes, where LIDR's fixed costs per frame weigh
+  more.  LIDR draws light volumes, which touch only the pixels they cover, and shades each
+  pixel once.  What multi-pass forward pays per light and pixel is now the shading itself
+  (perf: the light-dependent sqrt, divisions and pow's polynomials), on a GPU as here; until
+  d3b7532 the blend, pixel by pixel through the row's registers on the stack, cost a third
+  of its frame.
 - LIDR cost against lights per pixel: the paper loses 2.2x from 1 to 4 lights per pixel;
   llvmpipe comes close (bit planes 1.7-1.9x in our runs): bigger light volumes mean more
   blended index writes and more lights shaded per pixel on both.  PoCL loses less (1.0-1.9x):
