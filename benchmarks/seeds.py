@@ -103,6 +103,20 @@ ms at 512x384 in alternated processes, bit for bit a launch per light), one run 
 
 All nine within 2x of the paper (and none below half of it).  GL multi-pass forward in the
 same run: 974 ms, CL/GL 0.15x.
+
+At 93baf7a (the batch's channels unrolled, 200af06; a half target's clamp counts made in a
+second run over the lights only where some value may lie beyond +-65504: 235-248 -> 127-128 ms
+at 512x384 since before d3b7532), one run at each size (load 0.6-0.9), CL:
+
+    lights/px  paper   --scale 0.5 (512x384)        --scale 1.0 (1024x768)
+                       sort   stencil  planes       sort   stencil  planes
+    1          6.8x    5.7x   4.2x     6.5x         10.7x  7.1x     10.8x
+    2          5.2x    4.2x   3.8x     5.4x         7.7x   5.8x     9.1x
+    4          3.1x    3.6x   2.7x     4.0x         6.0x   4.1x     6.4x
+    multi-pass forward: 130 ms (GL 958 ms) at 512x384, 456 ms (GL 2317 ms) at 1024x768
+
+All nine within 2x of the paper at 512x384; at the paper's own size eight, bit planes at 4
+lights per pixel 6.4x against the 6.2x allowed (6.3x and 6.8x in two runs before 93baf7a).
 """
 
 from __future__ import annotations
