@@ -272,3 +272,18 @@ def test_a_run_of_lights_blends_every_state_as_a_launch_per_light(variant):
     assert one_clamps == pipe.last_clamps
     # the clamp counts were compared where there were some (half beyond 65504)
     assert any(c.pass_name == "per_light" for c in one_clamps) == (fmt == "rgba16f")
+
+
+def test_passes_sharing_a_set_up_run_one_vertex_kernel_for_their_varyings():
+    """Light pre-pass's geometry pass (normals) and material pass (albedo, materials) share
+    the scene's set-up: one vertex kernel computes the union of their varyings
+    (``programs.scene_vertex_program``), where each pass's own computed the positions again
+    and their outputs were gathered; the image is the unshared one (tested above)."""
+    from pipegen.backends.opencl.programs import scene_vertex_program
+    pipe = _compiled("light_prepass").pipeline("cl", SIZE)
+    pipe.render(_scene("many_lights"))
+    unions = [key[1] for key in pipe.device.kernels if key[0] == "scene_vertex"]
+    assert len(unions) == 1 and len(unions[0]) > 2
+    source = scene_vertex_program(unions[0])
+    assert source.count("o_vary[") == len(unions[0])
+    assert not any(k == (0, "pg_vertex") or k == (2, "pg_vertex") for k in pipe.device.kernels)

@@ -64,12 +64,18 @@ SCENE_FLAT = {"object_id": "y", "normal_group": "z", "layer": "w"}
 
 
 def varying_slots(pass_: PassPlan) -> list[dict]:
-    """Varyings of a pass, in slot order: name, OpenCL type, vertex-kernel value, ``flat``
-    (the provoking vertex's value) and, for the others, ``coef``: the index of the slot's
-    perspective plane among the smooth slots (``Triangles.coef``)."""
+    """Varyings of a pass, in slot order (``scene_varying_slots``)."""
     if pass_.draw.kind is not DrawKind.SCENE:
         return []
-    inputs = set(pass_.code.inputs if pass_.code is not None else ())
+    return scene_varying_slots(pass_.code.inputs if pass_.code is not None else ())
+
+
+def scene_varying_slots(names) -> list[dict]:
+    """The scene varyings among ``names``, in slot order (``SCENE_VARYINGS``'): name, OpenCL
+    type, vertex-kernel value, ``flat`` (the provoking vertex's value) and, for the others,
+    ``coef``: the index of the slot's perspective plane among the smooth slots
+    (``Triangles.coef``)."""
+    inputs = set(names)
     out = []
     smooth = 0
     for k, n in enumerate(n for n in SCENE_VARYINGS if n in inputs):

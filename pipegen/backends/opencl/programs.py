@@ -21,7 +21,7 @@ from pipegen.backends.plan import CLPassCode, PassPlan, Plan
 from pipegen.backends.opencl import wide as cl_wide
 from pipegen.backends.opencl.abi import (
     SCENE_FLAT, SETUP_CULL, SUBPIXEL, TILE, enum_defines, inside_func, sample_positions,
-    state_values, varying_slots)
+    scene_varying_slots, state_values, varying_slots)
 from pipegen.backends.opencl.dialect import OpenCLLanguage, dialect
 from pipegen.backends.opencl.expansions import prelude_forms
 from pipegen.backends.opencl.formats import (
@@ -244,6 +244,18 @@ def setup_program(cull: str, depth_clamp: bool, samples: Optional[int], has_flat
         "cl_setup.cl.j2", cull=SETUP_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
         box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor), w_plane=int(w_plane),
         with_zq=int(with_zq), smooth=list(smooth), slots=int(slots))
+
+
+@functools.lru_cache(maxsize=None)
+def scene_vertex_program(names: tuple[str, ...]) -> str:
+    """A program of one scene vertex kernel (``pg_vertex``, float32) computing the varyings
+    ``names``: the union of those of the passes that share a set-up
+    (``runtime/cl/geometry.py``), where each pass's own vertex kernel would compute the clip
+    positions again and their varyings be gathered into one buffer by copies.  The same
+    kernel text as a pass program's (``cl_vertex.cl.j2``), its varyings in the union's slots."""
+    return templating.render(
+        "cl_scene_vertex.cl.j2", prelude=prelude_source(), kind="scene", names=list(names),
+        varyings=scene_varying_slots(names), f64=False, flt_min=OpenCLLanguage().render_float(FLT_MIN))
 
 
 def bin_program() -> str:

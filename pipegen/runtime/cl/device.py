@@ -4,7 +4,8 @@ helpers both use to make device buffers and kernel objects.
 
 ``Device(ctx, queue, programs)``: ``buffer(array)`` copies an array to a new device buffer;
 ``kernel(k, name)`` is pass ``k``'s kernel ``name``, one object per (pass, name) for the
-device's lifetime; ``dummy`` and ``zeros4`` are placeholder buffers for arguments a kernel
+device's lifetime (``scene_vertex_kernel(names)``: the vertex kernel of a union of scene
+passes' varyings); ``dummy`` and ``zeros4`` are placeholder buffers for arguments a kernel
 does not read (``dummy``) or reads as zeros (``zeros4``: one float4 row, the attributes a
 draw does not have).
 """
@@ -40,4 +41,16 @@ class Device:
         if kern is None:
             import pyopencl as cl
             kern = self.kernels[(k, name)] = cl.Kernel(self.programs[k], name)
+        return kern
+
+    def scene_vertex_kernel(self, names: tuple[str, ...]):
+        """The scene vertex kernel computing the varyings ``names`` (``programs
+        .scene_vertex_program``), one object per union."""
+        kern = self.kernels.get(("scene_vertex", names))
+        if kern is None:
+            import pyopencl as cl
+            from pipegen.backends.opencl.programs import scene_vertex_program
+            from pipegen.runtime.cl import context as cl_context
+            prog = cl_context.build_program(scene_vertex_program(names))
+            kern = self.kernels[("scene_vertex", names)] = cl.Kernel(prog, "pg_vertex")
         return kern

@@ -751,12 +751,18 @@ class DrawGeometry:
         v.vary_buf = None
         v.kernels, v.copies, v.outs, v.vbufs = [], [], [], []
         clip_bufs = []
+        if on_device and len(providers) > 1:
+            # one vertex kernel for the union of the passes' varyings: each pass's own would
+            # compute the clip positions again and its varyings be copied into one buffer
+            # (light pre-pass: a vertex kernel and four copies a frame, 0.45 ms at 160x90)
+            providers = [(None, list(v.names))]
         for i, (kp, have) in enumerate(providers):
             S = len(have)
             clip_buf = self.pool.buffer(nverts * 16)
             clip_bufs.append(clip_buf)
             vbuf = self.pool.buffer(S * v.vstride * 16)
-            kern = dev.kernel(kp, "pg_vertex")
+            kern = dev.kernel(kp, "pg_vertex") if kp is not None else \
+                dev.scene_vertex_kernel(tuple(have))
             extra = []
             if self.f64:      # the float64 evaluation: clip positions in double too
                 clip64_buf = self.pool.buffer(nverts * 32)
