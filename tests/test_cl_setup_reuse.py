@@ -281,9 +281,11 @@ def test_passes_sharing_a_set_up_run_one_vertex_kernel_for_their_varyings():
     and their outputs were gathered; the image is the unshared one (tested above)."""
     from pipegen.backends.opencl.programs import scene_vertex_program
     pipe = _compiled("light_prepass").pipeline("cl", SIZE)
+    built = [key[1] for key in pipe.device.kernels if key[0] == "scene_vertex"]
+    assert len(built) == 1          # with the pipeline's programs, before any frame
     pipe.render(_scene("many_lights"))
     unions = [key[1] for key in pipe.device.kernels if key[0] == "scene_vertex"]
-    assert len(unions) == 1 and len(unions[0]) > 2
+    assert unions == built and len(unions[0]) > 2
     source = scene_vertex_program(unions[0])
     assert source.count("o_vary[") == len(unions[0])
     assert not any(k == (0, "pg_vertex") or k == (2, "pg_vertex") for k in pipe.device.kernels)

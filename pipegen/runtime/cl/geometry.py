@@ -104,6 +104,23 @@ class FrameState:
     pass_sizes: tuple
 
 
+def _scene_union(plan: Plan, ks: list) -> tuple:
+    """The set-up the scene passes ``ks`` share (``DrawGeometry._scene_group``): the union of
+    their varyings (SCENE_VARYINGS order), their flat flags, the passes whose vertex kernels
+    compute the union (k, [their varying names]), and whether any needs the 1/w plane."""
+    members = [(k, cl_abi.varying_slots(plan.passes[k]),
+                "frag_coord" in plan.passes[k].code.inputs) for k in ks]
+    union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
+    names = [n for n in cl_abi.SCENE_VARYINGS if n in union]
+    providers, missing = [], set(names)
+    for k, slots, _ in sorted(members, key=lambda m: -len(m[1])):
+        have = [v["name"] for v in slots]
+        if missing & set(have):
+            providers.append((k, have))
+            missing -= set(have)
+    return names, [union[n] for n in names], providers, any(m[2] for m in members)
+
+
 class Bins:
     """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
     work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
@@ -114,6 +131,7 @@ class Bins:
             active = np.flatnonzero(np.diff(tile_start) > 0)
         active = active.astype(np.int32)
         self.ntiles = len(active)
+        self.summary_buf = None         # known on the host: the raster launch has the count
         self.tiles_x = tiles_x
         self.triangles = triangles
         self.entries = int(tile_start[-1])
@@ -528,25 +546,30 @@ class DrawGeometry:
         got = self.frame.get(("group", key))
         if got is not None:
             return got
-        members = []
         sizes = self.frame_state.pass_sizes
-        for k, q in enumerate(self.plan.passes):
-            if q.draw.kind is not ir.DrawKind.SCENE:
-                continue
-            if self._raster_key(q, *sizes[k]) != key or self.only not in (None, k):
-                continue
-            members.append((k, cl_abi.varying_slots(q), "frag_coord" in q.code.inputs))
-        union = {v["name"]: v["flat"] for _, slots, _ in members for v in slots}
-        names = [n for n in cl_abi.SCENE_VARYINGS if n in union]
-        providers, missing = [], set(names)
-        for k, slots, _ in sorted(members, key=lambda m: -len(m[1])):
-            have = [v["name"] for v in slots]
-            if missing & set(have):
-                providers.append((k, have))
-                missing -= set(have)
-        got = (names, [union[n] for n in names], providers, any(m[2] for m in members))
+        got = _scene_union(self.plan, [k for k, q in enumerate(self.plan.passes)
+                                       if q.draw.kind is ir.DrawKind.SCENE
+                                       and self._raster_key(q, *sizes[k]) == key
+                                       and self.only in (None, k)])
         self.frame[("group", key)] = got
         return got
+
+    def vertex_unions(self) -> list[tuple[str, ...]]:
+        """The varyings of scene passes that share a set-up at any one size (their raster keys
+        alike but for it) where no one pass's vertex kernel computes them all: what
+        ``_vertices`` runs one vertex kernel for (``Device.scene_vertex_kernel``), for the
+        pipeline to build with its programs.  A frame whose sizes split such passes
+        differently builds its union when it first meets it."""
+        groups: dict = {}
+        for k, q in enumerate(self.plan.passes):
+            if q.draw.kind is ir.DrawKind.SCENE and cl_setup_device.supports(_offset(q), self.f64):
+                groups.setdefault(self._make_raster_key(q, 1, 1), []).append(k)
+        out = []
+        for ks in groups.values():
+            names, _, providers, _ = _scene_union(self.plan, ks)
+            if len(providers) > 1:
+                out.append(tuple(names))
+        return out
 
     def _light_cull(self, key: tuple) -> str:
         """The cull mode a light draw's set-up (raster key ``key``) can apply: that of every

@@ -230,6 +230,8 @@ class CLPipeline:
         self.device = Device(self.ctx, self.queue, [
             cl_context.build_program(self.source(k)) for k in range(len(plan.passes))])
         self.geometry = DrawGeometry(self.device, plan, tile)
+        for names in self.geometry.vertex_unions():     # built here too
+            self.device.scene_vertex_kernel(names)
         # per pass: its raster kernel draws a run of lights in one launch (``_batched``)
         self._batches = [cl_programs.batches_lights(plan, p, dynamic_state)
                          for p in plan.passes]
