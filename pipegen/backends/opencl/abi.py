@@ -71,8 +71,8 @@ def varying_slots(pass_: PassPlan) -> list[dict]:
 
 
 def scene_varying_slots(names) -> list[dict]:
-    """The scene varyings among ``names``, in slot order (``SCENE_VARYINGS``'): name, OpenCL
-    type, vertex-kernel value, ``flat`` (the provoking vertex's value) and, for the others,
+    """The scene varyings among ``names``, in slot order (that of ``SCENE_VARYINGS``): name,
+    OpenCL type, vertex-kernel value, ``flat`` (the provoking vertex's value) and, for the others,
     ``coef``: the index of the slot's perspective plane among the smooth slots
     (``Triangles.coef``)."""
     inputs = set(names)

@@ -252,10 +252,12 @@ def scene_vertex_program(names: tuple[str, ...]) -> str:
     ``names``: the union of those of the passes that share a set-up
     (``runtime/cl/geometry.py``), where each pass's own vertex kernel would compute the clip
     positions again and their varyings be gathered into one buffer by copies.  The same
-    kernel text as a pass program's (``cl_vertex.cl.j2``), its varyings in the union's slots."""
+    kernel text as a pass program's (``cl_vertex.cl.j2``), its varyings in the union's slots
+    (the prelude's tile size is the default one: the vertex stage does not use it)."""
     return templating.render(
         "cl_scene_vertex.cl.j2", prelude=prelude_source(), kind="scene", names=list(names),
-        varyings=scene_varying_slots(names), f64=False, flt_min=OpenCLLanguage().render_float(FLT_MIN))
+        varyings=scene_varying_slots(names), f64=False,
+        flt_min=OpenCLLanguage().render_float(FLT_MIN))
 
 
 def bin_program() -> str:

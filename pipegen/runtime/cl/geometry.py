@@ -131,7 +131,6 @@ class Bins:
             active = np.flatnonzero(np.diff(tile_start) > 0)
         active = active.astype(np.int32)
         self.ntiles = len(active)
-        self.summary_buf = None         # known on the host: the raster launch has the count
         self.tiles_x = tiles_x
         self.triangles = triangles
         self.entries = int(tile_start[-1])
@@ -562,7 +561,8 @@ class DrawGeometry:
         differently builds its union when it first meets it."""
         groups: dict = {}
         for k, q in enumerate(self.plan.passes):
-            if q.draw.kind is ir.DrawKind.SCENE and cl_setup_device.supports(_offset(q), self.f64):
+            if q.draw.kind is ir.DrawKind.SCENE and \
+                    cl_setup_device.supports(_offset(q), self.f64):
                 groups.setdefault(self._make_raster_key(q, 1, 1), []).append(k)
         out = []
         for ks in groups.values():
