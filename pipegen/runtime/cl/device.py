@@ -16,6 +16,8 @@ from typing import Sequence
 
 import numpy as np
 
+from pipegen.backends.opencl.programs import scene_vertex_program
+from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime.cl.targets import device_buffer
 
 __all__ = ["Device"]
@@ -49,8 +51,6 @@ class Device:
         kern = self.kernels.get(("scene_vertex", names))
         if kern is None:
             import pyopencl as cl
-            from pipegen.backends.opencl.programs import scene_vertex_program
-            from pipegen.runtime.cl import context as cl_context
             prog = cl_context.build_program(scene_vertex_program(names))
             kern = self.kernels[("scene_vertex", names)] = cl.Kernel(prog, "pg_vertex")
         return kern
