@@ -49,8 +49,8 @@ def test_typed_arguments_take_numpy_scalars_only():
     ctx, _ = cl_context.get_context()
     bufs = [cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=64) for _ in range(4)]
     with pytest.raises(TypeError, match="numpy scalars"):
-        cl_context.set_args(kern, 1, np.int32(2), *bufs)
-    cl_context.set_args(kern, np.int32(1), np.int32(2), *bufs)
+        cl_context.set_args(kern, 1, np.int32(2), np.int32(1), np.int32(1), *bufs)
+    cl_context.set_args(kern, np.int32(1), np.int32(2), np.int32(1), np.int32(1), *bufs)
     assert kern._pg_typed
 
 

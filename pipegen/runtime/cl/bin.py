@@ -26,7 +26,7 @@ from pipegen.backends.opencl import programs as cl_programs
 from pipegen.backends.opencl.abi import SUBPIXEL
 from pipegen.runtime.cl import context as cl_context
 
-__all__ = ["DeviceBinner", "DeviceBins", "enabled"]
+__all__ = ["DeviceBinner", "DeviceBins", "band_for", "enabled", "tiles_with"]
 
 _PER_RUN = 1024        # triangles a work-item bins, at most 8 work-items (PoCL: 2 threads)
 _RUNS = 8
@@ -37,11 +37,64 @@ def enabled() -> bool:
     return os.environ.get("PIPEGEN_CL_DEVICE_BIN", "1") != "0"
 
 
-def box_tiles(bbox: np.ndarray, tile: int) -> int:
-    """The tiles the boxes (N, 4: inclusive x0, y0, x1, y1) cover, summed: at least the
-    entries binning makes (the edge tests drop some)."""
-    t = np.asarray(bbox) // tile          # one int32 pass (an int64 copy first: 8x slower)
-    return int(np.dot((t[:, 2] - t[:, 0] + 1).astype(np.int64), t[:, 3] - t[:, 1] + 1))
+def box_tiles(bbox: np.ndarray, tile: int, tile_h: Optional[int] = None) -> int:
+    """The tiles (``tile`` wide, ``tile_h`` tall: default ``tile``) the boxes (N, 4:
+    inclusive x0, y0, x1, y1) cover, summed: at least the entries binning makes (the edge
+    tests drop some)."""
+    bbox = np.asarray(bbox)
+    t = bbox // tile                      # one int32 pass (an int64 copy first: 8x slower)
+    y = t if tile_h is None or tile_h == tile else bbox if tile_h == 1 else bbox // tile_h
+    return int(np.dot((t[:, 2] - t[:, 0] + 1).astype(np.int64), y[:, 3] - y[:, 1] + 1))
+
+
+# what binning costs, in raster kernel box tests (of a triangle against a tile row): an entry
+# (triangle, list) counted and written, and a list's count per run of triangles (zeroed,
+# summed by the one work-item of pg_bin_starts).  Fitted to the wall time a frame of
+# deferred and light pre-pass on many_lights took at 160x90 (lists a row tall fastest, by
+# 10%) and 1280x720 (4 rows: a row 6-10% slower than 4 or 16)
+ENTRY_COST = 0.5
+LIST_COST = 0.5
+
+
+def band_for(bbox: np.ndarray, tile: int, width: int, height: int) -> int:
+    """The lists' height in rows for binning triangles with boxes ``bbox`` (N, 4: inclusive
+    x0, y0, x1, y1) into ``tile``-wide lists for a ``width`` x ``height`` pass: a divisor of
+    ``tile``.
+
+    Each work-item of a raster kernel draws one tile row, walking its list and testing each
+    triangle's box against its row.  With one list per tile every row of the tile walks every
+    triangle of the tile, and a light volume at a small size is many triangles a few rows tall
+    (deferred on many_lights at 160x90: 25,920, 3 rows on average): each row rejected nearly
+    all of them (0.8 million box tests a frame against 130,000 entries with a list per row;
+    its fused light kernel 5.0 -> 3.7 ms).  But a list per row bins a tall triangle once per
+    row, and a large pass has many lists.  A triangle h + 1 rows tall is in about h / b + 1
+    lists b rows tall and tested in h + b rows: the height chosen minimises, for the boxes'
+    mean h and N triangles, (h + b) + ENTRY_COST (h / b + 1) + LIST_COST lists(b) / N."""
+    n = len(bbox)
+    if not n:
+        return tile
+    bbox = np.asarray(bbox)
+    h = float(np.mean(bbox[:, 3] - bbox[:, 1]))
+    runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
+    lists = runs * -(-width // tile)
+
+    def cost(b: int) -> float:
+        return (h + b) + ENTRY_COST * (h / b + 1) + LIST_COST * lists * -(-height // b) / n
+    return min((b for b in range(1, tile + 1) if tile % b == 0), key=cost)
+
+
+def tiles_with(has: np.ndarray, tiles_x: int, per_tile: int) -> np.ndarray:
+    """Whether each tile has triangles (``(..., ntiles)`` bool), from whether each of its
+    lists has (``has``, ``(..., nlists)``: ``per_tile`` lists a tile, row-major by band of
+    rows; the last tile row may have fewer)."""
+    if per_tile == 1:
+        return has
+    rows = has.reshape(has.shape[:-1] + (-1, tiles_x))
+    pad = -rows.shape[-2] % per_tile
+    if pad:
+        rows = np.concatenate([rows, np.zeros(rows.shape[:-2] + (pad, tiles_x), bool)], -2)
+    bands = rows.reshape(rows.shape[:-2] + (-1, per_tile, tiles_x))
+    return bands.any(axis=-2).reshape(has.shape[:-1] + (-1,))
 
 
 class DeviceBins:
@@ -50,7 +103,8 @@ class DeviceBins:
     ``cl_geometry.Bins`` has them; ``ntiles`` and ``entries`` wait for the binning."""
 
     def __init__(self, queue, tiles_x: int, triangles: int, tile_list, tile_start, tile_tris,
-                 summary: np.ndarray, event, index: Optional[np.ndarray], ntiles_all: int):
+                 summary: np.ndarray, event, index: Optional[np.ndarray], ntiles_all: int,
+                 band: int):
         self.queue = queue
         self.tiles_x = tiles_x
         self.triangles = triangles
@@ -58,6 +112,7 @@ class DeviceBins:
         self._summary, self._event = summary, event
         self._index = index
         self._ntiles_all = ntiles_all
+        self.band = band              # the lists' rows: tiles_x lists per band of rows
 
     def _counts(self) -> np.ndarray:
         if self._event is not None:
@@ -110,18 +165,22 @@ class DeviceBinner:
 
     def bin(self, bufs: dict, rows: np.ndarray, bbox: np.ndarray, samples: Optional[int],
             width: int, height: int, tile: int, triangles: int,
-            index: Optional[np.ndarray] = None, pool=None, edge_test_tiles: int = 4):
+            index: Optional[np.ndarray] = None, pool=None, edge_test_tiles: int = 4,
+            tile_h: Optional[int] = None):
         """Queue the binning of the triangles in buffer rows ``rows`` (int32, submission
         order; ``bbox``: their boxes on the host, to size the lists) of the set-up buffers
         ``bufs`` (``a``, ``b``, ``c``, ``bbox``) for a ``width`` x ``height`` pass with
         ``samples`` per pixel (None: any); ``index``: the row of each triangle of the
         geometry (``host`` maps rows back through it).  ``pool``: a ``FramePool`` for bins
-        that last one frame (None: buffers of their own)."""
+        that last one frame (None: buffers of their own).  ``tile_h``: the tiles' height
+        (default ``tile``: square tiles)."""
         import pyopencl as cl
         mf = cl.mem_flags
         count_k, starts_k, write_k = self._kernels_once()
+        th = tile if tile_h is None else tile_h
+        assert tile % th == 0, (tile, th)
         tiles_x = (width + tile - 1) // tile
-        ntiles = tiles_x * ((height + tile - 1) // tile)
+        ntiles = tiles_x * ((height + th - 1) // th)
         n = len(rows)
         runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
         per = (n + runs - 1) // runs
@@ -134,19 +193,21 @@ class DeviceBinner:
                              hostbuf=np.ascontiguousarray(rows, np.int32))
         counts = buf(runs * ntiles * 4)
         tile_start = buf((ntiles + 1) * 4)
-        tile_list = buf(ntiles * 4)
-        tile_tris = buf(box_tiles(bbox, tile) * 4)
+        tile_list = buf(tiles_x * -(-height // tile) * 4)
+        tile_tris = buf(box_tiles(bbox, tile, th) * 4)
         summary_buf = buf(8)
         # the corners that maximise an edge function: the pixel centre with one sample, else
         # the extreme sample positions any pattern could use (as bin_pairs)
         lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (1, SUBPIXEL - 1)
         head = [np.int32(n), np.int32(per), np.int32(tiles_x), np.int32(ntiles),
-                np.int32(width), np.int32(height), np.int32(tile), np.int32(edge_test_tiles),
+                np.int32(width), np.int32(height), np.int32(tile), np.int32(th),
+                np.int32(edge_test_tiles),
                 np.int32(lo), np.int32(hi), rows_buf, bufs["bbox"], bufs["a"], bufs["b"],
                 bufs["c"]]
         cl_context.set_args(count_k, *head, counts)
         cl.enqueue_nd_range_kernel(self.queue, count_k, (runs,), (1,))
-        cl_context.set_args(starts_k, np.int32(runs), np.int32(ntiles), counts, tile_start,
+        cl_context.set_args(starts_k, np.int32(runs), np.int32(ntiles), np.int32(tiles_x),
+                            np.int32(tile // th), counts, tile_start,
                             tile_list, summary_buf)
         cl.enqueue_nd_range_kernel(self.queue, starts_k, (1,), (1,))
         cl_context.set_args(write_k, *head, counts, tile_tris)
@@ -154,4 +215,4 @@ class DeviceBinner:
         summary = np.zeros(2, np.int32)
         event = cl.enqueue_copy(self.queue, summary, summary_buf, is_blocking=False)
         return DeviceBins(self.queue, tiles_x, triangles, tile_list, tile_start, tile_tris,
-                          summary, event, index, ntiles)
+                          summary, event, index, ntiles, th)

@@ -123,12 +123,17 @@ def _scene_union(plan: Plan, ks: list) -> tuple:
 
 class Bins:
     """A pass's tile lists on the device: the tiles with triangles (``tile_list``, one
-    work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry)."""
+    work-group each), ``tile_start``/``tile_tris`` (CSR, triangle indices into the geometry),
+    one list per ``band`` rows of a tile (``tile``: the tiles' side; ``band`` None: one list
+    per tile)."""
 
     def __init__(self, device: Device, tile_start, tile_tris, tiles_x: int, triangles: int,
-                 active: Optional[np.ndarray] = None, index: Optional[np.ndarray] = None):
+                 active: Optional[np.ndarray] = None, index: Optional[np.ndarray] = None,
+                 tile: int = cl_abi.TILE, band: Optional[int] = None):
+        self.band = tile if band is None else band
         if active is None:
-            active = np.flatnonzero(np.diff(tile_start) > 0)
+            active = np.flatnonzero(cl_bin.tiles_with(np.diff(tile_start) > 0, tiles_x,
+                                                      tile // self.band))
         active = active.astype(np.int32)
         self.ntiles = len(active)
         self.tiles_x = tiles_x
@@ -359,6 +364,7 @@ class DrawGeometry:
             cache[("light pass", k, width, height)] = (geo, cull.value)
         if tb is None:
             t0 = time.perf_counter()
+            band = self._band(geo, width, height)
             n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
             if cl_bin.enabled():
                 keep = _KEEPS_FRONT.get(cull)
@@ -368,25 +374,27 @@ class DrawGeometry:
                 if keep is not None:
                     kept = np.flatnonzero(geo.front == keep)
                     subset = kept if subset is None else subset[geo.front[subset] == keep]
-                tb = self._device_bins(geo, subset, width, height, n, self.pool)
+                tb = self._device_bins(geo, subset, width, height, n, self.pool, band)
             else:
-                tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull)
+                tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull, band)
                 if tuple(lights) != batch:       # the pairs of these lights' triangles
                     cut = [np.searchsorted(tri, r) for r in ranges]
                     tri = np.concatenate([tri[a:b] for a, b in cut])
                     tile_id = np.concatenate([tile_id[a:b] for a, b in cut])
                 tile_start, tile_tris = bins_from_pairs(tri, tile_id, tiles_x * tiles_y)
-                tb = Bins(self.device, tile_start, tile_tris, tiles_x, n, index=geo.index)
+                tb = Bins(self.device, tile_start, tile_tris, tiles_x, n, index=geo.index,
+                          tile=self.tile, band=band)
             cache[key] = tb
             timing["bin"] = (time.perf_counter() - t0) * 1e3
         return geo, tb
 
-    def _pairs(self, geo: Geo, width: int, height: int, cull: ir.CullMode):
+    def _pairs(self, geo: Geo, width: int, height: int, cull: ir.CullMode,
+               band: Optional[int] = None):
         """``bin_pairs`` of the faces of ``geo`` the cull mode keeps (light volumes are set up
         without culling where their passes cull differently: binning only the kept faces
-        halves a sphere's pairs), once per frame and cull mode."""
+        halves a sphere's pairs), once per frame, cull mode and ``band``."""
         keep = _KEEPS_FRONT.get(cull)
-        key = ("pairs", id(geo.tris), width, height, keep)
+        key = ("pairs", id(geo.tris), width, height, band, keep)
         pairs = self.frame.get(key)
         if pairs is None:
             every = self.frame.get(key[:-1] + (None,))
@@ -400,7 +408,7 @@ class DrawGeometry:
             else:
                 subset = None if keep is None else np.flatnonzero(geo.front == keep)
                 pairs = self.frame[key] = bin_pairs(geo.tris, width, height, self.tile,
-                                                    subset=subset)
+                                                    subset=subset, tile_h=band)
         return pairs
 
     def _group_bins(self, geo: Geo, batch: tuple, cull: ir.CullMode, width: int, height: int,
@@ -411,8 +419,9 @@ class DrawGeometry:
         light (deferred on many_lights: 162 per frame).  Each light's tile lists hold its
         triangles in submission order, exactly as binning its own pairs gives them."""
         t0 = time.perf_counter()
-        tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull)
-        ntiles = tiles_x * tiles_y
+        band = self._band(geo, width, height)
+        tri, tile_id, tiles_x, bands = self._pairs(geo, width, height, cull, band)
+        ntiles = tiles_x * bands          # lists: tile_id is a list's (one per band of rows)
         spans = np.array([geo.ranges[int(light)] for light in batch], np.int64).reshape(-1, 2)
         # the light of each pair (pairs are in triangle order, each light a range of them)
         light_pos = np.zeros(len(tri), np.uint16 if len(batch) < 1 << 16 else np.int64)
@@ -430,7 +439,8 @@ class DrawGeometry:
         np.cumsum(counts, axis=1, out=starts[:, 1:])
         first = np.concatenate([[0], np.cumsum(starts[:, -1])])
         # one upload of each of the group's arrays, each light's bins views into them
-        group = GroupBins(self.device, starts, first, counts > 0, tile_tris, geo.index)
+        occupied = cl_bin.tiles_with(counts > 0, tiles_x, self.tile // band)
+        group = GroupBins(self.device, starts, first, occupied, tile_tris, geo.index, band)
         drawn = _drawn(geo, spans, cull)
         for j, light in enumerate(batch):
             self.frame[("bins", id(geo.tris), (int(light),), cull.value, width, height)] = \
@@ -446,23 +456,34 @@ class DrawGeometry:
         tb = cache.get(key)
         if tb is None:
             t0 = time.perf_counter()
+            band = self._band(geo, width, height)
             if cl_bin.enabled():
                 tb = self._device_bins(geo, None, width, height, geo.tris.count,
-                                       self.pool if cache is self.frame else None)
+                                       self.pool if cache is self.frame else None, band)
             else:
                 tile_start, tile_tris, tiles_x, _ = bin_triangles(geo.tris, width, height,
-                                                                  self.tile)
+                                                                  self.tile, tile_h=band)
                 tb = Bins(self.device, tile_start, tile_tris, tiles_x, geo.tris.count,
-                          index=geo.index)
+                          index=geo.index, tile=self.tile, band=band)
             cache[key] = tb
             timing["bin"] = (time.perf_counter() - t0) * 1e3
         return geo, tb
 
+    def _band(self, geo: Geo, width: int, height: int) -> int:
+        """The height of the tile lists ``geo``'s draws are binned into (``cl_bin.band_for``),
+        once per set-up and frame: the device and the numpy binning agree on it."""
+        key = ("band", id(geo.tris), width, height)
+        band = self.frame.get(key)
+        if band is None:
+            band = self.frame[key] = cl_bin.band_for(geo.tris.bbox, self.tile, width, height)
+        return band
+
     def _device_bins(self, geo: Geo, subset: Optional[np.ndarray], width: int, height: int,
-                     triangles: int, pool):
+                     triangles: int, pool, band: Optional[int] = None):
         """Queue the binning of ``geo``'s triangles ``subset`` (increasing indices; None: all)
         on the device (``cl_bin``: ``DeviceBins``; empty ``Bins`` when there is none);
-        ``pool``: None for bins kept across frames."""
+        ``pool``: None for bins kept across frames; ``band``: the bins' height (None: a
+        tile's)."""
         tris = geo.tris
         if subset is None:
             rows = np.arange(tris.count, dtype=np.int32) if geo.index is None else geo.index
@@ -472,10 +493,12 @@ class DrawGeometry:
             bbox = tris.bbox[subset]
         if not len(rows):   # nothing to bin (no zero-sized OpenCL buffers): numpy's empty lists
             tile_start, tile_tris, tiles_x, _ = bin_triangles(tris, width, height,
-                                                              self.tile, subset=subset)
-            return Bins(self.device, tile_start, tile_tris, tiles_x, triangles, index=geo.index)
+                                                              self.tile, subset=subset,
+                                                              tile_h=band)
+            return Bins(self.device, tile_start, tile_tris, tiles_x, triangles, index=geo.index,
+                        tile=self.tile, band=band)
         return self.binner.bin(geo.bufs, rows, bbox, tris.samples, width, height,
-                               self.tile, triangles, geo.index, pool)
+                               self.tile, triangles, geo.index, pool, tile_h=band)
 
     def _raster_key(self, p: PassPlan, width: int, height: int) -> tuple:
         """What the set-up triangles of a pass's draw depend on besides its varyings (a

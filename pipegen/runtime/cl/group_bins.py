@@ -20,15 +20,16 @@ __all__ = ["GroupBins", "LightBins"]
 
 
 class GroupBins:
-    """``starts`` (L, ntiles + 1): each light's CSR starts into its own triangle rows;
-    ``first`` (L + 1,): where each light's rows begin in ``tile_tris`` (all lights' rows, by
-    light, then tile, then submission order; triangle indices); ``occupied`` (L, ntiles): the
-    tiles with triangles; ``index``: the geometry buffers' row of each triangle (None: the
-    same)."""
+    """``starts`` (L, nlists + 1): each light's CSR starts into its own triangle rows, one
+    list per ``band`` rows of a tile (``geometry.Bins``); ``first`` (L + 1,): where each
+    light's rows begin in ``tile_tris`` (all lights' rows, by light, then list, then
+    submission order; triangle indices); ``occupied`` (L, ntiles): the tiles with triangles;
+    ``index``: the geometry buffers' row of each triangle (None: the same)."""
 
     def __init__(self, device, starts: np.ndarray, first: np.ndarray, occupied: np.ndarray,
-                 tile_tris: np.ndarray, index: Optional[np.ndarray]):
+                 tile_tris: np.ndarray, index: Optional[np.ndarray], band: int):
         lights, ntiles1 = starts.shape
+        self.band = band
         ints = max(1, device.ctx.devices[0].mem_base_addr_align // 32)    # bits -> int32s
         self.start_row = -(-ntiles1 // ints) * ints
         self.list_row = -(-max(ntiles1 - 1, 1) // ints) * ints
@@ -60,6 +61,7 @@ class LightBins:
 
     def __init__(self, group: GroupBins, j: int, tiles_x: int, triangles: int):
         self.group, self.j = group, j
+        self.band = group.band
         self.tiles_x = tiles_x
         self.triangles = triangles
         self.ntiles = int(group.active_n[j])

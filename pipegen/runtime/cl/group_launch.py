@@ -10,7 +10,7 @@ every other execution is ``prepare_pass(k, light)`` as before.
 A fused group needs no bins per light: each member pass draws the triangles of all its lights
 (one set-up, as for every light of a group, ``DrawGeometry``) binned once (on the device, as
 any pass), and since they are submitted light by light in the order the steps visit the
-lights, a step's triangles in a tile are the next run of the tile's list whose light
+lights, a step's triangles in a bin are the next run of the bin's list whose light
 (``tri_flat.w``) is the step's.  The kernel keeps one cursor per member and tile row.  Its
 steps are the executions in order, ``(member, light, 0, 1 + stencil clear or 0)``, over the
 tiles any light's triangles' boxes touch.
@@ -182,6 +182,8 @@ class GroupLauncher:
                     T = pipe.tile
                     empty = dev.buffer(np.zeros(-(-width // T) * -(-height // T) + 1, np.int32))
                 args.append(empty)
+            elif name == "band":             # ... its lists a tile's (the empty ones above)
+                args.append(np.int32(pipe.tile))
             else:
                 args.append(self._placeholder(gp.signatures[i], name))
         cl_context.set_args(kernel, *args)

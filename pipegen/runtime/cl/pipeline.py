@@ -613,7 +613,8 @@ class CLPipeline:
         st = dev.dummy
         if self.dynamic_state:
             st = dev.buffer(np.asarray(cl_abi.state_words(p), np.int32))
-        args = [np.int32(width), np.int32(height), np.int32(tb.tiles_x), tb.tile_list,
+        args = [np.int32(width), np.int32(height), np.int32(tb.tiles_x), np.int32(tb.band),
+                tb.tile_list,
                 tb.tile_start, tb.tile_tris, bufs["a"], bufs["b"], bufs["c"],
                 bufs["z"], bufs["w"], bufs["coef"], np.int32(geo.ncoef),
                 bufs["zp"], bufs["zq"], bufs["flat"], bufs["vtx"], bufs["scissor"],

@@ -819,21 +819,24 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
 
 
 def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
-              edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None):
+              edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None,
+              tile_h: Optional[int] = None):
     """The (triangle, tile) pairs of binning, in triangle order: (tri (M,) int64 indices
     into ``tris``, tile_id (M,) int64, tiles_x, tiles_y).  A triangle reaches the tiles its
     bounding box covers; when that is more than ``edge_test_tiles`` tiles, only those where
     no edge function is negative at all four corners.  ``subset``: only these triangles
-    (increasing indices)."""
+    (increasing indices).  ``tile_h``: the tiles' height in rows where it is not ``tile``
+    (a band of a tile's rows: ``geometry``'s ``band``)."""
+    th = tile if tile_h is None else tile_h
     tx_n = (width + tile - 1) // tile
-    ty_n = (height + tile - 1) // tile
+    ty_n = (height + th - 1) // th
     idx = None if subset is None else np.asarray(subset, np.int64)
     n = tris.count if idx is None else len(idx)
     if n == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), tx_n, ty_n
     bb = (tris.bbox if idx is None else tris.bbox[idx]).astype(np.int64)
-    tx0, ty0 = bb[:, 0] // tile, bb[:, 1] // tile
-    tx1, ty1 = bb[:, 2] // tile, bb[:, 3] // tile
+    tx0, ty0 = bb[:, 0] // tile, bb[:, 1] // th
+    tx1, ty1 = bb[:, 2] // tile, bb[:, 3] // th
     wx = tx1 - tx0 + 1
     counts = wx * (ty1 - ty0 + 1)
     total = int(counts.sum())
@@ -862,8 +865,8 @@ def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
             lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if tris.samples == 1 else (1, SUBPIXEL - 1)
             xa = (tx[sel] * tile) * SUBPIXEL + lo
             xb = (np.minimum(tx[sel] * tile + tile, width) - 1) * SUBPIXEL + hi
-            ya = (ty[sel] * tile) * SUBPIXEL + lo
-            yb = (np.minimum(ty[sel] * tile + tile, height) - 1) * SUBPIXEL + hi
+            ya = (ty[sel] * th) * SUBPIXEL + lo
+            yb = (np.minimum(ty[sel] * th + th, height) - 1) * SUBPIXEL + hi
             ok = np.ones(len(sel), bool)
             for k in range(3):
                 A = tris.a[t, k].astype(np.int64)
@@ -892,13 +895,15 @@ def bins_from_pairs(tri: np.ndarray, tile_id: np.ndarray, ntiles: int):
 
 
 def bin_triangles(tris: Triangles, width: int, height: int, tile: int = 16,
-                  edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None):
+                  edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None,
+                  tile_h: Optional[int] = None):
     """Per-tile triangle lists in submission order: (tile_start (ntiles+1,) int32,
     tile_tris (M,) int32, tiles_x, tiles_y).  Triangles whose bounding box spans more than
     ``edge_test_tiles`` tiles are additionally tested per tile against their edge functions
     (a tile is skipped when one edge is negative at all four corners).  ``subset``: bin only
     these triangles (indices into ``tris``, increasing); ``tile_tris`` still holds indices into
-    ``tris``."""
-    tri, tile_id, tx_n, ty_n = bin_pairs(tris, width, height, tile, edge_test_tiles, subset)
+    ``tris``.  ``tile_h``: the tiles' height (default ``tile``)."""
+    tri, tile_id, tx_n, ty_n = bin_pairs(tris, width, height, tile, edge_test_tiles, subset,
+                                         tile_h)
     tile_start, tile_tris = bins_from_pairs(tri, tile_id, tx_n * ty_n)
     return tile_start, tile_tris, tx_n, ty_n
