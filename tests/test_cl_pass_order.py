@@ -94,3 +94,31 @@ def test_in_turn_a_pass_is_launched_before_the_next_is_prepared(monkeypatch):
     assert len(launched) >= 2
     first = order.index(("launch", launched[0]))
     assert ("prepare", launched[1]) in order[first + 1:]
+
+
+def test_every_clipper_before_any_raster_and_the_first_bins_before_the_last(monkeypatch):
+    """The device's queue in a frame: each set-up's clipper is queued once the next set-up
+    is, every one before the first raster kernel (a clipper behind a raster kernel would hold
+    up the host's next pass), and the first pass's binning before the last set-up's clipper
+    (so that the device bins it right after setting up the others, not after the host's wait
+    for the last set-up and its own preparation).  inferred on street_lamps: three set-ups,
+    each clipping triangles that cross the near plane."""
+    import pyopencl as cl
+    compiled, s = _compiled("inferred", "street_lamps"), _scene("street_lamps")
+    pipe = compiled.pipeline("cl", SIZE)
+    pipe.render(s)
+    names: list = []
+    queue_kernel = cl.enqueue_nd_range_kernel
+
+    def logged(queue, kernel, *args, **kwargs):
+        names.append(kernel.function_name)
+        return queue_kernel(queue, kernel, *args, **kwargs)
+
+    monkeypatch.setattr(cl, "enqueue_nd_range_kernel", logged)
+    pipe.render(s)
+    clips = [i for i, n in enumerate(names) if n == "pg_clip_setup"]
+    rasters = [i for i, n in enumerate(names) if n == "pg_raster"]
+    bins = [i for i, n in enumerate(names) if n == "pg_bin_count"]
+    assert len(clips) >= 2 and rasters and bins, names
+    assert max(clips) < min(rasters)
+    assert min(bins) < max(clips)

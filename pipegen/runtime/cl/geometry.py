@@ -718,12 +718,16 @@ class DrawGeometry:
         if key not in self.frame and key not in self.pending:
             self.pending[key] = self._vertices(k, p, width, height, key, lights, shadow, volume)
 
-    def clip_pending(self) -> None:
-        """Queue the clipping of every prefetched device set-up (``DeviceSetup.clip``), after
-        all of them and before any raster kernel."""
-        for v in self.pending.values():
-            if v is not None and v.job is not None:
-                self.device_setup.clip(v.job)
+    def clip_pending(self, but_newest: bool = False) -> None:
+        """Queue the clipping of every prefetched device set-up (``DeviceSetup.clip``: it waits
+        for the set-up's status), before any raster kernel; ``but_newest``: all but the one
+        prefetched last, whose set-up the device has only just been given (``CLPipeline``
+        clips each set-up once the next is queued, so that its clipper runs before the later
+        set-ups instead of after all of them, and a first pass's bins can be queued before
+        the device has finished setting up the others)."""
+        jobs = [v.job for v in self.pending.values() if v is not None and v.job is not None]
+        for job in jobs[:-1] if but_newest else jobs:
+            self.device_setup.clip(job)
 
     def _vertices(self, k: int, p: PassPlan, width: int, height: int, key: tuple,
                   lights: Optional[tuple], shadow: Optional["ShadowView"],
