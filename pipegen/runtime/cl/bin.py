@@ -25,6 +25,7 @@ import numpy as np
 from pipegen.backends.opencl import programs as cl_programs
 from pipegen.backends.opencl.abi import SUBPIXEL
 from pipegen.runtime.cl import context as cl_context
+from pipegen.runtime.cl.setup import edge_test_lists
 
 __all__ = ["DeviceBinner", "DeviceBins", "band_for", "enabled", "tiles_with"]
 
@@ -95,6 +96,11 @@ def tiles_with(has: np.ndarray, tiles_x: int, per_tile: int) -> np.ndarray:
         rows = np.concatenate([rows, np.zeros(rows.shape[:-2] + (pad, tiles_x), bool)], -2)
     bands = rows.reshape(rows.shape[:-2] + (-1, per_tile, tiles_x))
     return bands.any(axis=-2).reshape(has.shape[:-1] + (-1,))
+
+
+def _shift(n: int) -> int:
+    """log2(n) where n is a power of two, else -1 (the kernels divide instead)."""
+    return n.bit_length() - 1 if n & (n - 1) == 0 else -1
 
 
 class DeviceBins:
@@ -201,7 +207,8 @@ class DeviceBinner:
         lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (1, SUBPIXEL - 1)
         head = [np.int32(n), np.int32(per), np.int32(tiles_x), np.int32(ntiles),
                 np.int32(width), np.int32(height), np.int32(tile), np.int32(th),
-                np.int32(edge_test_tiles),
+                np.int32(_shift(tile)), np.int32(_shift(th)),
+                np.int32(edge_test_lists(edge_test_tiles, tile, th)),
                 np.int32(lo), np.int32(hi), rows_buf, bufs["bbox"], bufs["a"], bufs["b"],
                 bufs["c"]]
         cl_context.set_args(count_k, *head, counts)

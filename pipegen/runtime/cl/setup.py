@@ -818,12 +818,22 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
                      np.asarray(parent, np.int64))
 
 
+def edge_test_lists(edge_test_tiles: int, tile: int, tile_h: int) -> int:
+    """How many of a box's lists (``tile`` wide, ``tile_h`` tall) make binning test each
+    against the triangle's edges: ``edge_test_tiles`` tiles' worth.  A small triangle's box
+    rarely holds a band its edges miss, and testing every band of a box over four rows cost a
+    quarter of binning deferred's light volumes at 160x90 in lists a row tall
+    (0.39 -> 0.29 ms)."""
+    return edge_test_tiles * max(1, tile // tile_h)
+
+
 def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
               edge_test_tiles: int = 4, subset: Optional[np.ndarray] = None,
               tile_h: Optional[int] = None):
     """The (triangle, tile) pairs of binning, in triangle order: (tri (M,) int64 indices
     into ``tris``, tile_id (M,) int64, tiles_x, tiles_y).  A triangle reaches the tiles its
-    bounding box covers; when that is more than ``edge_test_tiles`` tiles, only those where
+    bounding box covers; when that is more than ``edge_test_tiles`` tiles' worth
+    (``edge_test_lists``), only those where
     no edge function is negative at all four corners.  ``subset``: only these triangles
     (increasing indices).  ``tile_h``: the tiles' height in rows where it is not ``tile``
     (a band of a tile's rows: ``geometry``'s ``band``)."""
@@ -856,7 +866,7 @@ def bin_pairs(tris: Triangles, width: int, height: int, tile: int = 16,
         rep = row_tri[row_of]
         tx = tx0[rep] + dx
         ty = (ty0[row_tri] + dy)[row_of]
-        big = counts[rep] > edge_test_tiles
+        big = counts[rep] > edge_test_lists(edge_test_tiles, tile, th)
         if big.any():
             sel = np.flatnonzero(big)
             t = rep[sel] if idx is None else idx[rep[sel]]
