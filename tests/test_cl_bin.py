@@ -76,3 +76,28 @@ def test_box_tiles_bound_the_entries():
     tri, _, _, _ = cl_setup.bin_pairs(tris, 97, 61, 16)
     assert tris.count > 100
     assert len(tri) <= cl_bin.box_tiles(tris.bbox, 16)
+
+
+def test_light_slots_binned_in_one_call_are_each_passs_own_lists(monkeypatch):
+    """LIDR's four light-index slot passes draw disjoint light sets of one set-up: their bins
+    come from one segmented device call (``DrawGeometry._shared_bins``, one triangle-row
+    buffer for all), list for list the numpy binning of each pass on its own, and the frame
+    is the same."""
+    from pipegen.runtime.cl import bin as cl_bin
+    calls = []
+    segments = cl_bin.DeviceBinner.bin_segments
+
+    def counted(self, bufs, rows, *args, **kwargs):
+        calls.append(len(rows))
+        return segments(self, bufs, rows, *args, **kwargs)
+
+    monkeypatch.setattr(cl_bin.DeviceBinner, "bin_segments", counted)
+    source = (ROOT / "pipelines" / "lidr_cpu_sort.pipe").read_text()
+    _assert_same(source, "many_lights", (120, 68), monkeypatch)
+    assert max(calls) == 4, calls          # the four slots' lights in one call
+    from pipegen import compile_source, load_scene
+    pipe = compile_source(source).pipeline("cl", (120, 68))
+    pipe.render(load_scene(ROOT / "examples" / "scenes" / "many_lights.toml"))
+    slots = [v for k, v in pipe.geometry.frame.items()
+             if isinstance(k, tuple) and k[0] == "bins" and isinstance(k[2], tuple)]
+    assert len(slots) == 4 and len({id(b.tile_tris) for b in slots}) == 1

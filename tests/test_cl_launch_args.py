@@ -48,9 +48,10 @@ def test_typed_arguments_take_numpy_scalars_only():
     kern = cl.Kernel(cl_context.build_program(cl_programs.bin_program()), "pg_bin_starts")
     ctx, _ = cl_context.get_context()
     bufs = [cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size=64) for _ in range(4)]
+    scalars = [np.int32(2), np.int32(1), np.int32(1), np.int32(1), np.int32(3), np.int32(1)]
     with pytest.raises(TypeError, match="numpy scalars"):
-        cl_context.set_args(kern, 1, np.int32(2), np.int32(1), np.int32(1), *bufs)
-    cl_context.set_args(kern, np.int32(1), np.int32(2), np.int32(1), np.int32(1), *bufs)
+        cl_context.set_args(kern, 1, *scalars, *bufs)
+    cl_context.set_args(kern, np.int32(1), *scalars, *bufs)
     assert kern._pg_typed
 
 

@@ -27,7 +27,8 @@ from pipegen.backends.opencl.abi import SUBPIXEL
 from pipegen.runtime.cl import context as cl_context
 from pipegen.runtime.cl.setup import edge_test_lists
 
-__all__ = ["DeviceBinner", "DeviceBins", "band_for", "enabled", "tiles_with"]
+__all__ = ["DeviceBinner", "DeviceBins", "band_for", "box_tile_counts", "box_tiles", "enabled",
+           "tiles_with"]
 
 _PER_RUN = 1024        # triangles a work-item bins, at most 8 work-items (PoCL: 2 threads)
 _RUNS = 8
@@ -42,10 +43,22 @@ def box_tiles(bbox: np.ndarray, tile: int, tile_h: Optional[int] = None) -> int:
     """The tiles (``tile`` wide, ``tile_h`` tall: default ``tile``) the boxes (N, 4:
     inclusive x0, y0, x1, y1) cover, summed: at least the entries binning makes (the edge
     tests drop some)."""
+    x, y = _box_spans(bbox, tile, tile_h)
+    return int(np.dot(x.astype(np.int64), y))
+
+
+def box_tile_counts(bbox: np.ndarray, tile: int, tile_h: Optional[int] = None) -> np.ndarray:
+    """``box_tiles`` per box (N,): summed over a subset, that subset's bound."""
+    x, y = _box_spans(bbox, tile, tile_h)
+    return x * y
+
+
+def _box_spans(bbox: np.ndarray, tile: int, tile_h: Optional[int]) -> tuple:
+    """The tiles each box spans across and down."""
     bbox = np.asarray(bbox)
     t = bbox // tile                      # one int32 pass (an int64 copy first: 8x slower)
     y = t if tile_h is None or tile_h == tile else bbox if tile_h == 1 else bbox // tile_h
-    return int(np.dot((t[:, 2] - t[:, 0] + 1).astype(np.int64), y[:, 3] - y[:, 1] + 1))
+    return t[:, 2] - t[:, 0] + 1, y[:, 3] - y[:, 1] + 1
 
 
 # what binning costs, in raster kernel box tests (of a triangle against a tile row): an entry
@@ -106,11 +119,13 @@ def _shift(n: int) -> int:
 class DeviceBins:
     """A pass's tile lists built on the device: ``tile_list`` (the tiles with triangles, one
     work-group each), ``tile_start``/``tile_tris`` (CSR, rows of the geometry's buffers), as
-    ``cl_geometry.Bins`` has them; ``ntiles`` and ``entries`` wait for the binning."""
+    ``cl_geometry.Bins`` has them; ``ntiles`` and ``entries`` wait for the binning.  One of
+    the segments of a ``DeviceBinner.bin_segments`` call: its starts hold absolute offsets
+    into the call's one ``tile_tris``, its summary is ``summary[2 seg: 2 seg + 2]``."""
 
     def __init__(self, queue, tiles_x: int, triangles: int, tile_list, tile_start, tile_tris,
                  summary: np.ndarray, event, index: Optional[np.ndarray], ntiles_all: int,
-                 band: int):
+                 band: int, seg: int = 0):
         self.queue = queue
         self.tiles_x = tiles_x
         self.triangles = triangles
@@ -119,6 +134,7 @@ class DeviceBins:
         self._index = index
         self._ntiles_all = ntiles_all
         self.band = band              # the lists' rows: tiles_x lists per band of rows
+        self._seg = seg
 
     def _counts(self) -> np.ndarray:
         if self._event is not None:
@@ -128,11 +144,11 @@ class DeviceBins:
 
     @property
     def ntiles(self) -> int:
-        return int(self._counts()[0])
+        return int(self._counts()[2 * self._seg])
 
     @property
     def entries(self) -> int:
-        return int(self._counts()[1])
+        return int(self._counts()[2 * self._seg + 1])
 
     @property
     def host(self) -> tuple:
@@ -142,11 +158,13 @@ class DeviceBins:
         n, m = self.ntiles, self.entries
         active = np.empty(max(n, 1), np.int32)
         start = np.empty(self._ntiles_all + 1, np.int32)
-        rows = np.empty(max(m, 1), np.int32)
         cl.enqueue_copy(self.queue, active, self.tile_list)
         cl.enqueue_copy(self.queue, start, self.tile_start)
+        base = int(start[0])
+        rows = np.empty(max(base + m, 1), np.int32)
         cl.enqueue_copy(self.queue, rows, self.tile_tris)
-        tris = rows[:m]
+        start = start - base
+        tris = rows[base:base + m]
         if self._index is not None and len(self._index):
             triangle_of = np.full(int(self._index.max()) + 1, -1, np.int32)
             triangle_of[self._index] = np.arange(len(self._index), dtype=np.int32)
@@ -172,7 +190,7 @@ class DeviceBinner:
     def bin(self, bufs: dict, rows: np.ndarray, bbox: np.ndarray, samples: Optional[int],
             width: int, height: int, tile: int, triangles: int,
             index: Optional[np.ndarray] = None, pool=None, edge_test_tiles: int = 4,
-            tile_h: Optional[int] = None):
+            tile_h: Optional[int] = None) -> DeviceBins:
         """Queue the binning of the triangles in buffer rows ``rows`` (int32, submission
         order; ``bbox``: their boxes on the host, to size the lists) of the set-up buffers
         ``bufs`` (``a``, ``b``, ``c``, ``bbox``) for a ``width`` x ``height`` pass with
@@ -180,28 +198,50 @@ class DeviceBinner:
         geometry (``host`` maps rows back through it).  ``pool``: a ``FramePool`` for bins
         that last one frame (None: buffers of their own).  ``tile_h``: the tiles' height
         (default ``tile``: square tiles)."""
+        return self.bin_segments(bufs, [rows], box_tiles(bbox, tile, tile_h), samples, width,
+                                 height, tile, [triangles], index, pool, edge_test_tiles,
+                                 tile_h)[0]
+
+    def bin_segments(self, bufs: dict, rows: list, capacity: int, samples: Optional[int],
+                     width: int, height: int, tile: int, triangles: list,
+                     index: Optional[np.ndarray] = None, pool=None,
+                     edge_test_tiles: int = 4, tile_h: Optional[int] = None) -> list:
+        """``bin`` of several passes' triangles of one set-up at once (``rows[s]`` and
+        ``triangles[s]`` for pass s; ``capacity``: the entries the lists must hold, at least
+        their boxes' ``box_tiles``): three kernels and one read for all of them, each pass's
+        ``DeviceBins`` views (sub-buffers) of the call's buffers."""
         import pyopencl as cl
         mf = cl.mem_flags
         count_k, starts_k, write_k = self._kernels_once()
         th = tile if tile_h is None else tile_h
         assert tile % th == 0, (tile, th)
+        nseg = len(rows)
         tiles_x = (width + tile - 1) // tile
         ntiles = tiles_x * ((height + th - 1) // th)
-        n = len(rows)
+        tiles = tiles_x * -(-height // tile)
+        seg_start = np.zeros(nseg + 1, np.int32)
+        np.cumsum([len(r) for r in rows], out=seg_start[1:])
+        n = int(seg_start[-1])
         runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
         per = (n + runs - 1) // runs
+        # each segment's starts and tiles at sub-buffer origins (the device's base address
+        # alignment) when there are several
+        ints = 1 if nseg == 1 else max(1, self.ctx.devices[0].mem_base_addr_align // 32)
+        start_row, active_row = -(-(ntiles + 1) // ints) * ints, -(-tiles // ints) * ints
 
         def buf(nbytes, flags=mf.READ_WRITE):
             return pool.buffer(nbytes, flags) if pool is not None else \
                 cl.Buffer(self.ctx, flags, size=max(16, int(nbytes)))
 
+        all_rows = rows[0] if nseg == 1 else np.concatenate(rows)
         rows_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
-                             hostbuf=np.ascontiguousarray(rows, np.int32))
-        counts = buf(runs * ntiles * 4)
-        tile_start = buf((ntiles + 1) * 4)
-        tile_list = buf(tiles_x * -(-height // tile) * 4)
-        tile_tris = buf(box_tiles(bbox, tile, th) * 4)
-        summary_buf = buf(8)
+                             hostbuf=np.ascontiguousarray(all_rows, np.int32))
+        seg_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=seg_start)
+        counts = buf(runs * nseg * ntiles * 4)
+        tile_start = buf(nseg * start_row * 4)
+        tile_list = buf(nseg * active_row * 4)
+        tile_tris = buf(capacity * 4)
+        summary_buf = buf(nseg * 8)
         # the corners that maximise an edge function: the pixel centre with one sample, else
         # the extreme sample positions any pattern could use (as bin_pairs)
         lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (1, SUBPIXEL - 1)
@@ -210,16 +250,22 @@ class DeviceBinner:
                 np.int32(_shift(tile)), np.int32(_shift(th)),
                 np.int32(edge_test_lists(edge_test_tiles, tile, th)),
                 np.int32(lo), np.int32(hi), rows_buf, bufs["bbox"], bufs["a"], bufs["b"],
-                bufs["c"]]
+                bufs["c"], np.int32(nseg), seg_buf]
         cl_context.set_args(count_k, *head, counts)
         cl.enqueue_nd_range_kernel(self.queue, count_k, (runs,), (1,))
         cl_context.set_args(starts_k, np.int32(runs), np.int32(ntiles), np.int32(tiles_x),
-                            np.int32(tile // th), counts, tile_start,
-                            tile_list, summary_buf)
+                            np.int32(tile // th), np.int32(nseg), np.int32(start_row),
+                            np.int32(active_row), counts, tile_start, tile_list, summary_buf)
         cl.enqueue_nd_range_kernel(self.queue, starts_k, (1,), (1,))
         cl_context.set_args(write_k, *head, counts, tile_tris)
         cl.enqueue_nd_range_kernel(self.queue, write_k, (runs,), (1,))
-        summary = np.zeros(2, np.int32)
+        summary = np.zeros(2 * nseg, np.int32)
         event = cl.enqueue_copy(self.queue, summary, summary_buf, is_blocking=False)
-        return DeviceBins(self.queue, tiles_x, triangles, tile_list, tile_start, tile_tris,
-                          summary, event, index, ntiles, th)
+        if nseg == 1:
+            return [DeviceBins(self.queue, tiles_x, triangles[0], tile_list, tile_start,
+                               tile_tris, summary, event, index, ntiles, th)]
+        return [DeviceBins(self.queue, tiles_x, triangles[s],
+                           tile_list.get_sub_region(s * active_row * 4, active_row * 4),
+                           tile_start.get_sub_region(s * start_row * 4, start_row * 4),
+                           tile_tris, summary, event, index, ntiles, th, seg=s)
+                for s in range(nseg)]

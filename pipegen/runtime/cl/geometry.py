@@ -362,20 +362,18 @@ class DrawGeometry:
             self._group_bins(geo, batch, cull, width, height, timing)
             tb = cache.get(key)
             cache[("light pass", k, width, height)] = (geo, cull.value)
+        if tb is None and p.repeat_group is None and tuple(lights) != batch \
+                and cl_bin.enabled():
+            self._shared_bins(p, geo, batch, width, height, timing)
+            tb = cache.get(key)
         if tb is None:
             t0 = time.perf_counter()
             band = self._band(geo, width, height)
-            n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
             if cl_bin.enabled():
-                keep = _KEEPS_FRONT.get(cull)
-                subset = None
-                if tuple(lights) != batch:       # these lights' triangles, in light order
-                    subset = np.concatenate([np.arange(a, b) for a, b in ranges])
-                if keep is not None:
-                    kept = np.flatnonzero(geo.front == keep)
-                    subset = kept if subset is None else subset[geo.front[subset] == keep]
+                subset, n = self._light_subset(geo, lights, batch, cull)
                 tb = self._device_bins(geo, subset, width, height, n, self.pool, band)
             else:
+                n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
                 tri, tile_id, tiles_x, tiles_y = self._pairs(geo, width, height, cull, band)
                 if tuple(lights) != batch:       # the pairs of these lights' triangles
                     cut = [np.searchsorted(tri, r) for r in ranges]
@@ -387,6 +385,65 @@ class DrawGeometry:
             cache[key] = tb
             timing["bin"] = (time.perf_counter() - t0) * 1e3
         return geo, tb
+
+    @staticmethod
+    def _light_subset(geo: Geo, lights, batch: tuple, cull: ir.CullMode):
+        """(the triangles of ``geo`` a draw of ``lights`` under ``cull`` bins, increasing
+        indices or None for all of them; how many)."""
+        ranges = [geo.ranges[int(l)] for l in lights]
+        n = int(_drawn(geo, np.array(ranges, np.int64).reshape(-1, 2), cull).sum())
+        keep = _KEEPS_FRONT.get(cull)
+        subset = None
+        if tuple(lights) != batch:       # these lights' triangles, in light order
+            subset = np.concatenate([np.arange(a, b) for a, b in ranges])
+        if keep is not None:
+            kept = np.flatnonzero(geo.front == keep)
+            subset = kept if subset is None else subset[geo.front[subset] == keep]
+        return subset, n
+
+    def _shared_bins(self, p: PassPlan, geo: Geo, batch: tuple, width: int, height: int,
+                     timing: dict) -> None:
+        """The bins of every pass outside repeat groups drawing lights of set-up ``geo``
+        (``_shared_lights``: LIDR's light-index slots draw four disjoint light sets of one
+        set-up), binned in one device call (``DeviceBinner.bin_segments``) when the first of
+        them is prepared, each cached under the key its own pass looks up: three kernels,
+        their launches and one read of the tile counts for all of them, instead of per pass
+        (the read a pass's raster launch waits for: the later passes find it done)."""
+        t0 = time.perf_counter()
+        sizes, selection = self.frame_state.pass_sizes, self.frame_state.selection
+        raster_key = self._raster_key(p, width, height)
+        band = self._band(geo, width, height)
+        per_triangle = cl_bin.box_tile_counts(geo.tris.bbox, self.tile, band)
+        keys, rows, drawn = [], [], []
+        capacity = 0
+        for j, q in enumerate(self.plan.passes):
+            if q.draw.kind is not ir.DrawKind.LIGHTS or q.repeat_group is not None \
+                    or q.cull_auto or self.only not in (None, j) or sizes[j] != (width, height) \
+                    or self._raster_key(q, width, height) != raster_key:
+                continue
+            lights = tuple(selection.of(q.draw))
+            if not lights or any(int(l) not in geo.ranges for l in lights):
+                continue
+            cull = q.state.cull if geo.setup_cull == "none" else ir.CullMode.NONE
+            key = ("bins", id(geo.tris), lights, cull.value, width, height)
+            if key in self.frame or key in keys:
+                continue
+            subset, n = self._light_subset(geo, lights, batch, cull)
+            if subset is None:
+                subset = np.arange(geo.tris.count)
+            if not len(subset):
+                continue
+            keys.append(key)
+            rows.append(subset.astype(np.int32) if geo.index is None else geo.index[subset])
+            capacity += int(per_triangle[subset].sum())
+            drawn.append(n)
+        if len(keys) < 2:
+            return
+        got = self.binner.bin_segments(geo.bufs, rows, capacity, geo.tris.samples, width,
+                                       height, self.tile, drawn, geo.index, self.pool,
+                                       tile_h=band)
+        self.frame.update(zip(keys, got))
+        timing["bin"] = (time.perf_counter() - t0) * 1e3
 
     def _pairs(self, geo: Geo, width: int, height: int, cull: ir.CullMode,
                band: Optional[int] = None):
