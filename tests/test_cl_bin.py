@@ -101,3 +101,21 @@ def test_light_slots_binned_in_one_call_are_each_passs_own_lists(monkeypatch):
     slots = [v for k, v in pipe.geometry.frame.items()
              if isinstance(k, tuple) and k[0] == "bins" and isinstance(k[2], tuple)]
     assert len(slots) == 4 and len({id(b.tile_tris) for b in slots}) == 1
+
+
+def test_a_fused_groups_members_binned_in_one_call(monkeypatch):
+    """Deferred's fused light group: the marking pass's lists (every face of every light's
+    volume) and the shading pass's (back faces) from one segmented call, the numpy lists
+    each, the same frame."""
+    from pipegen.runtime.cl import bin as cl_bin
+    calls = []
+    segments = cl_bin.DeviceBinner.bin_segments
+
+    def counted(self, bufs, rows, *args, **kwargs):
+        calls.append(len(rows))
+        return segments(self, bufs, rows, *args, **kwargs)
+
+    monkeypatch.setattr(cl_bin.DeviceBinner, "bin_segments", counted)
+    source = (ROOT / "pipelines" / "deferred.pipe").read_text()
+    _assert_same(source, "many_lights", (120, 68), monkeypatch)
+    assert 2 in calls, calls

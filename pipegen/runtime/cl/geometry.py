@@ -362,8 +362,7 @@ class DrawGeometry:
             self._group_bins(geo, batch, cull, width, height, timing)
             tb = cache.get(key)
             cache[("light pass", k, width, height)] = (geo, cull.value)
-        if tb is None and p.repeat_group is None and tuple(lights) != batch \
-                and cl_bin.enabled():
+        if tb is None and len(lights) > 1 and cl_bin.enabled():
             self._shared_bins(p, geo, batch, width, height, timing)
             tb = cache.get(key)
         if tb is None:
@@ -403,9 +402,11 @@ class DrawGeometry:
 
     def _shared_bins(self, p: PassPlan, geo: Geo, batch: tuple, width: int, height: int,
                      timing: dict) -> None:
-        """The bins of every pass outside repeat groups drawing lights of set-up ``geo``
-        (``_shared_lights``: LIDR's light-index slots draw four disjoint light sets of one
-        set-up), binned in one device call (``DeviceBinner.bin_segments``) when the first of
+        """The bins of every pass drawing its light list from set-up ``geo`` (outside repeat
+        groups, ``_shared_lights``: LIDR's light-index slots draw four disjoint light sets of
+        one set-up; or the members of ``p``'s repeat group drawn in one launch,
+        ``group_launch``: deferred's marking and shading of every light, all faces and back
+        faces), binned in one device call (``DeviceBinner.bin_segments``) when the first of
         them is prepared, each cached under the key its own pass looks up: three kernels,
         their launches and one read of the tile counts for all of them, instead of per pass
         (the read a pass's raster launch waits for: the later passes find it done)."""
@@ -417,7 +418,7 @@ class DrawGeometry:
         keys, rows, drawn = [], [], []
         capacity = 0
         for j, q in enumerate(self.plan.passes):
-            if q.draw.kind is not ir.DrawKind.LIGHTS or q.repeat_group is not None \
+            if q.draw.kind is not ir.DrawKind.LIGHTS or q.repeat_group != p.repeat_group \
                     or q.cull_auto or self.only not in (None, j) or sizes[j] != (width, height) \
                     or self._raster_key(q, width, height) != raster_key:
                 continue
