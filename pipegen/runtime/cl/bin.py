@@ -88,7 +88,7 @@ def band_for(bbox: np.ndarray, tile: int, width: int, height: int) -> int:
     if not n:
         return tile
     bbox = np.asarray(bbox)
-    h = float(np.mean(bbox[:, 3] - bbox[:, 1]))
+    h = int(np.add.reduce(bbox[:, 3] - bbox[:, 1], dtype=np.int64)) / n
     runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
     lists = runs * -(-width // tile)
 

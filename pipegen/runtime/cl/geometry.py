@@ -413,22 +413,25 @@ class DrawGeometry:
         t0 = time.perf_counter()
         sizes, selection = self.frame_state.pass_sizes, self.frame_state.selection
         raster_key = self._raster_key(p, width, height)
-        band = self._band(geo, width, height)
-        per_triangle = cl_bin.box_tile_counts(geo.tris.bbox, self.tile, band)
-        keys, rows, drawn = [], [], []
-        capacity = 0
+        passes = []          # (lights, cull, key) of each pass to bin, found first: cheap
         for j, q in enumerate(self.plan.passes):
             if q.draw.kind is not ir.DrawKind.LIGHTS or q.repeat_group != p.repeat_group \
                     or q.cull_auto or self.only not in (None, j) or sizes[j] != (width, height) \
                     or self._raster_key(q, width, height) != raster_key:
                 continue
             lights = tuple(selection.of(q.draw))
-            if not lights or any(int(l) not in geo.ranges for l in lights):
-                continue
             cull = q.state.cull if geo.setup_cull == "none" else ir.CullMode.NONE
             key = ("bins", id(geo.tris), lights, cull.value, width, height)
-            if key in self.frame or key in keys:
-                continue
+            if lights and key not in self.frame and all(k != key for _, _, k in passes) \
+                    and all(int(l) in geo.ranges for l in lights):
+                passes.append((lights, cull, key))
+        if len(passes) < 2:
+            return
+        band = self._band(geo, width, height)
+        per_triangle = cl_bin.box_tile_counts(geo.tris.bbox, self.tile, band)
+        keys, rows, drawn = [], [], []
+        capacity = 0
+        for lights, cull, key in passes:
             subset, n = self._light_subset(geo, lights, batch, cull)
             if subset is None:
                 subset = np.arange(geo.tris.count)
