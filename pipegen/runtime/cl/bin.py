@@ -182,6 +182,7 @@ class DeviceBinner:
     def _kernels_once(self):
         import pyopencl as cl
         if self._kernels is None:
+            self._no_segments = cl.Buffer(self.ctx, cl.mem_flags.READ_ONLY, size=16)
             prog = cl_context.build_program(cl_programs.bin_program())
             self._kernels = tuple(cl.Kernel(prog, name) for name in
                                   ("pg_bin_count", "pg_bin_starts", "pg_bin_write"))
@@ -219,9 +220,13 @@ class DeviceBinner:
         tiles_x = (width + tile - 1) // tile
         ntiles = tiles_x * ((height + th - 1) // th)
         tiles = tiles_x * -(-height // tile)
-        seg_start = np.zeros(nseg + 1, np.int32)
-        np.cumsum([len(r) for r in rows], out=seg_start[1:])
-        n = int(seg_start[-1])
+        if nseg == 1:           # the kernels read no segment starts
+            n, seg_buf = len(rows[0]), self._no_segments
+        else:
+            seg_start = np.zeros(nseg + 1, np.int32)
+            np.cumsum([len(r) for r in rows], out=seg_start[1:])
+            n = int(seg_start[-1])
+            seg_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=seg_start)
         runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
         per = (n + runs - 1) // runs
         # each segment's starts and tiles at sub-buffer origins (the device's base address
@@ -236,7 +241,6 @@ class DeviceBinner:
         all_rows = rows[0] if nseg == 1 else np.concatenate(rows)
         rows_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                              hostbuf=np.ascontiguousarray(all_rows, np.int32))
-        seg_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=seg_start)
         counts = buf(runs * nseg * ntiles * 4)
         tile_start = buf(nseg * start_row * 4)
         tile_list = buf(nseg * active_row * 4)

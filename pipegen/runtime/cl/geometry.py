@@ -422,11 +422,12 @@ class DrawGeometry:
             lights = tuple(selection.of(q.draw))
             cull = q.state.cull if geo.setup_cull == "none" else ir.CullMode.NONE
             key = ("bins", id(geo.tris), lights, cull.value, width, height)
-            if lights and key not in self.frame and all(k != key for _, _, k in passes) \
-                    and all(int(l) in geo.ranges for l in lights):
+            if lights and key not in self.frame and all(k != key for _, _, k in passes):
                 passes.append((lights, cull, key))
         if len(passes) < 2:
             return
+        passes = [(lights, cull, key) for lights, cull, key in passes
+                  if all(int(l) in geo.ranges for l in lights)]
         band = self._band(geo, width, height)
         per_triangle = cl_bin.box_tile_counts(geo.tris.bbox, self.tile, band)
         keys, rows, drawn = [], [], []
