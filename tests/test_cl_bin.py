@@ -78,13 +78,10 @@ def test_box_tiles_bound_the_entries():
     assert len(tri) <= cl_bin.box_tiles(tris.bbox, 16)
 
 
-def test_light_slots_binned_in_one_call_are_each_passs_own_lists(monkeypatch):
-    """LIDR's four light-index slot passes draw disjoint light sets of one set-up: their bins
-    come from one segmented device call (``DrawGeometry._shared_bins``, one triangle-row
-    buffer for all), list for list the numpy binning of each pass on its own, and the frame
-    is the same."""
+def _segment_calls(monkeypatch) -> list:
+    """The number of passes each ``DeviceBinner.bin_segments`` call bins, as calls come."""
     from pipegen.runtime.cl import bin as cl_bin
-    calls = []
+    calls: list = []
     segments = cl_bin.DeviceBinner.bin_segments
 
     def counted(self, bufs, rows, *args, **kwargs):
@@ -92,6 +89,15 @@ def test_light_slots_binned_in_one_call_are_each_passs_own_lists(monkeypatch):
         return segments(self, bufs, rows, *args, **kwargs)
 
     monkeypatch.setattr(cl_bin.DeviceBinner, "bin_segments", counted)
+    return calls
+
+
+def test_light_slots_binned_in_one_call_are_each_passs_own_lists(monkeypatch):
+    """LIDR's four light-index slot passes draw disjoint light sets of one set-up: their bins
+    come from one segmented device call (``DrawGeometry._shared_bins``, one triangle-row
+    buffer for all), list for list the numpy binning of each pass on its own, and the frame
+    is the same."""
+    calls = _segment_calls(monkeypatch)
     source = (ROOT / "pipelines" / "lidr_cpu_sort.pipe").read_text()
     _assert_same(source, "many_lights", (120, 68), monkeypatch)
     assert max(calls) == 4, calls          # the four slots' lights in one call
@@ -107,15 +113,7 @@ def test_a_fused_groups_members_binned_in_one_call(monkeypatch):
     """Deferred's fused light group: the marking pass's lists (every face of every light's
     volume) and the shading pass's (back faces) from one segmented call, the numpy lists
     each, the same frame."""
-    from pipegen.runtime.cl import bin as cl_bin
-    calls = []
-    segments = cl_bin.DeviceBinner.bin_segments
-
-    def counted(self, bufs, rows, *args, **kwargs):
-        calls.append(len(rows))
-        return segments(self, bufs, rows, *args, **kwargs)
-
-    monkeypatch.setattr(cl_bin.DeviceBinner, "bin_segments", counted)
+    calls = _segment_calls(monkeypatch)
     source = (ROOT / "pipelines" / "deferred.pipe").read_text()
     _assert_same(source, "many_lights", (120, 68), monkeypatch)
     assert 2 in calls, calls

@@ -16,7 +16,7 @@ The group program links:
   ``pg_fragment``, ``PG_SX``);
 * the fused kernel ``pg_group`` (``cl_group.cl.j2``): one work-group per tile some light's
   volume touches, a loop over the frame's steps ``(member, light, 0, stencil clear)``, each
-  calling its member's row function on that light's run of the tile's list.  A member's bins
+  calling its member's row function on that light's run of the row's list.  A member's bins
   are those of all its lights' triangles, submitted light by light in the order the steps
   visit them, so a light's run is the next one whose ``tri_flat.w`` is that light: one
   cursor per member (``runtime/cl/group_launch.py`` checks the order, frame by frame).

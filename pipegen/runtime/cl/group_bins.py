@@ -3,7 +3,7 @@
 triangle rows, and per light views into them, instead of three buffers made per light
 (deferred on many_lights: 243 uploads a frame for its 81 lights).
 
-The raster kernel reads ``tile_list[group]``, ``tile_start[tile]``, ``tile_start[tile + 1]``
+The raster kernel reads ``tile_list[group]``, ``tile_start[list]``, ``tile_start[list + 1]``
 and ``tile_tris[k]`` for k between those two: a light's tile starts hold absolute offsets
 into the group's triangle rows, so every light shares the one ``tile_tris`` buffer, and its
 tile starts and tile list are sub-buffers of rows padded to the device's base address
