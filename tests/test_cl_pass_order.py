@@ -97,12 +97,12 @@ def test_in_turn_a_pass_is_launched_before_the_next_is_prepared(monkeypatch):
 
 
 def test_every_clipper_before_any_raster_and_the_first_bins_before_the_last(monkeypatch):
-    """The device's queue in a frame: each set-up's clipper is queued once the next set-up
-    is, every one before the first raster kernel (a clipper behind a raster kernel would hold
-    up the host's next pass), and the first pass's binning before the last set-up's clipper
-    (so that the device bins it right after setting up the others, not after the host's wait
-    for the last set-up and its own preparation).  inferred on street_lamps: three set-ups,
-    each clipping triangles that cross the near plane."""
+    """The device's queue in a frame: each set-up's clipper is queued before the next set-up
+    kernel, every one before the first raster kernel (a clipper behind a raster kernel would
+    hold up the host's next pass), and the first pass's binning before the last set-up's
+    clipper (so that the device bins it right after setting up the others, not after the
+    host's wait for the last set-up and its own preparation).  inferred on street_lamps: three
+    set-ups, each clipping triangles that cross the near plane."""
     import pyopencl as cl
     compiled, s = _compiled("inferred", "street_lamps"), _scene("street_lamps")
     pipe = compiled.pipeline("cl", SIZE)
@@ -117,8 +117,12 @@ def test_every_clipper_before_any_raster_and_the_first_bins_before_the_last(monk
     monkeypatch.setattr(cl, "enqueue_nd_range_kernel", logged)
     pipe.render(s)
     clips = [i for i, n in enumerate(names) if n == "pg_clip_setup"]
+    setups = [i for i, n in enumerate(names) if n == "pg_setup"]
     rasters = [i for i, n in enumerate(names) if n == "pg_raster"]
     bins = [i for i, n in enumerate(names) if n == "pg_bin_count"]
-    assert len(clips) >= 2 and rasters and bins, names
+    assert len(clips) >= 2 and len(setups) >= 3 and rasters and bins, names
     assert max(clips) < min(rasters)
     assert min(bins) < max(clips)
+    # a set-up's clipper before the next set-up kernel (the first set-up clips, and so does
+    # at least one more before the last)
+    assert clips[0] < setups[1] and clips[-2] < setups[-1], names

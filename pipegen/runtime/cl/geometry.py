@@ -780,16 +780,15 @@ class DrawGeometry:
         if key not in self.frame and key not in self.pending:
             self.pending[key] = self._vertices(k, p, width, height, key, lights, shadow, volume)
 
-    def clip_pending(self, but_newest: bool = False) -> None:
+    def clip_pending(self) -> None:
         """Queue the clipping of every prefetched device set-up (``DeviceSetup.clip``: it waits
-        for the set-up's status), before any raster kernel; ``but_newest``: all but the one
-        prefetched last, whose set-up the device has only just been given (``CLPipeline``
-        clips each set-up once the next is queued, so that its clipper runs before the later
-        set-ups instead of after all of them, and a first pass's bins can be queued before
-        the device has finished setting up the others)."""
-        jobs = [v.job for v in self.pending.values() if v is not None and v.job is not None]
-        for job in jobs[:-1] if but_newest else jobs:
-            self.device_setup.clip(job)
+        for the set-up's status; done already for a set-up that was followed by another),
+        before any raster kernel.  Each set-up is clipped before the next set-up is queued
+        (``_vertices``), so that a first pass's bins can be queued while the device still sets
+        up the others, instead of after all of them and the host's wait for the last."""
+        for v in self.pending.values():
+            if v is not None and v.job is not None:
+                self.device_setup.clip(v.job)
 
     def _vertices(self, k: int, p: PassPlan, width: int, height: int, key: tuple,
                   lights: Optional[tuple], shadow: Optional["ShadowView"],
@@ -921,7 +920,12 @@ class DrawGeometry:
                 depth_clamp=p.state.depth.clamp, flat=v.flat, scissor=v.scissor,
                 smooth=tuple(i for i, f in enumerate(v.flats) if not f), pixel_center=center,
                 w_plane=v.w_plane, viewport=None if shadow is None else shadow.rect,
-                with_zq=center == 0.0, slots=len(v.names), stride=v.vstride)
+                with_zq=center == 0.0, slots=len(v.names), stride=v.vstride,
+                # the set-ups queued before this one clipped first (``clip_pending``: it waits
+                # for their statuses while the device runs them and this draw's vertex
+                # kernels), once this one's host work is done: their clippers then run before
+                # this set-up, not after every set-up of the frame
+                before_queue=self.clip_pending)
         return v
 
     def _set_up(self, k: int, p: PassPlan, width: int, height: int, timing: dict, key: tuple,

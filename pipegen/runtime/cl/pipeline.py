@@ -409,7 +409,6 @@ class CLPipeline:
         self._prefetched = set()
         for k, light in runs:      # every vertex kernel before the first raster kernel
             self._prefetch(k, light)
-            self.geometry.clip_pending(but_newest=True)
         if self.profile is None and not capture_passes:
             # each pass execution's host work (set-up read-backs, bins) made when its turn comes,
             # right after the device work of the one before is queued: the device rasterises pass

@@ -133,11 +133,12 @@ class DeviceSetup:
                 scissor: Optional[np.ndarray] = None, samples: Optional[int] = None,
                 smooth: tuple = (), pixel_center: float = 0.5, w_plane: bool = True,
                 viewport=None, with_zq: bool = False, slots: int = 0,
-                stride: Optional[int] = None) -> _Job:
+                stride: Optional[int] = None, before_queue=None) -> _Job:
         """Queue the set-up of ``ntris`` triangles whose clip positions (``3 * ntris``
         float4) are in ``clip_buf`` and ``slots`` varyings (slot-major, ``nverts`` per slot,
         ``stride`` >= ``nverts`` apart: room the clipper can append its vertices in) in
-        ``vary_buf``; the keywords as ``setup_triangles`` takes them."""
+        ``vary_buf``; the keywords as ``setup_triangles`` takes them.  ``before_queue``:
+        called once the host work is done, right before the kernel is queued."""
         import pyopencl as cl
         f32 = np.float32
         mf = cl.mem_flags
@@ -183,6 +184,8 @@ class DeviceSetup:
                             coef_buf, bufs["flat"], bufs["vtx"], bufs["scissor"],
                             bufs["bbox"], zq_buf)
         events = []
+        if before_queue is not None:
+            before_queue()
         if ntris:
             events.append(cl.enqueue_nd_range_kernel(self.queue, kern,
                                                      (((ntris + 63) // 64) * 64,), (64,)))
