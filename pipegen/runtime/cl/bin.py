@@ -34,6 +34,11 @@ _PER_RUN = 1024        # triangles a work-item bins, at most 8 work-items (PoCL:
 _RUNS = 8
 
 
+def _runs(n: int) -> int:
+    """The work-items (runs of consecutive triangles) binning ``n`` triangles."""
+    return max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
+
+
 def enabled() -> bool:
     """Whether draws are binned on the device (``$PIPEGEN_CL_DEVICE_BIN=0``: in numpy)."""
     return os.environ.get("PIPEGEN_CL_DEVICE_BIN", "1") != "0"
@@ -89,7 +94,7 @@ def band_for(bbox: np.ndarray, tile: int, width: int, height: int) -> int:
         return tile
     bbox = np.asarray(bbox)
     h = int(np.add.reduce(bbox[:, 3] - bbox[:, 1], dtype=np.int64)) / n
-    runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
+    runs = _runs(n)
     lists = runs * -(-width // tile)
 
     def cost(b: int) -> float:
@@ -227,7 +232,7 @@ class DeviceBinner:
             np.cumsum([len(r) for r in rows], out=seg_start[1:])
             n = int(seg_start[-1])
             seg_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=seg_start)
-        runs = max(1, min(_RUNS, (n + _PER_RUN - 1) // _PER_RUN))
+        runs = _runs(n)
         per = (n + runs - 1) // runs
         # each segment's starts and tiles at sub-buffer origins (the device's base address
         # alignment) when there are several
