@@ -270,7 +270,8 @@ def _pass_to_dict(p: PassPlan) -> dict:
                  **({"order": d.order.value} if d.order is not ir.DrawOrder.SCENE else {}),
                  **({"shadow_tiles": d.shadow_tiles} if d.shadow else {}),
                  **({"shadow_first": d.shadow_first} if d.shadow_first else {}),
-                 **({"shadow_volumes": True} if d.shadow_volumes else {})},
+                 **({"shadow_volumes": True} if d.shadow_volumes else {}),
+                 **({"within": True} if d.within else {})},
         "repeat_group": p.repeat_group,
         "repeat_types": list(p.repeat_types),
         "clears": [{"target": name, **_clear_to_dict(c)} for name, c in p.clears],
@@ -376,7 +377,7 @@ def draw_from_dict(d: Optional[Mapping]) -> ir.Draw:
                    None if not light_set else (str(light_set[0]), int(light_set[1])),
                    bool(d.get("scissor")), ir.DrawOrder(d.get("order") or "scene"),
                    int(d.get("shadow_tiles") or 0), int(d.get("shadow_first") or 0),
-                   bool(d.get("shadow_volumes")))
+                   bool(d.get("shadow_volumes")), bool(d.get("within")))
 
 
 def _pass_from_dict(p: Mapping, preludes: Mapping[str, str]) -> PassPlan:

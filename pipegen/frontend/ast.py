@@ -329,6 +329,7 @@ class Draw(Node):
     back_to_front: bool = False                # scene... back_to_front
     from_lights: Optional["DrawFrom"] = None  # scene... from lights TYPES [first K] [tiles N]
     shadow_volumes: Optional["DrawVolumes"] = None   # scene... shadow_volumes
+    within: Optional["DrawWithin"] = None    # scene... within light radius
 
 
 @record
@@ -342,6 +343,11 @@ class DrawFrom(Node):
 @record
 class DrawVolumes(Node):
     """``shadow_volumes`` after ``draw scene…``: the scene's shadow volumes from the pass's light."""
+
+
+@record
+class DrawWithin(Node):
+    """``within light radius`` after ``draw scene…``: only the objects the pass's light reaches."""
 
 
 @record

@@ -351,11 +351,13 @@ class _ToAst(Transformer):
         kind = ch[0]
         if kind.type == "SCENE":
             material = self._name(ch[1]) if ch[1] is not None else None
-            last = ch[3] if len(ch) > 3 else None        # `from lights …` or `shadow_volumes`
+            # `from lights …`, `shadow_volumes` or `within light radius`
+            last = ch[3] if len(ch) > 3 else None
             return ast.Draw("scene", material=material, span=span,
                             back_to_front=len(ch) > 2 and ch[2] is not None,
                             from_lights=last if isinstance(last, ast.DrawFrom) else None,
-                            shadow_volumes=last if isinstance(last, ast.DrawVolumes) else None)
+                            shadow_volumes=last if isinstance(last, ast.DrawVolumes) else None,
+                            within=last if isinstance(last, ast.DrawWithin) else None)
         if kind.type == "FULLSCREEN":
             return ast.Draw("fullscreen", span=span)
         draw = ast.Draw("lights", volume=ch[1], span=span)
@@ -378,6 +380,9 @@ class _ToAst(Transformer):
 
     def draw_volumes(self, meta, ch):
         return ast.DrawVolumes(span=self._span(meta))
+
+    def draw_within(self, meta, ch):
+        return ast.DrawWithin(span=self._span(meta))
 
     def light_set(self, meta, ch):
         return _LightSet(self._name(ch[0]), ch[1])

@@ -577,6 +577,10 @@ class DrawOrder(enum.Enum):
     BACK_TO_FRONT = "back_to_front"  # farthest object first (view depth of its bounds centre)
 
 
+# ``within light radius``: the object ids a light reaches, as the runtimes pass them: bits of
+# 8 uint32 words per light (object ids are 0..255: a triangle's flat word, scene/model.py)
+REACH_WORDS = 8
+
 @record(frozen=True)
 class Draw:
     kind: DrawKind
@@ -595,6 +599,13 @@ class Draw:
     # SCENE ``shadow_volumes``: the stencil shadow volumes of the objects (material filter as
     # above) from the pass's light, in a ``repeat per light`` pass (pipegen/scene/shadow_volumes.py)
     shadow_volumes: bool = False
+    # SCENE ``within light radius``, in a ``repeat per light`` pass: each light's draw submits
+    # only the objects whose bounds come within its radius (a directional light: every object),
+    # the multi-pass forward renderer's object-light selection (Trebilco 2007 lists it against
+    # multi-pass: "Object->Light interactions ... calculated on the CPU").  The pass's output
+    # must add nothing beyond the radius (the shipped attenuation is 0 there): the objects left
+    # out would only have added zeros (runtime/draws.py's reach_table)
+    within: bool = False
 
     @property
     def shadow(self) -> bool:
@@ -609,7 +620,8 @@ class Draw:
                 " from lights " + " ".join(self.light_types) +
                 (f" first {self.shadow_first}" if self.shadow_first else "") +
                 f" tiles {self.shadow_tiles}" if self.shadow else "") + (
-                " shadow_volumes" if self.shadow_volumes else "")
+                " shadow_volumes" if self.shadow_volumes else "") + (
+                " within light radius" if self.within else "")
         if self.kind is DrawKind.LIGHTS:
             text = f"lights as {(self.volume or Volume.SPHERE).value}"
             if self.light_types:

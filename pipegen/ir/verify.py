@@ -204,6 +204,9 @@ class _Verifier:
                 and p.depth_target and p.repeat_group is not None
                 and d.order is ir.DrawOrder.SCENE),
                 where, "a shadow-volume draw writes stencil only, once per light")
+            _check(not d.within or (d.kind is ir.DrawKind.SCENE and not d.shadow
+                                    and not d.shadow_volumes and p.repeat_group is not None),
+                   where, "a `within light radius` draw is a scene draw repeated per light")
         _check(d.kind is ir.DrawKind.SCENE or not d.material, where, "material filter")
         _check(p.state.cull is not ir.CullMode.AUTO or (
             d.kind is ir.DrawKind.LIGHTS and d.volume in (ir.Volume.SPHERE, ir.Volume.CONE)),

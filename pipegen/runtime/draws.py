@@ -202,6 +202,65 @@ def scene_key(draw: ir.Draw, light: Optional[int] = None) -> tuple:
     return (draw.material, draw.order)
 
 
+REACH_WORDS = ir.REACH_WORDS
+# how much farther than its radius a light is taken to reach: the fragment's float32 world
+# position and distance, and the interpolation, err by ~1e-6 of the coordinates; an object
+# left out must lie beyond where ``clamp(1 - d*d / (r*r), 0, 1)`` can round to above 0
+REACH_SLACK = 1e-3
+
+
+def reach_table(scene, draw: ir.Draw) -> np.ndarray:
+    """``draw scene… within light radius``: per scene light, the object ids its draw submits,
+    (lights, ``REACH_WORDS``) uint32 words of bits (bit i of word w: id 32 w + i).
+
+    An id is reached where the axis-aligned box around the world positions of the draw's
+    objects with that id comes within the light's radius of its position, with a margin
+    (``REACH_SLACK`` of the radius and of the coordinates' size); directional lights reach
+    every id.  Both runtimes read the same table: GL submits the reached objects' runs
+    (``reached_runs``), CL's raster kernel skips a light for a triangle whose id it does not
+    reach (cl_pass.cl.j2's ``pg_reaches``), so they draw the same fragments."""
+    lo = np.full((256, 3), np.inf)
+    hi = np.full((256, 3), -np.inf)
+    for o in scene.select(draw.material):
+        if len(o.positions):
+            lo[o.id] = np.minimum(lo[o.id], o.positions.min(axis=0))
+            hi[o.id] = np.maximum(hi[o.id], o.positions.max(axis=0))
+    used = np.flatnonzero(np.isfinite(lo[:, 0]))
+    table = np.zeros((len(scene.lights), REACH_WORDS), np.uint32)
+    if not len(used):
+        return table
+    lo, hi = lo[used], hi[used]
+    size = np.maximum(np.abs(lo), np.abs(hi)).max(axis=1)
+    bits = np.zeros((len(scene.lights), 256), bool)
+    for i, light in enumerate(scene.lights):
+        if light_type(light) == "directional":
+            bits[i, used] = True
+            continue
+        p = np.asarray(light.position, np.float64)
+        gap = np.linalg.norm(np.maximum(np.maximum(lo - p, p - hi), 0.0), axis=1)
+        r = float(light.radius)
+        bits[i, used] = gap <= r + REACH_SLACK * (r + size + float(np.abs(p).max()))
+    for w in range(REACH_WORDS):
+        table[:, w] = np.packbits(bits[:, 32 * w:32 * w + 32], axis=1,
+                                  bitorder="little").view("<u4")[:, 0]
+    return table
+
+
+def reaches(table: np.ndarray, light: int, ids: np.ndarray) -> np.ndarray:
+    """Whether light ``light`` of a ``reach_table`` reaches each object id of ``ids``."""
+    ids = np.asarray(ids, np.int64)
+    return ((table[int(light), ids >> 5] >> (ids & 31).astype(np.uint32)) & 1).astype(bool)
+
+
+def reached_runs(table: np.ndarray, light: int, tri_ids: np.ndarray) -> list[tuple[int, int]]:
+    """(first vertex, vertex count) of each run of consecutive triangles of a scene draw (object
+    id ``tri_ids`` per triangle, submission order) that light ``light`` reaches: the draw calls
+    that submit only them, in order."""
+    keep = reaches(table, light, tri_ids)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], keep.view(np.int8), [0]])))
+    return [(3 * int(a), 3 * int(b - a)) for a, b in zip(edges[0::2], edges[1::2])]
+
+
 def volume_geometry(scene, draw: ir.Draw, light: int):
     """A ``shadow_volumes`` draw for scene light ``light``: the float32 triangles of
     ``shadow_volumes.shadow_volume`` as a scene ``Geometry`` (positions only; the other

@@ -160,6 +160,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         for v in varyings:
             v["type64"], v["value64"] = SCENE_VARYINGS64[v["name"]]
     batch = batches_lights(plan, pass_, dynamic)
+    reach = reaches_by_object(plan, pass_)
     # a run of lights drawn once per row (pg_once) blends each batch of pixels in registers
     # across the lights, PG_W lanes at a time: float targets, one sample, no discard
     once_wide = batch and xbatch and samples == 1 and not code.discard and all(
@@ -182,7 +183,16 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
         wide_w=cl_wide.W, batch=batch, once_wide=once_wide, per_sample="sample_id" in inputs,
+        reach=reach, reach_words=ir.REACH_WORDS,
         mask_input="sample_mask" in inputs, nudges=nudges, row_fn=row_fn)
+
+
+def reaches_by_object(plan: Plan, pass_: PassPlan) -> bool:
+    """Whether the raster kernel of ``pass_`` skips, per light, the triangles of objects the
+    light does not reach (``draw scene… within light radius``: its ``pg_reach`` argument, a
+    ``draws.reach_table``).  The float64 evaluation draws every object for every light: it
+    is the reference that shows a pass whose output does not vanish beyond the radius."""
+    return pass_.draw.within and plan.precision == "f32"
 
 
 def batches_lights(plan: Plan, pass_: PassPlan, dynamic: bool = False) -> bool:

@@ -47,6 +47,13 @@ class PassLowerer:
         blend = self._blend(writes)
         attached = list(writes) + ([depth_target] if depth_target else [])
         samples = max([self.low.targets[n].samples for n in attached] or [1])
+        if draw.within and samples > 1:
+            raise error(self.single.get(ast.Draw).within.span,
+                        f"pass '{self.name}' draws the objects within a light's radius at "
+                        f"{samples} samples: a fragment is shaded at its pixel's centre, which "
+                        f"may lie outside its triangle and its object's bounds, so an object "
+                        f"left out could have lit a pixel", "drop `within light radius`, or "
+                        "draw this pass's targets at one sample")
         ctx = Context(self.name, draw.kind, self.group is not None, writes, reads,
                       samples=samples)
         body = self._fragment(ctx, writes)
@@ -73,6 +80,8 @@ class PassLowerer:
                 return self._shadow_draw(d, material, order)
             if d.shadow_volumes is not None:
                 return self._volume_draw(d, material, order)
+            if d.within is not None:
+                return self._within_draw(d, material, order)
             return ir.Draw(ir.DrawKind.SCENE, material=material, order=order)
         if d.kind == "fullscreen":
             return ir.Draw(ir.DrawKind.FULLSCREEN)
@@ -151,6 +160,23 @@ class PassLowerer:
                         f"operations", "count them, e.g. `stencil back { func always zfail "
                         "incr_wrap }` and `stencil front { func always zfail decr_wrap }`")
         return ir.Draw(ir.DrawKind.SCENE, material=material, order=order, shadow_volumes=True)
+
+    def _within_draw(self, d: ast.Draw, material: tuple[str, ...],
+                     order: ir.DrawOrder) -> ir.Draw:
+        """``draw scene… within light radius``: in a ``repeat per light`` pass, each light's
+        draw submits only the objects whose bounds come within the light's radius (every object
+        for a directional light), as a multi-pass forward renderer selects them on the CPU."""
+        at = d.within.span
+        if self.group is None and self.single.get(ast.RepeatPerLight) is None:
+            raise error(at, f"pass '{self.name}' draws the objects within a light's radius but "
+                        f"does not repeat per light", "put it in a `repeat per light` group, "
+                        "or drop `within light radius`")
+        missing = [f for f in ("position", "radius") if self.low.lights.field_type(f) is None]
+        if missing:
+            raise error(at, f"`within light radius` needs the light field(s) "
+                        f"{', '.join(missing)}, which the lights schema lacks",
+                        "add them to `lights[N] { … }`")
+        return ir.Draw(ir.DrawKind.SCENE, material=material, order=order, within=True)
 
     def _light_set(self, d: ast.Draw) -> Optional[tuple[str, int]]:
         if d.light_set is None:

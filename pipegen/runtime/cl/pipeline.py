@@ -236,6 +236,8 @@ class CLPipeline:
         # per pass: its raster kernel draws a run of lights in one launch (``_batched``)
         self._batches = [cl_programs.batches_lights(plan, p, dynamic_state)
                          for p in plan.passes]
+        # per pass: its raster kernel skips the objects a light does not reach
+        self._reaches = [cl_programs.reaches_by_object(plan, p) for p in plan.passes]
         # repeat groups whose passes run as one launch (``group_launch``), built here too
         self.groups = GroupLauncher(self)
         self._host_first = os.environ.get("PIPEGEN_CL_HOST_FIRST", "0") == "1"   # ``_draw``
@@ -505,6 +507,7 @@ class CLPipeline:
         self._scene = scene
         self._selection = draws.LightSelection(self.plan, list(scene.lights))
         self.geometry.use_scene()
+        self._reach_bufs: dict = {}      # within light radius: per draw, its reach table
         capacity = max(1, self.plan.lights.capacity)
         fields = self.plan.lights.fields
         table = (light_rows(scene, fields, capacity, self.plan.lights.materials) if fields
@@ -630,6 +633,14 @@ class CLPipeline:
         if self._batches[k]:        # the run of lights (none: ``light`` alone)
             args += [dev.buffer(np.asarray(batch, np.uint32)) if batch else dev.dummy,
                      np.int32(len(batch) if batch else 0)]
+        if self._reaches[k]:        # within light radius: the object ids each light reaches
+            key = draws.scene_key(p.draw)
+            buf = self._reach_bufs.get(key)
+            if buf is None:
+                table = draws.reach_table(self._scene, p.draw)
+                buf = self._reach_bufs[key] = dev.buffer(table if table.size else
+                                                         np.zeros((1, 1), np.uint32))
+            args.append(buf)
         for name in p.writes:
             args.append(self._targets[name].buf)
         for name in p.writes:

@@ -321,6 +321,7 @@ class GLPipeline:
         self._scene = None              # the scene as drawn (runtime/common.scene_as_drawn)
         self._given = None              # the scene it was given
         self._scene_vbos: dict[tuple, tuple[moderngl.Buffer, int]] = {}
+        self._reach: dict[tuple, list] = {}     # within light radius: per draw, its light runs
         self._selection: Optional[draws.LightSelection] = None
         self._released = False
         if self.size is not None:
@@ -444,6 +445,7 @@ class GLPipeline:
         for buf, _ in self._scene_vbos.values():
             buf.release()
         self._scene_vbos = {}
+        self._reach = {}
         lights = list(scene.lights)
         self._selection = draws.LightSelection(self.plan, lights)
         self._lights = lights
@@ -472,6 +474,21 @@ class GLPipeline:
             buf = self.ctx.buffer(data.tobytes() if len(data) else b"\0" * SCENE_STRIDE)
             self._scene_vbos[key] = (buf, len(data))
         return self._scene_vbos[key]
+
+    def _reached_runs(self, draw: ir.Draw, light: int) -> list[tuple[int, int]]:
+        """``within light radius``: the runs of the draw's vertices that submit the objects
+        light ``light`` reaches (``draws.reach_table``), once per scene, draw and light."""
+        key = draws.scene_key(draw)
+        runs = self._reach.get(key)
+        if runs is None:
+            g = draws.scene_geometry(self._scene, draw)
+            tri_ids = np.floor(np.asarray(g.ids, np.float32)[2::3, 0].astype(np.float64) + 0.5)
+            runs = self._reach[key] = [None] * len(self._lights)
+            self._reach[key + ("table",)] = (draws.reach_table(self._scene, draw), tri_ids)
+        if runs[light] is None:
+            table, tri_ids = self._reach[key + ("table",)]
+            runs[light] = draws.reached_runs(table, light, tri_ids)
+        return runs[light]
 
     def _mesh(self, volume: str) -> moderngl.Buffer:
         if volume not in self._meshes:
@@ -666,7 +683,10 @@ class GLPipeline:
             _, count = self._scene_vbo(p.draw, light)
             if p.draw.shadow:       # the light's tile of the atlas, seen from the light
                 self._shadow_view(p, light, w, h)
-            if count:
+            if count and p.draw.within and light is not None:
+                for first, n in self._reached_runs(p.draw, light):
+                    vao.render(moderngl.TRIANGLES, vertices=n, first=first)
+            elif count:
                 vao.render(moderngl.TRIANGLES, vertices=count)
             if p.draw.shadow:
                 tracker.scissor(None)
