@@ -42,8 +42,9 @@ CL_RESERVED = frozenset("""
     isnan isinf isless isgreater copysign vload_half vstore_half
 """.split())
 
-# stage input -> OpenCL expression (``in`` is the fragment context, see cl_pass.cl.j2)
-INPUTS = {
+# stage input -> OpenCL expression (``in`` is the fragment context, see cl_pass.cl.j2), the
+# frame's values through its pointer
+_FRAME_INPUTS = {
     "frag_coord": "in->frag_coord", "camera_pos": "in->frame->camera_pos.xyz",
     "view": "in->frame->view", "proj": "in->frame->proj", "inv_view": "in->frame->inv_view",
     "inv_proj": "in->frame->inv_proj", "output_size": "in->frame->output_size.xy",
@@ -51,6 +52,8 @@ INPUTS = {
     "num_lights": "in->frame->num_lights", "ambient": "in->frame->ambient.xyz",
     "light_index": "in->light",
 }
+# float32: the frame's vectors from ``in`` (loaded once by the raster kernel, cl_pass.cl.j2)
+INPUTS = {**_FRAME_INPUTS, "camera_pos": "in->camera_pos", "ambient": "in->ambient"}
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -350,7 +353,7 @@ for _k in (2, 3, 4):
 _TYPE_NAMES64[ir.MAT3] = "pg_dmat3"
 _TYPE_NAMES64[ir.MAT4] = "pg_dmat4"
 
-INPUTS64 = {k: v.replace("in->frame->", "in->frame64->") for k, v in INPUTS.items()}
+INPUTS64 = {k: v.replace("in->frame->", "in->frame64->") for k, v in _FRAME_INPUTS.items()}
 INPUTS64["frag_coord"] = "in->frag_coord"
 
 
