@@ -117,6 +117,20 @@ at 512x384 since before d3b7532), one run at each size (load 0.6-0.9), CL:
 
 All nine within 2x of the paper at 512x384; at the paper's own size eight, bit planes at 4
 lights per pixel 6.4x against the 6.2x allowed (6.3x and 6.8x in two runs before 93baf7a).
+
+At 6b360e6 multi-pass forward draws per light only the objects within its radius, as the
+paper's does (``draw scene.opaque within light radius``: "Object->Light interactions ...
+calculated on the CPU"), and the CL raster kernel loads the camera position once, so the view
+vector leaves the light loop.  Two runs at the paper's size (load 1.8-2.2), CL:
+
+    lights/px  paper   --scale 1.0 (1024x768)
+                       sort      stencil   planes
+    1          6.8x    8.7-8.8x  6.2-6.3x  9.1x
+    2          5.2x    7.2-7.5x  4.9-5.2x  7.8-8.1x
+    4          3.1x    4.9-5.1x  3.4-3.5x  5.1-5.3x
+    multi-pass forward: 358-365 ms (GL 1252-1257 ms; 2313 ms drawing every object)
+
+All nine within 2x of the paper (and above half of it) at its own size.
 """
 
 from __future__ import annotations
