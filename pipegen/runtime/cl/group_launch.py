@@ -33,6 +33,7 @@ from typing import Callable, Iterator, Optional
 import numpy as np
 
 from pipegen.backends.opencl.group import fusable, group_members, group_program, shared_param
+from pipegen.runtime import draws
 from pipegen.runtime.cl import context as cl_context
 
 __all__ = ["GroupLauncher", "enabled"]
@@ -95,7 +96,8 @@ class GroupLauncher:
         member = {k: i for i, k in enumerate(gp.members)}
         if any(not isinstance(light, (int, np.integer)) for _, light in steps):
             return None
-        sizes = {pipe._pass_size(passes[k]) for k, _ in steps}
+        ks = list(dict.fromkeys(k for k, _ in steps))     # the members drawn, in step order
+        sizes = {pipe._pass_size(passes[k]) for k in ks}
         if len(sizes) != 1:
             return None
         if any(c is not None for c in gp.clears) and gp.clears[member[steps[0][0]]] is None:
@@ -106,9 +108,12 @@ class GroupLauncher:
         timings = []
         for k, light in steps:
             timings.append({"pass": passes[k].name, "light": light, "fused": True})
-        for k in dict.fromkeys(k for k, _ in steps):
+        for k in ks:
             p = passes[k]
-            lights = [int(l) for kk, l in steps if kk == k and selection.instance(p, l)]
+            # the lights its executions draw (``LightSelection.instance``: all of them, or
+            # those of the draw's filter), once per member rather than per execution
+            keep = selection.members(p.draw) if draws.light_filter(p.draw) else None
+            lights = [int(l) for kk, l in steps if kk == k and (keep is None or l in keep)]
             if not lights:
                 continue
             if list(geometry._light_batch(k, p, lights)) != lights:
@@ -141,8 +146,14 @@ class GroupLauncher:
             hi = np.maximum.reduceat(bb[:, 2:], spans[:, 0])
             x0, y0 = np.clip(lo // T, 0, None).T
             x1, y1 = np.minimum(hi // T, (tiles_x - 1, tiles_y - 1)).T
-            for a, b, c, d in zip(x0, y0, x1, y1):
-                hit[b:d + 1, a:c + 1] = True
+            ok = (x0 <= x1) & (y0 <= y1)
+            # each light's rectangle of tiles, as +1/-1 at its corners summed over both axes
+            # (one numpy pass for all the lights, not a slice assignment each)
+            corners = np.zeros((tiles_y + 1, tiles_x + 1), np.int32)
+            for ys, xs, sign in ((y0, x0, 1), (y0, x1 + 1, -1), (y1 + 1, x0, -1),
+                                 (y1 + 1, x1 + 1, 1)):
+                np.add.at(corners, (ys[ok], xs[ok]), sign)
+            hit |= corners.cumsum(0).cumsum(1)[:tiles_y, :tiles_x] > 0
         return np.flatnonzero(hit.ravel()).astype(np.int32)
 
     def _launch(self, gp, kernel, steps: list, drawn: dict, member: dict, timing: dict,
@@ -150,8 +161,10 @@ class GroupLauncher:
         import pyopencl as cl
         pipe = self.pipe
         dev, store = pipe.device, pipe.store
-        for k, _ in steps:
-            store.begin_pass(k)        # nothing without alias (``_prepare`` checks)
+        # nothing without alias (``_prepare`` checks); each member once, in pass order: a
+        # pass's clears are those of targets whose lifetime starts by it, the same set
+        for k in sorted({k for k, _ in steps}):
+            store.begin_pass(k)
         for name, c in pipe.plan.passes[steps[0][0]].clears:   # the first clear, everywhere
             store.clear_for_pass(name, c)
         if not drawn:
@@ -167,9 +180,13 @@ class GroupLauncher:
                                      pipe._frame_buf, pipe._frame64_buf)
             values[i] = v = dict(zip([n for _, n in gp.signatures[i]], args))
             shared.update({n: x for n, x in v.items() if shared_param(n)})
-        rows = np.array([(member[k], light, 0,
-                          0 if gp.clears[member[k]] is None else gp.clears[member[k]] + 1)
-                         for k, light in steps], np.int32)
+        # (member, light, 0, 1 + stencil clear value or 0) per step, from lookups by pass
+        ks, lights = np.array(steps, np.int64).reshape(-1, 2).T
+        by_pass = np.zeros((max(member) + 1, 2), np.int32)
+        for k, i in member.items():
+            by_pass[k] = (i, 0 if gp.clears[i] is None else gp.clears[i] + 1)
+        rows = np.zeros((len(steps), 4), np.int32)
+        rows[:, 0], rows[:, 1], rows[:, 3] = by_pass[ks, 0], lights, by_pass[ks, 1]
         args = [dev.buffer(tiles), dev.buffer(rows), np.int32(len(steps))]
         empty = None
         for i, name in gp.params:
