@@ -158,8 +158,8 @@ def test_gl_submits_fewer_vertices_per_light():
     scene = load_scene(MANY)
     table = draws.reach_table(scene, DRAW)
     g = draws.scene_geometry(scene, DRAW)
-    tri_ids = np.floor(np.asarray(g.ids, np.float32)[2::3, 0].astype(np.float64) + 0.5)
-    counts = [sum(n for _, n in draws.reached_runs(table, i, tri_ids))
+    object_ids = draws.triangle_ids(g)[:, 0]
+    counts = [sum(n for _, n in draws.reached_runs(table, i, object_ids))
               for i in range(len(scene.lights))]
     assert max(counts) < g.vertex_count // 2 and min(counts) > 0
 

@@ -581,6 +581,7 @@ class DrawOrder(enum.Enum):
 # 8 uint32 words per light (object ids are 0..255: a triangle's flat word, scene/model.py)
 REACH_WORDS = 8
 
+
 @record(frozen=True)
 class Draw:
     kind: DrawKind

@@ -246,6 +246,13 @@ def reach_table(scene, draw: ir.Draw) -> np.ndarray:
     return table
 
 
+def triangle_ids(geometry) -> np.ndarray:
+    """Per triangle of a scene draw's geometry (``scene_geometry``), (object id, normal group)
+    as both runtimes' shaders read them: the provoking (last) vertex's ``uvec2(a_ids + 0.5)``."""
+    return np.floor(np.asarray(geometry.ids, np.float32)[2::3].astype(np.float64)
+                    + 0.5).astype(np.uint32)
+
+
 def reaches(table: np.ndarray, light: int, ids: np.ndarray) -> np.ndarray:
     """Whether light ``light`` of a ``reach_table`` reaches each object id of ``ids``."""
     ids = np.asarray(ids, np.int64)

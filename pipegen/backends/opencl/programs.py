@@ -20,8 +20,8 @@ from pipegen.backends.cstyle import FLT_MIN
 from pipegen.backends.plan import CLPassCode, PassPlan, Plan
 from pipegen.backends.opencl import wide as cl_wide
 from pipegen.backends.opencl.abi import (
-    SCENE_FLAT, SETUP_CULL, SUBPIXEL, TILE, enum_defines, inside_func, sample_positions,
-    scene_varying_slots, state_values, varying_slots)
+    SAMPLE_POSITIONS, SCENE_FLAT, SETUP_CULL, SMALL_BOX, SUBPIXEL, TILE, enum_defines,
+    inside_func, sample_positions, scene_varying_slots, state_values, varying_slots)
 from pipegen.backends.opencl.dialect import OpenCLLanguage, dialect
 from pipegen.backends.opencl.expansions import prelude_forms
 from pipegen.backends.opencl.formats import (
@@ -250,10 +250,14 @@ def setup_program(cull: str, depth_clamp: bool, samples: Optional[int], has_flat
     """The device set-up program (``cl_setup.cl.j2``: ``pg_setup``, ``pg_clip_setup``) for one
     combination of the set-up's switches (``runtime/cl/setup_device.py``)."""
     lo, hi = (SUBPIXEL // 2, SUBPIXEL // 2) if samples == 1 else (SUBPIXEL - 1, 1)
+    # a small triangle covering none of its box's samples is dropped (abi.SMALL_BOX):
+    # where the pass's sample positions are known
+    sx, sy = sample_positions(samples) if samples in SAMPLE_POSITIONS else ([], [])
     return templating.render(
         "cl_setup.cl.j2", cull=SETUP_CULL[cull], depth_clamp=int(depth_clamp), box_lo=lo,
         box_hi=hi, has_flat=int(has_flat), has_scissor=int(has_scissor), w_plane=int(w_plane),
-        with_zq=int(with_zq), smooth=list(smooth), slots=int(slots))
+        with_zq=int(with_zq), smooth=list(smooth), slots=int(slots), sample_x=sx,
+        sample_y=sy, small_box=SMALL_BOX)
 
 
 @functools.lru_cache(maxsize=None)

@@ -279,10 +279,8 @@ class DrawGeometry:
             if n == 0:
                 self.scene_attrs[material] = None
             else:
-                ids = np.floor(np.asarray(g.ids, np.float32)[2::3].astype(np.float64)
-                               + 0.5).astype(np.uint32)            # uvec2(a_ids + 0.5), flat
                 flat = np.zeros((n // 3, 4), np.uint32)
-                flat[:, 1:3] = ids
+                flat[:, 1:3] = draws.triangle_ids(g)             # uvec2(a_ids + 0.5), flat
                 layer = getattr(g, "layer", None)          # uint(a_layer + 0.5), flat
                 if layer is not None:
                     flat[:, 3] = np.floor(np.asarray(layer, np.float32)[2::3].astype(np.float64)
@@ -918,6 +916,7 @@ class DrawGeometry:
             v.job = self.device_setup.enqueue(
                 clip_bufs[0], v.vary_buf, nverts // 3, nverts, width, height, cull=v.cull,
                 depth_clamp=p.state.depth.clamp, flat=v.flat, scissor=v.scissor,
+                samples=_box_samples(center),
                 smooth=tuple(i for i, f in enumerate(v.flats) if not f), pixel_center=center,
                 w_plane=v.w_plane, viewport=None if shadow is None else shadow.rect,
                 with_zq=center == 0.0, slots=len(v.names), stride=v.vstride,
@@ -961,6 +960,7 @@ class DrawGeometry:
             tris = setup_triangles(v.clip, width, height, cull=v.cull, polygon_offset=_offset(p),
                                    depth_clamp=p.state.depth.clamp, depth_format=dfmt,
                                    flat=v.flat, vary=v.vary, scissor=v.scissor,
+                                   samples=_box_samples(center),
                                    smooth=[i for i, f in enumerate(v.flats) if not f],
                                    pixel_center=center, w_plane=v.w_plane, viewport=viewport,
                                    with_zp=self.f64, with_zq=self.f64 or center == 0.0)
@@ -1077,6 +1077,14 @@ def _drawn(geo: Geo, spans: np.ndarray, cull: ir.CullMode) -> np.ndarray:
     fronts = np.concatenate([[0], np.cumsum(geo.front)])
     front = fronts[spans[:, 1]] - fronts[spans[:, 0]]
     return front if keep else drawn - front
+
+
+def _box_samples(center: float) -> Optional[int]:
+    """The samples per pixel a set-up's boxes are for: 1 for the single-sampled passes (pixel
+    centre 0.5: the raster key keeps them apart), whose boxes then hold pixel centres and whose
+    small triangles covering none are dropped (``abi.SMALL_BOX``); None for the multisampled
+    ones, which share a set-up whatever their sample count (any sample position)."""
+    return 1 if center == 0.5 else None
 
 
 def _offset(p: PassPlan):

@@ -63,6 +63,7 @@ from typing import Optional
 import numpy as np
 
 from pipegen.backends.opencl.abi import SUBPIXEL  # 1/256 pixel, one place for it
+from pipegen.backends.opencl.abi import SAMPLE_POSITIONS, SMALL_BOX, sample_positions
 
 
 @dataclass
@@ -640,6 +641,36 @@ def _snap(v: np.ndarray) -> np.ndarray:
     return np.rint(t, out=t).astype(np.int64)
 
 
+def covers_a_sample(X: np.ndarray, Y: np.ndarray, area: np.ndarray, x0, y0, x1, y1,
+                    samples: int) -> np.ndarray:
+    """Whether each triangle (snapped vertices ``X``, ``Y``: (3, n) in 1/256 pixel; nonzero
+    ``area``) covers a sample of a pixel of its box ``x0..x1``, ``y0..y1`` (at most
+    ``SMALL_BOX`` pixels), by the raster kernel's own test: its edge functions, with the
+    int32 coefficients it reads, at ``sample_positions(samples)``, top-left edges inclusive
+    (cl_setup.cl.j2's setup_tri tests the same way)."""
+    s = np.sign(area)
+    E = []
+    for i1, i2 in ((1, 2), (2, 0), (0, 1)):
+        a = ((Y[i1] - Y[i2]) * s).astype(np.int32).astype(np.int64)
+        b = ((X[i2] - X[i1]) * s).astype(np.int32).astype(np.int64)
+        c = -((Y[i1] - Y[i2]) * s * X[i1] + (X[i2] - X[i1]) * s * Y[i1])
+        E.append((a, b, c, ((a > 0) | ((a == 0) & (b > 0))).astype(np.int64)))
+    w = x1 - x0 + 1
+    n_px = w * (y1 - y0 + 1)
+    got = np.zeros(len(area), bool)
+    sx, sy = sample_positions(samples)
+    for j in range(int(n_px.max()) if len(n_px) else 0):
+        inside = j < n_px
+        px, py = x0 + j % w, y0 + j // w
+        for dx, dy in zip(sx, sy):
+            xs, ys = px * SUBPIXEL + dx, py * SUBPIXEL + dy
+            hit = inside.copy()
+            for a, b, c, inclusive in E:
+                hit &= a * xs + b * ys + c >= 1 - inclusive
+            got |= hit
+    return got
+
+
 def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "none",
                     polygon_offset=None, depth_clamp: bool = False,
                     depth_format: Optional[str] = None, flat: Optional[np.ndarray] = None,
@@ -723,6 +754,11 @@ def setup_triangles(clip: np.ndarray, width: int, height: int, *, cull: str = "n
         np.minimum(x1, W - 1, out=x1)
         np.minimum(y1, H - 1, out=y1)
     keep &= (x0 <= x1) & (y0 <= y1)
+    if samples in SAMPLE_POSITIONS:
+        small = np.flatnonzero(keep & ((x1 - x0 + 1) * (y1 - y0 + 1) <= SMALL_BOX))
+        if len(small):
+            keep[small] = covers_a_sample(X[:, small], Y[:, small], area[small], x0[small],
+                                          y0[small], x1[small], y1[small], samples)
     if not keep.all():
         idx = np.flatnonzero(keep)
         X, Y, xw, yw, vid = (np.take(v, idx, axis=1) for v in (X, Y, xw, yw, vid))

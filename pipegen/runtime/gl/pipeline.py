@@ -321,7 +321,7 @@ class GLPipeline:
         self._scene = None              # the scene as drawn (runtime/common.scene_as_drawn)
         self._given = None              # the scene it was given
         self._scene_vbos: dict[tuple, tuple[moderngl.Buffer, int]] = {}
-        self._reach: dict[tuple, list] = {}     # within light radius: per draw, its light runs
+        self._reach: dict[tuple, tuple] = {}    # within light radius: per draw, its light runs
         self._selection: Optional[draws.LightSelection] = None
         self._released = False
         if self.size is not None:
@@ -479,15 +479,13 @@ class GLPipeline:
         """``within light radius``: the runs of the draw's vertices that submit the objects
         light ``light`` reaches (``draws.reach_table``), once per scene, draw and light."""
         key = draws.scene_key(draw)
-        runs = self._reach.get(key)
-        if runs is None:
-            g = draws.scene_geometry(self._scene, draw)
-            tri_ids = np.floor(np.asarray(g.ids, np.float32)[2::3, 0].astype(np.float64) + 0.5)
-            runs = self._reach[key] = [None] * len(self._lights)
-            self._reach[key + ("table",)] = (draws.reach_table(self._scene, draw), tri_ids)
+        if key not in self._reach:
+            object_ids = draws.triangle_ids(draws.scene_geometry(self._scene, draw))[:, 0]
+            self._reach[key] = (draws.reach_table(self._scene, draw), object_ids,
+                                [None] * len(self._lights))
+        table, object_ids, runs = self._reach[key]
         if runs[light] is None:
-            table, tri_ids = self._reach[key + ("table",)]
-            runs[light] = draws.reached_runs(table, light, tri_ids)
+            runs[light] = draws.reached_runs(table, light, object_ids)
         return runs[light]
 
     def _mesh(self, volume: str) -> moderngl.Buffer:
