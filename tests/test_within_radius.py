@@ -189,8 +189,9 @@ def test_a_false_claim_shows_against_the_float64_evaluation(tmp_path):
     claimed.write_text(OWN.format(within="within light radius", falloff=LINGERS))
     assert_close_to_f64(honest, scene, backends=("cl",))
     assert_backends_agree(claimed, scene)
-    with pytest.raises(AssertionError, match="float64 evaluation"):
+    with pytest.raises(AssertionError, match="float64 evaluation") as e:
         assert_close_to_f64(claimed, scene, backends=("cl",))
+    assert "only the objects within each light's radius" in str(e.value)
 
 
 def _compile_error(text: str) -> str:

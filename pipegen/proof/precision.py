@@ -149,6 +149,19 @@ def precision_check(compiled, scene, backends: tuple[str, ...] = F32_BACKENDS,
     return PrecisionResult(compiled.name, rows, parts, outputs=outputs, why=why)
 
 
+def within_note(compiled, result) -> Optional[str]:
+    """Where a target is over its bound and some pass draws ``within light radius``: that the
+    float64 evaluation draws every object for every light, so the error may be light the pass
+    adds beyond the radius, which the float32 backends leave out (docs/language.md)."""
+    passes = [p.name for p in compiled.technique.passes if p.draw.within]
+    if not passes or all(r.passed for rows in result.rows.values() for r in rows):
+        return None
+    return (f"pass{'es' if len(passes) > 1 else ''} {', '.join(passes)} draw"
+            f"{'' if len(passes) > 1 else 's'} only the objects within each light's radius "
+            f"(`within light radius`), the float64 evaluation every object: an error over the "
+            f"bound may be light the pass adds beyond the radius, which its output must not do")
+
+
 def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
                          reference=None) -> int:
     """``pipegen check --precision f64``: the precision error of every target on each float32
@@ -175,6 +188,9 @@ def main_precision_check(compiled, scene, out_dir: Optional[Path] = None,
         for w in result.why:
             if f" ({b}) " in w:
                 print(f"  why: {w}")
+    note = within_note(compiled, result)
+    if note:
+        print(f"\nnote: {note}")
     from pipegen.proof.check import off_model_notes
     notes = off_model_notes([b for b in result.rows if b in registry.BACKENDS])
     if notes:

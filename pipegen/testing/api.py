@@ -355,8 +355,10 @@ def assert_close_to_f64(technique: TechniqueLike, scene: SceneLike = None,
             made.append(c)
             failed.append(c)
     if failed:
-        _fail(f"{compiled.name}: not within the bound of its float64 evaluation ({command})",
-              failed, made)
+        from pipegen.proof.precision import within_note
+        note = within_note(compiled, result)
+        _fail(f"{compiled.name}: not within the bound of its float64 evaluation ({command})"
+              + (f"; {note}" if note else ""), failed, made)
     return result
 
 
