@@ -62,10 +62,18 @@ class Geo:
         self.index = index        # the buffers' row of each triangle (None: the same)
         self.ranges: dict = {}
         self.front = (tris.flat[:, 0] & 1).astype(bool)
+        self._fronts: Optional[np.ndarray] = None
         self.ncoef = tris.coef.shape[1]
         self.names: list = []        # scene draws: the varyings set up, in slot order
         self.flats: list = []
         self.setup_cull = "none"     # the faces the set-up culled (a light draw: _light_cull)
+
+    def fronts_before(self) -> np.ndarray:
+        """(count + 1,): how many front faces precede each triangle (and all of them last),
+        found once: each pass drawing a light range counts its culled faces from it."""
+        if self._fronts is None:
+            self._fronts = np.concatenate([[0], np.cumsum(self.front)])
+        return self._fronts
 
 
 class _Vertices:
@@ -1074,7 +1082,7 @@ def _drawn(geo: Geo, spans: np.ndarray, cull: ir.CullMode) -> np.ndarray:
     keep = _KEEPS_FRONT.get(cull)
     if keep is None:
         return drawn
-    fronts = np.concatenate([[0], np.cumsum(geo.front)])
+    fronts = geo.fronts_before()
     front = fronts[spans[:, 1]] - fronts[spans[:, 0]]
     return front if keep else drawn - front
 

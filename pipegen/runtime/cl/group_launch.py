@@ -134,7 +134,11 @@ class GroupLauncher:
         T = self.pipe.tile
         tiles_x, tiles_y = -(-width // T), -(-height // T)
         hit = np.zeros((tiles_y, tiles_x), bool)
+        seen = set()
         for geo, _, _, lights in drawn.values():
+            if (id(geo), tuple(lights)) in seen:   # deferred's shading: its marking's lights
+                continue
+            seen.add((id(geo), tuple(lights)))
             spans = np.array([geo.ranges[l] for l in lights if l in geo.ranges], np.int64)
             spans = spans[spans[:, 1] > spans[:, 0]] if len(spans) else spans
             if not len(spans):
@@ -147,13 +151,14 @@ class GroupLauncher:
             x0, y0 = np.clip(lo // T, 0, None).T
             x1, y1 = np.minimum(hi // T, (tiles_x - 1, tiles_y - 1)).T
             ok = (x0 <= x1) & (y0 <= y1)
+            x0, y0, x1, y1 = x0[ok], y0[ok], x1[ok] + 1, y1[ok] + 1
             # each light's rectangle of tiles, as +1/-1 at its corners summed over both axes
-            # (one numpy pass for all the lights, not a slice assignment each)
-            corners = np.zeros((tiles_y + 1, tiles_x + 1), np.int32)
-            for ys, xs, sign in ((y0, x0, 1), (y0, x1 + 1, -1), (y1 + 1, x0, -1),
-                                 (y1 + 1, x1 + 1, 1)):
-                np.add.at(corners, (ys[ok], xs[ok]), sign)
-            hit |= corners.cumsum(0).cumsum(1)[:tiles_y, :tiles_x] > 0
+            # (one count for all the lights, not a slice assignment each)
+            w = tiles_x + 1
+            at = np.concatenate([y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1])
+            sign = np.repeat(np.array([1.0, -1.0, -1.0, 1.0]), len(x0))
+            corners = np.bincount(at, sign, (tiles_y + 1) * w).reshape(tiles_y + 1, w)
+            hit |= corners.cumsum(0).cumsum(1)[:tiles_y, :tiles_x] > 0.5
         return np.flatnonzero(hit.ravel()).astype(np.int32)
 
     def _launch(self, gp, kernel, steps: list, drawn: dict, member: dict, timing: dict,
