@@ -246,6 +246,7 @@ class CLPipeline:
         self._presets: dict = {}
         self._scene = None              # the scene as drawn (runtime/common.scene_as_drawn)
         self._given = None              # the scene it was given
+        self._frame_key = None          # ``_frame_for``: the scene and size its structs are for
         self._selection: Optional[draws.LightSelection] = None
         self._events: list = []
         # the float64 evaluation: the last frame's (depth target, set-up triangles, the pixel
@@ -282,6 +283,7 @@ class CLPipeline:
         self.device = None
         self.clamp_counters = None
         self._events = []
+        self._frame_key = None
         for name in ("_frame_buf", "_frame64_buf", "_lights_buf", "_lights64_buf",
                      "_nudges_buf"):
             if hasattr(self, name):
@@ -357,6 +359,21 @@ class CLPipeline:
     def target_size(self, name: str, out_w: int, out_h: int) -> tuple[int, int]:
         return self.targets_spec[name].resolve(out_w, out_h)
 
+    def _frame_for(self, scene) -> tuple:
+        """(view, projection) of the frame's camera, its frame structs and their device
+        buffers set: made again only when the scene or the output size changed since the last
+        frame (a scene is immutable: ``_use_scene`` keeps its set-up by identity alike), else
+        those of the last frame, read-only on the device (~0.15 ms of host work a frame)."""
+        key = self._frame_key
+        if key is not None and key[0] is scene and key[1] == self._out \
+                and self._frame_buf is not None:
+            return key[2]
+        self._frame_np, self._frame64_np, view, proj = self._frame(scene)
+        self._frame_buf = self.device.buffer(self._frame_np)
+        self._frame64_buf = self.device.buffer(self._frame64_np) if self.f64 else None
+        self._frame_key = (scene, self._out, (view, proj))
+        return view, proj
+
     def _frame(self, scene, light: int = 0) -> tuple:
         """(``pg_frame`` struct, ``pg_frame64`` struct or None without the float64 evaluation,
         view matrix, projection matrix) of the frame's camera."""
@@ -398,9 +415,7 @@ class CLPipeline:
         self._timings, self._timings_pending = [], False
         self.depth_draws = []
         self._events = []
-        self._frame_np, self._frame64_np, view, proj = self._frame(scene)
-        self._frame_buf = self.device.buffer(self._frame_np)
-        self._frame64_buf = self.device.buffer(self._frame64_np) if self.f64 else None
+        view, proj = self._frame_for(scene)
         self.geometry.begin_frame(FrameState(
             scene=scene, selection=self._selection, view=view, proj=proj,
             frame_buf=self._frame_buf, frame64_buf=self._frame64_buf, lights_buf=self._lights_buf,
