@@ -62,8 +62,8 @@ from typing import Optional
 
 import numpy as np
 
-from pipegen.backends.opencl.abi import SUBPIXEL  # 1/256 pixel, one place for it
-from pipegen.backends.opencl.abi import SAMPLE_POSITIONS, SMALL_BOX, sample_positions
+# SUBPIXEL: 1/256 pixel, one place for it; the samples a small triangle's box is tested at
+from pipegen.backends.opencl.abi import SAMPLE_POSITIONS, SMALL_BOX, SUBPIXEL, sample_positions
 
 
 @dataclass
