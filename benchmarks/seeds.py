@@ -131,7 +131,7 @@ vector leaves the light loop.  Two runs at the paper's size (load 1.8-2.2), CL:
     multi-pass forward: 358-365 ms (GL 1252-1257 ms; 2313 ms drawing every object)
 
 All nine within 2x of the paper (and above half of it) at its own size.  Two more runs at
-8b8de3e (small triangles covering no sample dropped at set-up, for LIDR and multi-pass alike),
+2a5635c (small triangles covering no sample dropped at set-up, for LIDR and multi-pass alike),
 load 1.3: 9.0-9.4x / 6.6-6.7x / 9.9-10.1x, 7.6-8.0x / 5.5-5.7x / 8.4-8.7x, 5.2x / 3.6x /
 5.4-5.5x; multi-pass forward 366-370 ms (GL 1246-1254 ms).
 """
