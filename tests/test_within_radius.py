@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pipegen.backends.plan import REACH_WORDS
 from pipegen.ir import nodes as ir
 from pipegen.runtime import draws
 from pipegen.scene import load_scene
@@ -85,7 +86,7 @@ def test_an_object_left_out_lies_beyond_the_light_radius(path, share):
 
 
 def test_reached_runs_submit_exactly_the_reached_triangles():
-    table = np.zeros((1, ir.REACH_WORDS), np.uint32)
+    table = np.zeros((1, REACH_WORDS), np.uint32)
     table[0, 0] = 0b1010          # ids 1 and 3
     table[0, 7] = 1 << 31         # id 255
     ids = np.array([0, 1, 1, 2, 3, 3, 3, 0, 255, 1])
@@ -98,7 +99,7 @@ def _render_pair(compiled, scene, backend, monkeypatch):
     with_selection = compiled.pipeline(backend).render(scene)
     with monkeypatch.context() as m:
         m.setattr(draws, "reach_table", lambda s, d: np.full(
-            (len(s.lights), ir.REACH_WORDS), 0xFFFFFFFF, np.uint32))
+            (len(s.lights), REACH_WORDS), 0xFFFFFFFF, np.uint32))
         every = compiled.pipeline(backend).render(scene)
     return with_selection, every
 
@@ -107,7 +108,7 @@ def _nothing(compiled, scene, backend, monkeypatch):
     """The image with no light reaching any object."""
     with monkeypatch.context() as m:
         m.setattr(draws, "reach_table", lambda s, d: np.zeros(
-            (len(s.lights), ir.REACH_WORDS), np.uint32))
+            (len(s.lights), REACH_WORDS), np.uint32))
         return compiled.pipeline(backend).render(scene)
 
 

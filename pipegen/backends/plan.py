@@ -28,6 +28,12 @@ from pipegen.ir.facts import (
     sampled_targets, shades_per_sample, stage_inputs)
 
 
+# ``draw scene… within light radius``: the object ids each light reaches, as both runtimes hold
+# them (runtime/draws.py's reach_table; the CL raster kernel's pg_reach): bits of 8 uint32
+# words per light, object ids being 0..255 (a triangle's flat word, scene/model.py)
+REACH_WORDS = 8
+
+
 # ---- the typed plan ------------------------------------------------------------------------
 
 

@@ -577,11 +577,6 @@ class DrawOrder(enum.Enum):
     BACK_TO_FRONT = "back_to_front"  # farthest object first (view depth of its bounds centre)
 
 
-# ``within light radius``: the object ids a light reaches, as the runtimes pass them: bits of
-# 8 uint32 words per light (object ids are 0..255: a triangle's flat word, scene/model.py)
-REACH_WORDS = 8
-
-
 @record(frozen=True)
 class Draw:
     kind: DrawKind

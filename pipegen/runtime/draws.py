@@ -22,7 +22,7 @@ from typing import Iterator, Optional, Sequence
 import numpy as np
 
 from pipegen.ir import nodes as ir
-from pipegen.backends.plan import PassPlan, Plan
+from pipegen.backends.plan import REACH_WORDS, PassPlan, Plan
 
 LIGHT_TYPE_CODES = {0: "point", 1: "spot", 2: "directional"}
 
@@ -202,7 +202,6 @@ def scene_key(draw: ir.Draw, light: Optional[int] = None) -> tuple:
     return (draw.material, draw.order)
 
 
-REACH_WORDS = ir.REACH_WORDS
 # how much farther than its radius a light is taken to reach: the fragment's float32 world
 # position and distance, and the interpolation, err by ~1e-6 of the coordinates; an object
 # left out must lie beyond where ``clamp(1 - d*d / (r*r), 0, 1)`` can round to above 0

@@ -17,7 +17,7 @@ from pipegen.ir.builtins import PREVIOUS_FRAME_INPUTS, reads_nudges
 from pipegen.ir.light_layout import schema_layout
 from pipegen.backends import templating
 from pipegen.backends.cstyle import FLT_MIN
-from pipegen.backends.plan import CLPassCode, PassPlan, Plan
+from pipegen.backends.plan import REACH_WORDS, CLPassCode, PassPlan, Plan
 from pipegen.backends.opencl import wide as cl_wide
 from pipegen.backends.opencl.abi import (
     SAMPLE_POSITIONS, SCENE_FLAT, SETUP_CULL, SMALL_BOX, SUBPIXEL, TILE, enum_defines,
@@ -183,7 +183,7 @@ def pass_program(plan: Plan, pass_: PassPlan, dynamic: bool = False, tile: int =
         inside=inside_func(pass_) is not None, f64=f64, real="double" if f64 else "float",
         wide=wide, xbatch=xbatch, wide_helpers=cl_wide.wide_helpers() if wide else "",
         wide_w=cl_wide.W, batch=batch, once_wide=once_wide, per_sample="sample_id" in inputs,
-        reach=reach, reach_words=ir.REACH_WORDS,
+        reach=reach, reach_words=REACH_WORDS,
         mask_input="sample_mask" in inputs, nudges=nudges, row_fn=row_fn)
 
 
