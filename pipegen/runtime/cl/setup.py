@@ -36,7 +36,10 @@ window depth follow llvmpipe (Mesa 22.3) operation for operation, so depth codes
    in 1/256-pixel units, and the **top-left rule**: a pixel centre exactly on an edge belongs to
    the triangle when the edge's inward normal has A > 0, or A == 0 and B > 0 ("left" and, in GL
    window space with y up, "bottom" edges; measured on llvmpipe: it is the top-left rule of image
-   space with row 0 on top).
+   space with row 0 on top).  A triangle whose box holds at most ``SMALL_BOX`` pixels is
+   tested with these at each of their samples, where the pass's sample positions are known
+   (``samples``), and dropped where it covers none (``covers_a_sample``; the device set-up
+   tests the same way): it would draw nothing.
 6. **polygon offset** as lp_do_offset_tri, in float32 from the same setup values:
    ``factor * max(|dz/dx|, |dz/dy|) + units * r`` with r = (float)(2 / (2^24 - 1)) for d24 (one
    unit is two codes) and 2^(e - 23) for d32f (e = exponent of the triangle's largest |z|),
